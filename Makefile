@@ -1,0 +1,37 @@
+# The two commands of the README: `make report` and `make test`.
+# Both create .venv from environment.lock when it is missing (or the lock changed),
+# install the package itself without dependencies, then run.
+
+PYTHON ?= $(shell command -v python3.11 2>/dev/null || command -v python3)
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+CORES  ?= all
+
+.PHONY: report test quick bench venv lock clean
+
+venv: $(STAMP)
+
+$(STAMP): environment.lock pyproject.toml
+	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check --require-hashes --no-deps -r environment.lock
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation -e .
+	@touch $@
+
+report: $(STAMP)
+	$(BIN)/snakemake --profile workflow/profiles/default --cores $(CORES)
+
+quick: $(STAMP)
+	$(BIN)/snakemake --profile workflow/profiles/default --cores $(CORES) --configfile config/quick.yaml
+
+test: $(STAMP)
+	$(BIN)/python -m pytest
+
+bench: $(STAMP)
+	$(BIN)/python -m benchmarks
+
+lock:
+	uv pip compile requirements.in --python-version 3.11 --python-platform x86_64-unknown-linux-gnu --generate-hashes -o environment.lock
+
+clean:
+	rm -rf data reports .snakemake

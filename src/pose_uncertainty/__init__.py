@@ -1,0 +1,23 @@
+"""Pose uncertainty of a differential-drive robot on noisy wheel odometry.
+
+Three ways to the same question — how sure is the robot of its pose after
+driving a path — computed side by side:
+
+* :mod:`pose_uncertainty.covariance` — first-order covariance propagation
+  (Siegwart & Nourbakhsh) and its error ellipses;
+* :mod:`pose_uncertainty.maps` — probability maps from the velocity and
+  odometry motion models (Thrun, Burgard & Fox);
+* :mod:`pose_uncertainty.sampling` — Monte Carlo ground truth.
+
+Trajectories are built with :mod:`pose_uncertainty.trajectories`; the
+kinematics live in :mod:`pose_uncertainty.kinematics`.
+"""
+
+from importlib.metadata import PackageNotFoundError, version
+
+try:
+    __version__ = version("pose-uncertainty")
+except PackageNotFoundError:  # pragma: no cover - running from a source tree
+    __version__ = "0.0.0+unknown"
+
+__all__ = ["__version__"]

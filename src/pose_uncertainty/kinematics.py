@@ -1,0 +1,197 @@
+"""Differential-drive kinematics (SPEC §1.1–1.2), batched over leading dimensions.
+
+Conventions: SI units; a pose is ``(x, y, θ)`` with θ counter-clockwise from
+the x axis; headings along a path are kept *unwrapped* (cumulative), only
+differences of angles are wrapped to (−π, π].
+
+    V = (v_r + v_l)/2        ω = (v_r − v_l)/b        R = V/ω
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .validation import check_choice, check_finite, check_last_axis, check_positive
+
+__all__ = [
+    "METHODS",
+    "body_to_wheel",
+    "integrate",
+    "inverse_arc",
+    "step",
+    "wheel_to_body",
+    "wrap_angle",
+]
+
+Method = Literal["exact", "euler", "euler_end", "midpoint"]
+METHODS: tuple[str, ...] = ("exact", "euler", "euler_end", "midpoint")
+
+
+def wrap_angle(angle: ArrayLike) -> NDArray[np.float64]:
+    """Wrap angles to the half-open interval (−π, π].
+
+    Parameters
+    ----------
+    angle : array_like, any shape [rad]
+    """
+    a = np.asarray(angle, dtype=np.float64)
+    wrapped = np.mod(a + np.pi, 2.0 * np.pi) - np.pi
+    # mod maps +π to −π; the convention here is (−π, π]
+    return np.where(wrapped == -np.pi, np.pi, wrapped)
+
+
+def wheel_to_body(
+    v_r: ArrayLike, v_l: ArrayLike, track: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Wheel speeds (or travels) to body speed (or travel) and turn rate (or turn).
+
+    ``V = (v_r + v_l)/2``, ``ω = (v_r − v_l)/b``. Works equally for per-step
+    travels ``(Δs_r, Δs_l) → (Δs, Δθ)``.
+
+    Parameters
+    ----------
+    v_r, v_l : array_like [m/s or m], broadcastable
+    track : array_like [m], > 0 — wheel separation b
+    """
+    b = check_positive("track", track)
+    vr = check_finite("v_r", v_r)
+    vl = check_finite("v_l", v_l)
+    return (vr + vl) / 2.0, (vr - vl) / b
+
+
+def body_to_wheel(
+    V: ArrayLike, omega: ArrayLike, track: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Body speed and turn rate to wheel speeds: ``v_r = V + ωb/2``, ``v_l = V − ωb/2``.
+
+    Parameters
+    ----------
+    V : array_like [m/s]; omega : array_like [rad/s]; track : array_like [m], > 0
+    """
+    b = check_positive("track", track)
+    v = check_finite("V", V)
+    w = check_finite("omega", omega)
+    return v + w * b / 2.0, v - w * b / 2.0
+
+
+def _sinc_half(dtheta: NDArray[np.float64]) -> NDArray[np.float64]:
+    # sin(Δθ/2)/(Δθ/2), equal to 1 at Δθ = 0 (np.sinc(x) = sin(πx)/(πx))
+    return np.sinc(dtheta / (2.0 * np.pi))
+
+
+def _translation(
+    theta: NDArray[np.float64], ds: NDArray[np.float64], dtheta: NDArray[np.float64], method: str
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Per-step (Δx, Δy) from the heading at the start of the step."""
+    if method == "euler":
+        phi, scale = theta, ds
+    elif method == "euler_end":
+        phi, scale = theta + dtheta, ds
+    elif method == "midpoint":
+        phi, scale = theta + dtheta / 2.0, ds
+    else:  # exact arc about the ICC:
+        # R(sin(θ+Δθ) − sin θ) = Δs · sinc(Δθ/2) · cos(θ + Δθ/2), continuous through Δθ = 0
+        phi, scale = theta + dtheta / 2.0, ds * _sinc_half(dtheta)
+    return scale * np.cos(phi), scale * np.sin(phi)
+
+
+def step(pose: ArrayLike, ds: ArrayLike, dtheta: ArrayLike, method: Method = "midpoint") -> NDArray:
+    """One forward-kinematics step ``p' = f(p, Δs, Δθ)``.
+
+    Parameters
+    ----------
+    pose : array_like, shape (..., 3) — ``(x, y, θ)`` [m, m, rad]
+    ds : array_like, shape (...) — travel of the axle centre [m]
+    dtheta : array_like, shape (...) — change of heading [rad]
+    method : {"exact", "euler", "euler_end", "midpoint"}
+        ``exact`` rotates about the instantaneous centre of curvature (straight
+        motion is its continuous limit); ``euler`` uses the start heading,
+        ``euler_end`` the end heading, ``midpoint`` the mean heading.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+    """
+    check_choice("method", method, METHODS)
+    p = check_last_axis("pose", pose, 3)
+    d = check_finite("ds", ds)
+    dth = check_finite("dtheta", dtheta)
+    dx, dy = _translation(p[..., 2], d, dth, method)
+    return np.stack([p[..., 0] + dx, p[..., 1] + dy, p[..., 2] + dth], axis=-1)
+
+
+def integrate(
+    ds: ArrayLike,
+    dtheta: ArrayLike,
+    start: ArrayLike = (0.0, 0.0, 0.0),
+    method: Method = "exact",
+) -> NDArray[np.float64]:
+    """Integrate per-step motions into a path, vectorised with cumulative sums.
+
+    Parameters
+    ----------
+    ds : array_like, shape (..., N) — per-step travel of the axle centre [m]
+    dtheta : array_like, shape (..., N) — per-step change of heading [rad]
+    start : array_like, shape (..., 3) — start pose, broadcast against the batch
+    method : {"exact", "euler", "euler_end", "midpoint"} — see :func:`step`
+
+    Returns
+    -------
+    poses : ndarray, shape (..., N+1, 3) — the start pose followed by the pose
+        after each step (heading unwrapped).
+    """
+    check_choice("method", method, METHODS)
+    d = check_finite("ds", ds)
+    dth = check_finite("dtheta", dtheta)
+    d, dth = np.broadcast_arrays(d, dth)
+    if d.ndim == 0:
+        raise ValueError(f"ds must have shape (..., N), got shape {d.shape}")
+    p0 = check_last_axis("start", start, 3)
+    theta0 = p0[..., 2, None]
+    cum = np.cumsum(dth, axis=-1)
+    theta_before = theta0 + np.concatenate([np.zeros_like(cum[..., :1]), cum[..., :-1]], axis=-1)
+    dx, dy = _translation(theta_before, d, dth, method)
+    zero = np.zeros(d.shape[:-1] + (1,))
+    x = p0[..., 0, None] + np.concatenate([zero, np.cumsum(dx, axis=-1)], axis=-1)
+    y = p0[..., 1, None] + np.concatenate([zero, np.cumsum(dy, axis=-1)], axis=-1)
+    th = theta0 + np.concatenate([zero, cum], axis=-1)
+    x, y, th = np.broadcast_arrays(x, y, th)
+    return np.stack([x, y, th], axis=-1)
+
+
+def inverse_arc(
+    x: ArrayLike, y: ArrayLike, t: ArrayLike, track: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Wheel speeds that reach ``(x, y)`` from ``(0, 0, 0)`` in time ``t`` on one arc.
+
+    The arc is tangent to the start heading and passes through the target:
+    chord ``c = √(x²+y²)``, turn ``Δθ = 2·atan2(y, x)``, arc length
+    ``c·(Δθ/2)/sin(Δθ/2)`` (``c`` when ``Δθ = 0``). Targets on the negative x
+    axis cannot be reached by a forward arc tangent to the start heading.
+
+    Parameters
+    ----------
+    x, y : array_like [m]; t : array_like [s], > 0; track : array_like [m], > 0
+
+    Returns
+    -------
+    v_r, v_l : ndarray [m/s]
+    """
+    xx = check_finite("x", x)
+    yy = check_finite("y", y)
+    tt = check_positive("t", t)
+    b = check_positive("track", track)
+    if np.any((yy == 0) & (xx < 0)):
+        raise ValueError(
+            "x, y: a target on the negative x axis cannot be reached by one forward arc "
+            f"tangent to the start heading (allowed: any other point), got x={xx}, y={yy}"
+        )
+    half = np.arctan2(yy, xx)  # Δθ/2
+    chord = np.hypot(xx, yy)
+    length = chord / _sinc_half(2.0 * half)
+    V = length / tt
+    omega = 2.0 * half / tt
+    return V + omega * b / 2.0, V - omega * b / 2.0

@@ -1,0 +1,216 @@
+"""Monte Carlo under the wheel-noise model of the covariance method (SPEC §2.2).
+
+Two named regimes of odometry error:
+
+``"per_step"`` (non-systematic, random walk)
+    every step, each wheel's travel is drawn independently:
+    ``Δs_r' ~ N(Δs_r, k_r|Δs_r|)``, ``Δs_l' ~ N(Δs_l, k_l|Δs_l|)`` — exactly the
+    model Method A linearises; the variance of a wheel's total travel grows
+    linearly with distance.
+
+``"per_run"`` (systematic)
+    one error is drawn per run and per wheel and kept for the whole run, as a
+    scale error of the wheel (a wrong wheel radius): ``Δs_r' = Δs_r (1 + ε_r)``,
+    ``ε_r ~ N(0, k_r / L_r)`` with ``L_r = Σ|Δs_r|`` the wheel's total travel, so
+    that at the end of the run the total travel has the same variance
+    ``k_r L_r`` as in the per-step regime; along the way it grows with the
+    square of distance, and the end-pose cloud bends into a banana.
+
+Particles are processed in chunks of a fixed size (a function of the number of
+steps only), each chunk with all its noise drawn at once from the caller's
+generator, so the same seed gives bit-identical output on any machine.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import os
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .kinematics import METHODS, _translation
+from .trajectories import Trajectory
+from .validation import check_choice, check_nonnegative, check_positive_int
+
+__all__ = ["REGIMES", "integrate_end", "sample_end_poses"]
+
+REGIMES: tuple[str, ...] = ("per_step", "per_run")
+
+#: elements per chunk array: large enough for vectorisation, small enough for cache
+_CHUNK_ELEMENTS = 1 << 16
+
+
+def integrate_end(
+    ds_r: NDArray[np.float64],
+    ds_l: NDArray[np.float64],
+    track: float,
+    start: ArrayLike = (0.0, 0.0, 0.0),
+    method: str = "midpoint",
+    checkpoints: Sequence[int] | None = None,
+) -> NDArray[np.float64]:
+    """Integrate a batch of noisy wheel-travel sequences, keeping only chosen poses.
+
+    Parameters
+    ----------
+    ds_r, ds_l : ndarray, shape (n, N) — per-particle, per-step wheel travels [m]
+    track : float [m]
+    start : array_like, shape (3,)
+    method : {"exact", "euler", "euler_end", "midpoint"}
+    checkpoints : sequence of int in [0, N], optional — step indices to return;
+        default only the end (index N)
+
+    Returns
+    -------
+    ndarray, shape (n, C, 3) — poses at the checkpoints (C = 1 for the end only)
+    """
+    p0 = np.asarray(start, dtype=np.float64)
+    ds = (ds_r + ds_l) * 0.5
+    dth = (ds_r - ds_l) / track
+    theta = np.cumsum(dth, axis=-1)
+    theta_before = np.empty_like(theta)
+    theta_before[..., 0] = 0.0
+    theta_before[..., 1:] = theta[..., :-1]
+    theta_before += p0[2]
+    dx, dy = _translation(theta_before, ds, dth, method)
+    n_steps = ds.shape[-1]
+    if checkpoints is None:
+        return np.stack(
+            [p0[0] + dx.sum(axis=-1), p0[1] + dy.sum(axis=-1), p0[2] + theta[..., -1]], axis=-1
+        )[:, None, :]
+    idx = np.asarray(checkpoints, dtype=np.intp)
+    cx = np.concatenate([np.zeros(ds.shape[:-1] + (1,)), np.cumsum(dx, axis=-1)], axis=-1)
+    cy = np.concatenate([np.zeros(ds.shape[:-1] + (1,)), np.cumsum(dy, axis=-1)], axis=-1)
+    ct = np.concatenate([np.zeros(ds.shape[:-1] + (1,)), theta], axis=-1)
+    del n_steps
+    return np.stack([p0[0] + cx[:, idx], p0[1] + cy[:, idx], p0[2] + ct[:, idx]], axis=-1)
+
+
+def _end_poses_inplace(
+    z: NDArray[np.float64], track: float, start: NDArray[np.float64], method: str
+) -> NDArray[np.float64]:
+    """End poses from noisy travels ``z = (Δs_r', Δs_l')`` of shape (2, m, N), overwriting ``z``.
+
+    The same arithmetic as :func:`integrate_end` for the end pose only, done in
+    place to keep the chunk in cache; returns shape (m, 3).
+    """
+    r, l = z[0], z[1]
+    ds2 = r + l  # 2Δs
+    np.subtract(r, l, out=r)
+    r /= track  # Δθ per step
+    theta_end = r.sum(axis=-1)
+    theta = np.cumsum(r, axis=-1, out=l)  # heading after each step (relative to start)
+    if method in ("midpoint", "exact"):
+        r *= 0.5
+        theta -= r  # φ = θ_after − Δθ/2
+        if method == "exact":
+            ds2 *= np.sinc(r / np.pi)  # sin(Δθ/2)/(Δθ/2)
+    elif method == "euler":
+        theta -= r  # θ_before
+    # euler_end: φ = θ_after
+    theta += start[2]
+    np.cos(theta, out=r)
+    x = np.einsum("ij,ij->i", ds2, r)
+    np.sin(theta, out=r)
+    y = np.einsum("ij,ij->i", ds2, r)
+    return np.stack([start[0] + 0.5 * x, start[1] + 0.5 * y, start[2] + theta_end], axis=-1)
+
+
+def _default_workers() -> int:
+    return max(1, min(8, os.cpu_count() or 1))
+
+
+def sample_end_poses(
+    trajectory: Trajectory,
+    k_r: float,
+    k_l: float,
+    n: int,
+    rng: np.random.Generator,
+    *,
+    regime: str = "per_step",
+    method: str = "midpoint",
+    checkpoints: Sequence[int] | None = None,
+    workers: int | None = None,
+) -> NDArray[np.float64]:
+    """Noisy executions of a trajectory: the Monte Carlo ground truth of Method A's model.
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+    k_r, k_l : float [m] — error constants, ≥ 0 (wheel-travel variance per metre)
+    n : int ≥ 1 — number of particles
+    rng : numpy.random.Generator — the only source of randomness; one child
+        generator is spawned from it per chunk of particles
+    regime : {"per_step", "per_run"} — see the module docstring
+    method : {"exact", "euler", "euler_end", "midpoint"} — integration of each step
+    checkpoints : sequence of int in [0, N], optional — step indices at which
+        to keep the cloud as well
+    workers : int, optional — threads (default: the number of cores, at most 8).
+        The output does not depend on it.
+
+    Returns
+    -------
+    ndarray, shape (n, 3) — end poses; or, with ``checkpoints``, shape
+    (n, C, 3) — poses at the checkpoints. Headings are unwrapped.
+    """
+    kr = float(check_nonnegative("k_r", k_r))
+    kl = float(check_nonnegative("k_l", k_l))
+    n = check_positive_int("n", n)
+    check_choice("regime", regime, REGIMES)
+    check_choice("method", method, METHODS)
+    if not isinstance(rng, np.random.Generator):
+        raise ValueError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
+    n_workers = _default_workers() if workers is None else check_positive_int("workers", workers)
+    N = trajectory.n_steps
+    if checkpoints is not None:
+        cps = [int(c) for c in checkpoints]
+        if not cps or min(cps) < 0 or max(cps) > N:
+            raise ValueError(f"checkpoints must be step indices in [0, {N}], got {list(checkpoints)}")
+    ds_r, ds_l = trajectory.ds_r, trajectory.ds_l
+    chunk = max(1, _CHUNK_ELEMENTS // N)
+    n_out = 1 if checkpoints is None else len(checkpoints)
+    out = np.empty((n, n_out, 3))
+    if regime == "per_step":
+        # Δs' ~ N(Δs, k|Δs|)
+        std_r = np.sqrt(kr * np.abs(ds_r))
+        std_l = np.sqrt(kl * np.abs(ds_l))
+    else:
+        # Δs' = Δs (1 + ε), ε ~ N(0, k/L): total-travel variance k·L at the end of the run
+        L_r, L_l = trajectory.wheel_travel
+        eps_std_r = np.sqrt(kr / L_r) if L_r > 0 else 0.0
+        eps_std_l = np.sqrt(kl / L_l) if L_l > 0 else 0.0
+    start = np.asarray(trajectory.start, dtype=np.float64)
+    starts = list(range(0, n, chunk))
+    children = rng.spawn(len(starts))
+
+    def run_chunk(j: int) -> None:
+        lo = starts[j]
+        m = min(chunk, n - lo)
+        g = children[j]
+        if regime == "per_step":
+            z = g.standard_normal((2, m, N))
+            z[0] *= std_r
+            z[0] += ds_r
+            z[1] *= std_l
+            z[1] += ds_l
+            if checkpoints is None:
+                out[lo : lo + m, 0] = _end_poses_inplace(z, trajectory.track, start, method)
+                return
+            nr, nl = z[0], z[1]
+        else:
+            eps = g.standard_normal((2, m, 1))
+            nr = ds_r * (1.0 + eps_std_r * eps[0])
+            nl = ds_l * (1.0 + eps_std_l * eps[1])
+        out[lo : lo + m] = integrate_end(
+            nr, nl, trajectory.track, trajectory.start, method, checkpoints
+        )
+
+    if n_workers == 1 or len(starts) == 1:
+        for j in range(len(starts)):
+            run_chunk(j)
+    else:
+        with ThreadPoolExecutor(max_workers=n_workers) as pool:
+            list(pool.map(run_chunk, range(len(starts))))
+    return out[:, 0, :] if checkpoints is None else out

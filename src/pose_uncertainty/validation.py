@@ -1,0 +1,101 @@
+"""Input checks shared by every public function.
+
+Each check raises :class:`ValueError` with one message of the form
+``"<name> must be <rule> (allowed: <range>), got <value>"`` so that a user sees
+the parameter, the bad value and what is allowed.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    "as_float_array",
+    "check_choice",
+    "check_finite",
+    "check_last_axis",
+    "check_nonnegative",
+    "check_positive",
+    "check_positive_int",
+    "check_probability",
+]
+
+
+def _show(value: Any) -> str:
+    arr = np.asarray(value)
+    if arr.ndim == 0:
+        return repr(arr.item())
+    bad = arr.ravel()
+    return f"array of shape {arr.shape} (first values {bad[:4].tolist()})"
+
+
+def as_float_array(name: str, value: ArrayLike) -> NDArray[np.float64]:
+    """Convert ``value`` to a float64 array, raising ValueError naming ``name`` if impossible."""
+    try:
+        return np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be numeric (allowed: real numbers), got {value!r}") from exc
+
+
+def check_finite(name: str, value: ArrayLike) -> NDArray[np.float64]:
+    """Return ``value`` as float64, rejecting NaN and ±inf."""
+    arr = as_float_array(name, value)
+    if not np.all(np.isfinite(arr)):
+        bad = arr[~np.isfinite(arr)] if arr.ndim else arr
+        raise ValueError(
+            f"{name} must be finite (allowed: real numbers, no NaN or inf), got {_show(bad)}"
+        )
+    return arr
+
+
+def check_positive(name: str, value: ArrayLike) -> NDArray[np.float64]:
+    """Return ``value`` as float64, requiring every element finite and > 0."""
+    arr = check_finite(name, value)
+    if not np.all(arr > 0):
+        raise ValueError(f"{name} must be > 0 (allowed: (0, inf)), got {_show(arr[arr <= 0])}")
+    return arr
+
+
+def check_nonnegative(name: str, value: ArrayLike) -> NDArray[np.float64]:
+    """Return ``value`` as float64, requiring every element finite and >= 0."""
+    arr = check_finite(name, value)
+    if not np.all(arr >= 0):
+        raise ValueError(f"{name} must be >= 0 (allowed: [0, inf)), got {_show(arr[arr < 0])}")
+    return arr
+
+
+def check_probability(name: str, value: ArrayLike) -> NDArray[np.float64]:
+    """Return ``value`` as float64, requiring every element in the open interval (0, 1)."""
+    arr = check_finite(name, value)
+    if not np.all((arr > 0) & (arr < 1)):
+        bad = arr[~((arr > 0) & (arr < 1))]
+        raise ValueError(
+            f"{name} must be a probability strictly between 0 and 1 (allowed: (0, 1)), "
+            f"got {_show(bad)}"
+        )
+    return arr
+
+
+def check_positive_int(name: str, value: Any) -> int:
+    """Return ``value`` as an int, requiring an integer >= 1."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+        raise ValueError(f"{name} must be an integer >= 1 (allowed: 1, 2, 3, ...), got {value!r}")
+    return int(value)
+
+
+def check_choice(name: str, value: Any, allowed: tuple[str, ...]) -> str:
+    """Return ``value`` if it is one of ``allowed``, else raise ValueError listing them."""
+    if value not in allowed:
+        raise ValueError(f"{name} must be one of {', '.join(map(repr, allowed))}, got {value!r}")
+    return str(value)
+
+
+def check_last_axis(name: str, value: ArrayLike, n: int) -> NDArray[np.float64]:
+    """Return ``value`` as float64, requiring its last axis to have length ``n``."""
+    arr = as_float_array(name, value)
+    if arr.ndim == 0 or arr.shape[-1] != n:
+        raise ValueError(f"{name} must have shape (..., {n}), got shape {arr.shape}")
+    return arr
