@@ -1,0 +1,710 @@
+"""One run: a typed configuration, its execution and its result.
+
+A *run* is one parameter point of a sweep: a trajectory, the odometry error
+constants, a seed and what to compute — Method A (covariance propagation with
+its error ellipses), Monte Carlo end poses under the same model, and optional
+probability maps (Method B). :func:`execute` turns a :class:`RunConfig` into a
+:class:`RunResult`; :mod:`pose_uncertainty.runlog` writes and reads results as
+MCAP files, :mod:`pose_uncertainty.figures` draws them.
+
+A configuration is written as a plain mapping (YAML or JSON)::
+
+    name: circle_a4
+    seed: 7
+    trajectory: {name: circle, radius: 1.0, speed: 0.5, dt: 0.01, track: 0.2}
+    k_r: 5.0e-4            # m   (Σ_Δ = diag(k_r|Δs_r|, k_l|Δs_l|))
+    k_l: 5.0e-4            # m
+    pr: 0.98889            # probability inside the drawn ellipse
+    n_ellipses: 10         # blue ellipses along the path
+    monte_carlo: {n_particles: 1000, regime: per_step, method: midpoint, checkpoints: [100]}
+    maps:
+      - {name: velocity, model: velocity, alpha: [0.05, 0.05, 0.05, 0.05, 0.05, 0.05]}
+
+:meth:`RunConfig.to_dict` returns *every* parameter, defaults included (the
+trajectory builder's defaults too), so that a logged configuration re-runs the
+same computation; :meth:`RunConfig.units` gives the unit of each key.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import inspect
+import math
+import os
+import re
+import subprocess
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = [
+    "DEFAULT_PR",
+    "MapConfig",
+    "MapRecord",
+    "MonteCarloConfig",
+    "RunConfig",
+    "RunResult",
+    "execute",
+    "environment_lock_sha256",
+    "git_commit",
+    "provenance",
+]
+
+#: ``Pr = 1 − e^{−4.5}`` ⇔ ellipse radius ``r = 3`` (SPEC §2.1), the thesis's 98.89 %.
+DEFAULT_PR: float = 1.0 - math.exp(-4.5)
+
+_NAME_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$")
+
+#: Units of the trajectory builder parameters (SPEC §1, pose_uncertainty.trajectories).
+TRAJECTORY_UNITS: dict[str, str] = {
+    "name": "-",
+    "length": "m",
+    "radius": "m",
+    "angle": "rad",
+    "laps": "1",
+    "direction": "1 (+1 left, -1 right)",
+    "dx": "m",
+    "dy": "m",
+    "speed": "m/s",
+    "angular_speed": "rad/s",
+    "dt": "s",
+    "track": "m",
+    "profile": "- (constant | ramp)",
+    "start": "(m, m, rad)",
+}
+
+
+def _fail(key: str, rule: str, value: Any) -> ValueError:
+    return ValueError(f"config key {key!r} must be {rule}, got {value!r}")
+
+
+def _check_keys(where: str, data: Mapping[str, Any], allowed: tuple[str, ...]) -> None:
+    if not isinstance(data, Mapping):
+        raise _fail(where or "config", "a mapping", data)
+    unknown = sorted(set(data) - set(allowed))
+    if unknown:
+        prefix = f"{where}." if where else ""
+        raise ValueError(
+            f"unknown config key(s) {', '.join(repr(prefix + k) for k in unknown)} "
+            f"(allowed: {', '.join(allowed)})"
+        )
+
+
+def _float(key: str, value: Any, *, positive: bool = False, nonneg: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
+        raise _fail(key, "a real number", value)
+    v = float(value)
+    if not math.isfinite(v):
+        raise _fail(key, "finite", value)
+    if positive and not v > 0:
+        raise _fail(key, "> 0 (allowed: (0, inf))", value)
+    if nonneg and not v >= 0:
+        raise _fail(key, ">= 0 (allowed: [0, inf))", value)
+    return v
+
+
+def _int(key: str, value: Any, *, minimum: int = 0) -> int:
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
+        raise _fail(key, f"an integer >= {minimum}", value)
+    return int(value)
+
+
+def _name(key: str, value: Any) -> str:
+    if not isinstance(value, str) or not _NAME_RE.match(value):
+        raise _fail(key, "a name of letters, digits, '_', '.', '-'", value)
+    return value
+
+
+@dataclass(frozen=True)
+class MonteCarloConfig:
+    """Monte Carlo sampling of end poses under Method A's noise model (SPEC §2.2).
+
+    Attributes
+    ----------
+    n_particles : int
+        Number of sampled runs [1]; 0 disables Monte Carlo.
+    regime : {"per_step", "per_run"}
+        Wheel-travel noise drawn every step (random walk) or once per run (systematic).
+    method : str
+        Forward-kinematics step used by the sampler (``pose_uncertainty.kinematics.METHODS``).
+    checkpoints : tuple of int
+        Step indices (1..N) at which the whole cloud is also kept [step].
+    """
+
+    n_particles: int = 1000
+    regime: str = "per_step"
+    method: str = "midpoint"
+    checkpoints: tuple[int, ...] = ()
+
+    KEYS = ("n_particles", "regime", "method", "checkpoints")
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> MonteCarloConfig:
+        """Validate and build from a mapping; unknown keys raise ValueError naming them."""
+        _check_keys("monte_carlo", data, cls.KEYS)
+        n = _int("monte_carlo.n_particles", data.get("n_particles", 1000))
+        regime = data.get("regime", "per_step")
+        if regime not in ("per_step", "per_run"):
+            raise _fail("monte_carlo.regime", "one of 'per_step', 'per_run'", regime)
+        method = data.get("method", "midpoint")
+        methods = ("exact", "euler", "euler_end", "midpoint")
+        if method not in methods:
+            raise _fail("monte_carlo.method", f"one of {methods}", method)
+        cps = data.get("checkpoints", ())
+        if not isinstance(cps, list | tuple):
+            raise _fail("monte_carlo.checkpoints", "a list of step indices", cps)
+        checkpoints = tuple(sorted({_int("monte_carlo.checkpoints[]", c, minimum=1) for c in cps}))
+        return cls(n_particles=n, regime=regime, method=method, checkpoints=checkpoints)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain mapping with every parameter."""
+        return {
+            "n_particles": self.n_particles,
+            "regime": self.regime,
+            "method": self.method,
+            "checkpoints": list(self.checkpoints),
+        }
+
+
+@dataclass(frozen=True)
+class MapConfig:
+    """One probability map (Method B, SPEC §3) computed for the run.
+
+    Attributes
+    ----------
+    name : str
+        Identifier, used in topic and figure names.
+    model : {"velocity", "odometry"}
+        Motion model.
+    params : dict
+        Further keyword parameters of the map builder (``pose_uncertainty.maps``),
+        e.g. ``alpha`` [1] (error constants), ``extent`` [m], ``resolution`` [m],
+        ``n_theta`` [1], ``steps`` [1] (how many of the trajectory's last steps the
+        map covers; 1 = single-step map of the last control).
+    """
+
+    name: str
+    model: str
+    params: dict[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], index: int = 0) -> MapConfig:
+        """Validate and build from a mapping with keys ``name``, ``model`` and map parameters."""
+        where = f"maps[{index}]"
+        if not isinstance(data, Mapping):
+            raise _fail(where, "a mapping", data)
+        if "model" not in data:
+            raise ValueError(f"config key '{where}.model' is missing (allowed: velocity, odometry)")
+        model = data["model"]
+        if model not in ("velocity", "odometry"):
+            raise _fail(f"{where}.model", "one of 'velocity', 'odometry'", model)
+        name = _name(f"{where}.name", data.get("name", model))
+        params = {k: v for k, v in data.items() if k not in ("name", "model")}
+        return cls(name=name, model=model, params=_plain(params))
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain mapping with every parameter."""
+        return {"name": self.name, "model": self.model, **_plain(self.params)}
+
+
+def _plain(value: Any) -> Any:
+    """Convert tuples/numpy scalars/arrays to JSON-friendly lists and Python numbers."""
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple | np.ndarray):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def _trajectory_params(data: Any) -> dict[str, Any]:
+    """Validate the trajectory mapping and fill in every default of its builder."""
+    if not isinstance(data, Mapping):
+        raise _fail("trajectory", "a mapping with a 'name' key", data)
+    if "name" not in data:
+        raise ValueError("config key 'trajectory.name' is missing (e.g. straight, circle)")
+    from . import trajectories
+
+    name = data["name"]
+    if name not in trajectories.BUILDERS:
+        raise _fail("trajectory.name", f"one of {tuple(trajectories.BUILDERS)}", name)
+    builder = trajectories.BUILDERS[name]
+    defaults: dict[str, Any] = {}
+    for fn in (builder, trajectories.from_segments):
+        for p in inspect.signature(fn).parameters.values():
+            if p.default is not inspect.Parameter.empty and p.name != "name":
+                defaults.setdefault(p.name, p.default)
+    params = {k: v for k, v in data.items() if k != "name"}
+    unknown = sorted(set(params) - set(defaults))
+    if unknown:
+        raise ValueError(
+            f"unknown config key(s) {', '.join(repr('trajectory.' + k) for k in unknown)} "
+            f"(allowed for trajectory {name!r}: {', '.join(sorted(defaults))})"
+        )
+    full = {"name": name, **_plain({**defaults, **params})}
+    return full
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """Everything that determines one run (with the package version and environment).
+
+    Attributes
+    ----------
+    trajectory : dict
+        ``name`` of a builder in ``pose_uncertainty.trajectories.BUILDERS`` and its
+        parameters (units in :data:`TRAJECTORY_UNITS`: lengths m, angles rad,
+        speed m/s, angular_speed rad/s, dt s, track m).
+    k_r, k_l : float
+        Odometry error constants [m]: per-step wheel-travel variance per metre of
+        travel, ``Σ_Δ = diag(k_r|Δs_r|, k_l|Δs_l|)`` (SPEC §2).
+    cov0 : tuple of tuple of float or None
+        Initial pose covariance, 3×3 over (x [m], y [m], θ [rad]); None = zero.
+    pr : float
+        Probability inside the drawn error ellipses [1], in (0, 1); default 98.89 %.
+    n_ellipses : int
+        Number of ellipses drawn at regular intervals along the path [1].
+    seed : int
+        Seed of the ``numpy.random.Generator`` used for Monte Carlo [1].
+    monte_carlo : MonteCarloConfig
+    maps : tuple of MapConfig
+    name : str
+        Run identifier.
+    """
+
+    trajectory: dict[str, Any]
+    k_r: float = 5e-4
+    k_l: float = 5e-4
+    cov0: tuple[tuple[float, float, float], ...] | None = None
+    pr: float = DEFAULT_PR
+    n_ellipses: int = 10
+    seed: int = 0
+    monte_carlo: MonteCarloConfig = field(default_factory=MonteCarloConfig)
+    maps: tuple[MapConfig, ...] = ()
+    name: str = "run"
+
+    KEYS = (
+        "name",
+        "seed",
+        "trajectory",
+        "k_r",
+        "k_l",
+        "cov0",
+        "pr",
+        "n_ellipses",
+        "monte_carlo",
+        "maps",
+    )
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> RunConfig:
+        """Validate a plain mapping and build the configuration.
+
+        Raises
+        ------
+        ValueError
+            Naming the bad key (dotted path, e.g. ``monte_carlo.regime``), the bad
+            value and what is allowed; unknown keys are rejected.
+        """
+        _check_keys("", data, cls.KEYS)
+        if "trajectory" not in data:
+            raise ValueError("config key 'trajectory' is missing (e.g. {name: straight})")
+        traj = _trajectory_params(data["trajectory"])
+        k_r = _float("k_r", data.get("k_r", 5e-4), nonneg=True)
+        k_l = _float("k_l", data.get("k_l", 5e-4), nonneg=True)
+        cov0_raw = data.get("cov0")
+        cov0 = None
+        if cov0_raw is not None:
+            try:
+                arr = np.asarray(cov0_raw, dtype=np.float64)
+            except (TypeError, ValueError):
+                raise _fail("cov0", "a 3x3 matrix of numbers", cov0_raw) from None
+            if arr.shape != (3, 3) or not np.all(np.isfinite(arr)):
+                raise _fail("cov0", "a finite 3x3 matrix", cov0_raw)
+            if not np.array_equal(arr, arr.T) or np.linalg.eigvalsh(arr).min() < -1e-15:
+                raise _fail("cov0", "symmetric positive semi-definite", cov0_raw)
+            cov0 = tuple(tuple(float(v) for v in row) for row in arr)
+        pr = _float("pr", data.get("pr", DEFAULT_PR))
+        if not 0.0 < pr < 1.0:
+            raise _fail("pr", "a probability in (0, 1)", data.get("pr"))
+        n_ell = _int("n_ellipses", data.get("n_ellipses", 10), minimum=1)
+        seed = _int("seed", data.get("seed", 0))
+        mc = MonteCarloConfig.from_dict(data.get("monte_carlo", {}))
+        maps_raw = data.get("maps", ())
+        if not isinstance(maps_raw, list | tuple):
+            raise _fail("maps", "a list of map mappings", maps_raw)
+        maps = tuple(MapConfig.from_dict(m, i) for i, m in enumerate(maps_raw))
+        names = [m.name for m in maps]
+        if len(set(names)) != len(names):
+            raise _fail("maps[].name", "unique", names)
+        name = _name("name", data.get("name", "run"))
+        return cls(
+            trajectory=traj,
+            k_r=k_r,
+            k_l=k_l,
+            cov0=cov0,
+            pr=pr,
+            n_ellipses=n_ell,
+            seed=seed,
+            monte_carlo=mc,
+            maps=maps,
+            name=name,
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain, JSON-serialisable mapping with every parameter (round-trips via from_dict)."""
+        return {
+            "name": self.name,
+            "seed": self.seed,
+            "trajectory": _plain(self.trajectory),
+            "k_r": self.k_r,
+            "k_l": self.k_l,
+            "cov0": None if self.cov0 is None else [list(r) for r in self.cov0],
+            "pr": self.pr,
+            "n_ellipses": self.n_ellipses,
+            "monte_carlo": self.monte_carlo.to_dict(),
+            "maps": [m.to_dict() for m in self.maps],
+        }
+
+    @staticmethod
+    def units() -> dict[str, Any]:
+        """Unit of every configuration key (``"1"`` = dimensionless, ``"-"`` = not a number)."""
+        return {
+            "name": "-",
+            "seed": "1",
+            "trajectory": dict(TRAJECTORY_UNITS),
+            "k_r": "m (wheel-travel variance per metre of travel)",
+            "k_l": "m (wheel-travel variance per metre of travel)",
+            "cov0": "3x3 over (x [m], y [m], theta [rad]): m^2, m*rad, rad^2",
+            "pr": "1 (probability inside the ellipse)",
+            "n_ellipses": "1",
+            "monte_carlo": {
+                "n_particles": "1",
+                "regime": "- (per_step | per_run)",
+                "method": "- (exact | euler | euler_end | midpoint)",
+                "checkpoints": "step index",
+            },
+            "maps": {
+                "name": "-",
+                "model": "- (velocity | odometry)",
+                "alpha": "1 (error constants)",
+                "extent": "m",
+                "resolution": "m",
+                "n_theta": "1",
+            },
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class MapRecord:
+    """A probability map over a discretised ``(x, y, θ)`` grid, as logged.
+
+    Mirrors ``pose_uncertainty.maps.ProbabilityMap``.
+
+    Attributes
+    ----------
+    name : str
+    model : str
+    x : ndarray, shape (nx,) — cell centres [m]
+    y : ndarray, shape (ny,) — cell centres [m]
+    theta : ndarray, shape (nθ,) — cell centres [rad]
+    values : ndarray, shape (nx, ny, nθ) — probability density [1/(m² rad)]
+    lost_mass : float — probability outside the grid [1]
+    params : dict — the map's parameters
+    """
+
+    name: str
+    model: str
+    x: NDArray[np.float64]
+    y: NDArray[np.float64]
+    theta: NDArray[np.float64]
+    values: NDArray[np.float64]
+    lost_mass: float = 0.0
+    params: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        for key in ("x", "y", "theta", "values"):
+            object.__setattr__(self, key, np.ascontiguousarray(getattr(self, key), np.float64))
+        shape = (self.x.size, self.y.size, self.theta.size)
+        if self.values.shape != shape:
+            raise ValueError(f"map values must have shape {shape} (nx, ny, ntheta), got {self.values.shape}")
+
+    @property
+    def dtheta(self) -> float:
+        """Cell size along θ [rad] (2π/nθ when θ covers the circle)."""
+        if self.theta.size > 1:
+            return float(self.theta[1] - self.theta[0])
+        return 2.0 * math.pi
+
+    def marginal_xy(self) -> NDArray[np.float64]:
+        """θ-marginalised density ``Σ_θ p(x, y, θ) Δθ`` [1/m²], shape (nx, ny)."""
+        return self.values.sum(axis=2) * self.dtheta
+
+
+@dataclass(frozen=True, eq=False)
+class RunResult:
+    """The outcome of one run.
+
+    Attributes
+    ----------
+    config : RunConfig
+    times : ndarray, shape (N+1,) — simulated time of each pose [s]
+    poses : ndarray, shape (N+1, 3) — nominal (noiseless) poses (x [m], y [m], θ [rad])
+    covs : ndarray, shape (N+1, 3, 3) — pose covariance by Method A [m², m·rad, rad²]
+    end_poses : ndarray, shape (n, 3) or None — Monte Carlo end poses
+    checkpoints : dict of int to ndarray, shape (n, 3) — Monte Carlo clouds at steps
+    maps : tuple of MapRecord
+    metrics : dict of str to float — deterministic metrics (units in ``metric_units``)
+    metric_units : dict of str to str
+    timings : dict of str to float — wall-clock durations [s]; NOT deterministic
+    provenance : dict of str to str — package version, environment.lock sha256, git commit
+    """
+
+    config: RunConfig
+    times: NDArray[np.float64]
+    poses: NDArray[np.float64]
+    covs: NDArray[np.float64]
+    end_poses: NDArray[np.float64] | None = None
+    checkpoints: dict[int, NDArray[np.float64]] = field(default_factory=dict)
+    maps: tuple[MapRecord, ...] = ()
+    metrics: dict[str, float] = field(default_factory=dict)
+    metric_units: dict[str, str] = field(default_factory=dict)
+    timings: dict[str, float] = field(default_factory=dict)
+    provenance: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def n_steps(self) -> int:
+        """Number of steps N."""
+        return int(self.times.size - 1)
+
+
+# --- provenance ----------------------------------------------------------------------------
+
+
+_REPO_ROOT = Path(__file__).resolve().parents[2]
+
+
+@functools.lru_cache(maxsize=1)
+def environment_lock_sha256() -> str | None:
+    """sha256 (hex) of the ``environment.lock`` the package was built from, or None.
+
+    Looked up, in order: ``$POSE_UNCERTAINTY_ENVIRONMENT_LOCK`` (a path); an
+    ``environment.lock`` shipped inside the package; the repository root of a
+    source checkout or editable install (``src/pose_uncertainty/../../``); the
+    current directory and its parents.
+    """
+    candidates: list[Path] = []
+    env = os.environ.get("POSE_UNCERTAINTY_ENVIRONMENT_LOCK")
+    if env:
+        candidates.append(Path(env))
+    candidates.append(Path(__file__).resolve().parent / "environment.lock")
+    candidates.append(_REPO_ROOT / "environment.lock")
+    cwd = Path.cwd()
+    candidates.extend(d / "environment.lock" for d in (cwd, *cwd.parents))
+    for path in candidates:
+        if path.is_file():
+            return hashlib.sha256(path.read_bytes()).hexdigest()
+    return None
+
+
+@functools.lru_cache(maxsize=1)
+def git_commit() -> tuple[str, bool] | None:
+    """``(commit, dirty)`` of the git work tree holding this package, or None.
+
+    Runs ``git rev-parse HEAD`` (and ``git status --porcelain --untracked-files=no``)
+    in the package's own directory, so the commit is that of the code, not of the
+    caller's current directory; None when git or the repository is unavailable.
+    """
+    here = Path(__file__).resolve().parent
+    try:
+        head = subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=here, capture_output=True, text=True, timeout=10
+        )
+        if head.returncode != 0:
+            return None
+        status = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=here,
+            capture_output=True,
+            text=True,
+            timeout=10,
+        )
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return head.stdout.strip(), bool(status.stdout.strip())
+
+
+def provenance() -> dict[str, str]:
+    """Package version, sha256 of ``environment.lock``, git commit and numpy version.
+
+    Values are strings; an unknown value is ``"unknown"``.
+    """
+    from . import __version__
+
+    git = git_commit()
+    return {
+        "package_version": __version__,
+        "environment_lock_sha256": environment_lock_sha256() or "unknown",
+        "git_commit": git[0] if git else "unknown",
+        "git_dirty": ("true" if git[1] else "false") if git else "unknown",
+        "numpy_version": np.__version__,
+    }
+
+
+# --- execution ------------------------------------------------------------------------------
+
+
+def execute(config: RunConfig) -> RunResult:
+    """Compute one run: trajectory, covariance, Monte Carlo, maps and metrics.
+
+    Parameters
+    ----------
+    config : RunConfig
+
+    Returns
+    -------
+    RunResult
+        Everything but ``timings`` is a deterministic function of ``config``
+        (including its seed), the package version and the environment.
+    """
+    from . import covariance, sampling, stats, trajectories
+
+    timings: dict[str, float] = {}
+    t_all = time.perf_counter()
+
+    t0 = time.perf_counter()
+    tp = dict(config.trajectory)
+    traj = trajectories.build(tp.pop("name"), **tp)
+    timings["trajectory_s"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    cov0 = None if config.cov0 is None else np.array(config.cov0)
+    cres = covariance.propagate(traj, config.k_r, config.k_l, cov0=cov0)
+    timings["covariance_s"] = time.perf_counter() - t0
+    poses = np.ascontiguousarray(cres.poses, dtype=np.float64)
+    covs = np.ascontiguousarray(cres.covs, dtype=np.float64)
+    times = np.ascontiguousarray(traj.times, dtype=np.float64)
+
+    rng = np.random.default_rng(config.seed)
+    end_poses = None
+    checkpoints: dict[int, NDArray[np.float64]] = {}
+    mc = config.monte_carlo
+    if mc.n_particles > 0:
+        bad = [c for c in mc.checkpoints if c > traj.n_steps]
+        if bad:
+            raise _fail("monte_carlo.checkpoints", f"step indices in 1..{traj.n_steps}", bad)
+        t0 = time.perf_counter()
+        steps = [*mc.checkpoints, traj.n_steps]
+        out = sampling.sample_end_poses(
+            traj,
+            config.k_r,
+            config.k_l,
+            mc.n_particles,
+            rng,
+            regime=mc.regime,
+            method=mc.method,
+            checkpoints=steps,
+        )  # (n, C, 3): the clouds at the checkpoints, then at the end
+        timings["monte_carlo_s"] = time.perf_counter() - t0
+        end_poses = np.ascontiguousarray(out[:, -1, :], dtype=np.float64)
+        checkpoints = {
+            step: np.ascontiguousarray(out[:, j, :], dtype=np.float64)
+            for j, step in enumerate(mc.checkpoints)
+        }
+
+    maps: list[MapRecord] = []
+    for mcfg in config.maps:
+        t0 = time.perf_counter()
+        maps.append(_compute_map(mcfg, traj, poses))
+        timings[f"map_{mcfg.name}_s"] = time.perf_counter() - t0
+
+    metrics, units = _metrics(config, traj, poses, covs, end_poses, maps, covariance, stats)
+    timings["total_s"] = time.perf_counter() - t_all
+    return RunResult(
+        config=config,
+        times=times,
+        poses=poses,
+        covs=covs,
+        end_poses=end_poses,
+        checkpoints=checkpoints,
+        maps=tuple(maps),
+        metrics=metrics,
+        metric_units=units,
+        timings=timings,
+        provenance=provenance(),
+    )
+
+
+def _compute_map(mcfg: MapConfig, traj: Any, poses: NDArray[np.float64]) -> MapRecord:
+    """Compute one probability map with ``pose_uncertainty.maps`` (imported on demand)."""
+    from . import maps as maps_mod  # type: ignore[attr-defined]
+
+    params = dict(mcfg.params)
+    pm = maps_mod.map_for_trajectory(traj, model=mcfg.model, **params)
+    return MapRecord(
+        name=mcfg.name,
+        model=mcfg.model,
+        x=pm.x,
+        y=pm.y,
+        theta=pm.theta,
+        values=pm.values,
+        lost_mass=float(pm.lost_mass),
+        params=_plain(params),
+    )
+
+
+def _metrics(
+    config: RunConfig,
+    traj: Any,
+    poses: NDArray[np.float64],
+    covs: NDArray[np.float64],
+    end_poses: NDArray[np.float64] | None,
+    maps: list[MapRecord],
+    covariance: Any,
+    stats: Any,
+) -> tuple[dict[str, float], dict[str, str]]:
+    """Deterministic metrics of a run and their units."""
+    m: dict[str, float] = {}
+    u: dict[str, str] = {}
+
+    def put(key: str, value: float, unit: str) -> None:
+        m[key] = float(value)
+        u[key] = unit
+
+    end, cov_end = poses[-1], covs[-1]
+    put("duration", traj.duration, "s")
+    put("path_length", traj.length, "m")
+    put("end_x", end[0], "m")
+    put("end_y", end[1], "m")
+    put("end_theta", end[2], "rad")
+    put("end_sigma_x", math.sqrt(max(cov_end[0, 0], 0.0)), "m")
+    put("end_sigma_y", math.sqrt(max(cov_end[1, 1], 0.0)), "m")
+    put("end_sigma_theta", math.sqrt(max(cov_end[2, 2], 0.0)), "rad")
+    alpha, a_major, a_minor = covariance.ellipse(cov_end[:2, :2], config.pr)
+    put("ellipse_major", a_major, "m")
+    put("ellipse_minor", a_minor, "m")
+    put("ellipse_angle", alpha, "rad")
+    if end_poses is not None and end_poses.shape[0] > 0:
+        inside = stats.fraction_inside_ellipse(end_poses[:, :2], end[:2], cov_end[:2, :2], config.pr)
+        put("mc_coverage", inside, "1 (fraction of particles inside the Pr-ellipse)")
+        put("mc_coverage_minus_pr", inside - config.pr, "1")
+        mean = end_poses.mean(axis=0)
+        put("mc_mean_offset", math.hypot(mean[0] - end[0], mean[1] - end[1]), "m")
+        if end_poses.shape[0] > 1:
+            cov_mc = np.cov(end_poses[:, :2].T)
+            norm = np.linalg.norm(cov_end[:2, :2])
+            if norm > 0:
+                put("mc_cov_xy_rel_error", np.linalg.norm(cov_mc - cov_end[:2, :2]) / norm, "1")
+    for mp in maps:
+        marg = mp.marginal_xy()
+        i, j = np.unravel_index(int(np.argmax(marg)), marg.shape)
+        put(f"map_{mp.name}_peak_offset", math.hypot(mp.x[i] - end[0], mp.y[j] - end[1]), "m")
+        put(f"map_{mp.name}_lost_mass", mp.lost_mass, "1")
+    return m, u
