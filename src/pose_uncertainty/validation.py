@@ -26,10 +26,10 @@ __all__ = [
 
 def _show(value: Any) -> str:
     arr = np.asarray(value)
-    if arr.ndim == 0:
-        return repr(arr.item())
+    if arr.size == 1:
+        return repr(arr.ravel()[0].item())
     bad = arr.ravel()
-    return f"array of shape {arr.shape} (first values {bad[:4].tolist()})"
+    return f"values {bad[:4].tolist()}{' ...' if bad.size > 4 else ''}"
 
 
 def as_float_array(name: str, value: ArrayLike) -> NDArray[np.float64]:
