@@ -484,6 +484,12 @@ class RunResult:
         """Number of steps N."""
         return int(self.times.size - 1)
 
+    def ellipse_steps(self) -> list[int]:
+        """Steps at which ellipses are drawn: ``n_ellipses`` regular intervals, the last = N."""
+        n = self.n_steps
+        marks = np.linspace(0, n, self.config.n_ellipses + 1).round().astype(int)[1:]
+        return sorted({int(m) for m in marks if m > 0})
+
 
 # --- provenance ----------------------------------------------------------------------------
 

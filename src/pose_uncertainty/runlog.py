@@ -133,6 +133,9 @@ TOPICS: dict[str, str] = {
 }
 
 _ELLIPSE_POINTS = 48
+#: Chunk size [bytes]: small enough that a partial file keeps most of its steps
+#: (recovery reads whole chunks only), large enough for good zstd compression.
+_CHUNK_SIZE = 256 * 1024
 _BLUE = (0.0, 0.25, 1.0, 1.0)
 _RED = (0.9, 0.0, 0.0, 1.0)
 _GREY = (0.5, 0.5, 0.5, 0.8)
@@ -354,7 +357,7 @@ class _Log:
     def __init__(self, stream: Any) -> None:
         self.w = McapWriter(
             stream,
-            chunk_size=4 * 1024 * 1024,
+            chunk_size=_CHUNK_SIZE,
             compression=CompressionType.ZSTD,
             enable_crcs=True,
             enable_data_crcs=True,
@@ -422,7 +425,7 @@ def _write_stream(stream: Any, result: RunResult, include_timings: bool) -> None
     t_end = t_ns[-1]
     # closed polylines (first vertex repeated): drop the repeat for a LINE_LOOP
     ell = covariance.ellipse_polyline(covs[:, :2, :2], cfg.pr, poses[:, :2], _ELLIPSE_POINTS)[:, :-1]
-    marks = set(np.linspace(0, n - 1, cfg.n_ellipses + 1).round().astype(int).tolist()[1:])
+    marks = set(result.ellipse_steps())
     checkpoints = result.checkpoints
 
     # the whole nominal path, once, at t = 0
@@ -610,6 +613,9 @@ def _scan(data: bytes) -> tuple[list[Any], str | None]:
         return records, f"corrupted: CRC mismatch in {what} record (stored {exc.expected:#010x}, computed {exc.actual:#010x})"
     except Exception as exc:  # noqa: BLE001 - any parse failure of foreign bytes is a damaged file
         pos = stream.tell()
+        tail = data[-len(MAGIC) :]
+        if len(tail) == len(MAGIC) and 0 < sum(a != b for a, b in zip(tail, MAGIC, strict=True)) <= 2:
+            return records, "corrupted: damaged MCAP magic at the end of the file"
         if not data.endswith(MAGIC):
             return records, f"truncated: the file ends at byte {len(data)} inside an MCAP record (no footer)"
         if pos >= len(data):
@@ -845,6 +851,24 @@ def _fmt_array(a: NDArray[np.float64]) -> str:
     return np.array2string(np.asarray(a), precision=6, separator=", ", max_line_width=120)
 
 
+def _flatten(value: Any, units: Any, prefix: str = "") -> list[str]:
+    """``key.sub = value [unit]`` lines of a nested config mapping."""
+    if isinstance(value, dict):
+        out: list[str] = []
+        for key in value:
+            sub_units = units.get(key, "") if isinstance(units, dict) else ""
+            out.extend(_flatten(value[key], sub_units, f"{prefix}{key}."))
+        return out
+    if isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
+        out = []
+        for i, v in enumerate(value):
+            out.extend(_flatten(v, units, f"{prefix[:-1]}[{i}]."))
+        return out
+    unit = units if isinstance(units, str) and units not in ("", "-") else ""
+    text = json.dumps(value)
+    return [f"{prefix[:-1]} = {text}" + (f"  [{unit}]" if unit else "")]
+
+
 def format_summary(log: RunLog) -> str:
     """Summary of a run log: config, topics with counts, final pose and covariance, metrics."""
     lines = [f"run log   {log.path}"]
@@ -854,8 +878,8 @@ def format_summary(log: RunLog) -> str:
     for key in ("package_version", "environment_lock_sha256", "git_commit", "git_dirty", "numpy_version"):
         if key in log.provenance:
             lines.append(f"  {key}: {log.provenance[key]}")
-    lines.append("config (units: see metadata 'config_units')")
-    lines.extend("  " + ln for ln in json.dumps(log.config.to_dict(), indent=2, sort_keys=True).splitlines())
+    lines.append("config")
+    lines.extend(f"  {ln}" for ln in _flatten(log.config.to_dict(), log.config.units()))
     lines.append("topics")
     width = max((len(t) for t in log.topics), default=0)
     for topic, (schema, count) in log.topics.items():

@@ -1,0 +1,221 @@
+"""Figures of a run, drawn from a :class:`~pose_uncertainty.run.RunResult` alone.
+
+These are the functions the pipeline calls and ``pose-uncertainty replay
+--figures`` calls on a run read back from its log; since the log is lossless,
+both give the same bytes.
+
+* :func:`trajectory_figure` — the nominal path in black, Pr-ellipses at regular
+  intervals in blue and the final one in red (98.89 % by default, SPEC §4 A1);
+* :func:`cloud_figure` — the Monte Carlo end poses over the final ellipse;
+* :func:`map_figure` — a probability map (θ marginalised), 1 m × 1 m around the
+  noiseless end point, darker = more probable (SPEC §3).
+
+Figures are built on :class:`matplotlib.figure.Figure` with the Agg canvas (no
+pyplot, no global backend switch) and saved by :func:`save_figure` with fixed
+metadata and SVG hash salt, so PNG and SVG bytes are deterministic.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable
+from pathlib import Path
+
+import matplotlib as mpl
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from . import __version__, covariance
+from .run import MapRecord, RunResult
+
+__all__ = [
+    "FORMATS",
+    "cloud_figure",
+    "figure_set",
+    "map_figure",
+    "render_figures",
+    "save_figure",
+    "trajectory_figure",
+]
+
+FORMATS: tuple[str, ...] = ("png", "svg", "pdf")
+_DPI = 150
+_CREATOR = f"pose-uncertainty {__version__}"
+_RC = {
+    "svg.hashsalt": "pose-uncertainty",
+    "svg.fonttype": "path",
+    "pdf.fonttype": 42,
+    "path.simplify": False,
+}
+_BLUE, _RED, _BLACK = "blue", "red", "black"
+_MAP_WINDOW = 1.0  # [m], side of the map window (the thesis's 1 m × 1 m)
+
+
+def _new_figure(size: tuple[float, float] = (6.0, 6.0)) -> Figure:
+    fig = Figure(figsize=size, dpi=_DPI, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _pct(pr: float) -> str:
+    return f"{100.0 * pr:.2f} %"
+
+
+def _polyline(cov_xy: np.ndarray, center: np.ndarray, pr: float) -> np.ndarray:
+    return covariance.ellipse_polyline(cov_xy, pr, center, 200)
+
+
+def trajectory_figure(run: RunResult) -> Figure:
+    """Nominal path (black), Pr-ellipses at regular intervals (blue), final ellipse (red).
+
+    Parameters
+    ----------
+    run : RunResult (or a RunLog read back from a file)
+    """
+    cfg = run.config
+    fig = _new_figure()
+    ax = fig.add_subplot()
+    ax.plot(run.poses[:, 0], run.poses[:, 1], color=_BLACK, lw=1.2, label="nominal path")
+    steps = run.ellipse_steps()
+    for j, i in enumerate(steps[:-1]):
+        pts = _polyline(run.covs[i, :2, :2], run.poses[i, :2], cfg.pr)
+        ax.plot(pts[:, 0], pts[:, 1], color=_BLUE, lw=0.9, label="ellipses along the path" if j == 0 else None)
+    n = run.n_steps
+    pts = _polyline(run.covs[n, :2, :2], run.poses[n, :2], cfg.pr)
+    ax.plot(pts[:, 0], pts[:, 1], color=_RED, lw=1.4, label=f"final ellipse (t = {run.times[n]:.3g} s)")
+    ax.plot(*run.poses[0, :2], marker="o", color=_BLACK, ms=4, ls="none")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(f"{cfg.name}: {cfg.trajectory['name']}, Pr = {_pct(cfg.pr)}, k_r = {cfg.k_r:g} m, k_l = {cfg.k_l:g} m")
+    ax.grid(True, lw=0.3, alpha=0.5)
+    ax.legend(loc="best", fontsize="small")
+    return fig
+
+
+def cloud_figure(run: RunResult) -> Figure | None:
+    """Monte Carlo end poses over the final Pr-ellipse; None without Monte Carlo.
+
+    Parameters
+    ----------
+    run : RunResult
+    """
+    if run.end_poses is None or run.end_poses.shape[0] == 0:
+        return None
+    cfg = run.config
+    n = run.n_steps
+    end, cov = run.poses[n], run.covs[n]
+    cloud = run.end_poses
+    fig = _new_figure()
+    ax = fig.add_subplot()
+    ax.scatter(
+        cloud[:, 0], cloud[:, 1], s=1.0, color="0.35", alpha=0.35, linewidths=0,
+        rasterized=True, label=f"Monte Carlo end poses (n = {cloud.shape[0]})",
+    )
+    pts = _polyline(cov[:2, :2], end[:2], cfg.pr)
+    ax.plot(pts[:, 0], pts[:, 1], color=_RED, lw=1.4, label=f"covariance ellipse, Pr = {_pct(cfg.pr)}")
+    if cloud.shape[0] > 2:
+        mc_cov = np.cov(cloud[:, :2].T)
+        mpts = _polyline(mc_cov, cloud[:, :2].mean(axis=0), cfg.pr)
+        ax.plot(mpts[:, 0], mpts[:, 1], color=_BLUE, lw=1.0, ls="--", label="ellipse of the sample covariance")
+    ax.plot(*end[:2], marker="+", color=_RED, ms=10, ls="none", label="noiseless end pose")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    cov_note = ""
+    if "mc_coverage" in run.metrics:
+        cov_note = f"; inside: {100.0 * run.metrics['mc_coverage']:.2f} %"
+    ax.set_title(f"{cfg.name}: end poses, {cfg.monte_carlo.regime}{cov_note}")
+    ax.grid(True, lw=0.3, alpha=0.5)
+    ax.legend(loc="best", fontsize="small")
+    return fig
+
+
+def map_figure(run: RunResult, mp: MapRecord) -> Figure:
+    """Probability map (θ marginalised), 1 m × 1 m around the noiseless end point, darker = more probable.
+
+    Parameters
+    ----------
+    run : RunResult — gives the noiseless end point
+    mp : MapRecord — one of ``run.maps``
+    """
+    marg = mp.marginal_xy()  # (nx, ny) [1/m²]
+    dx = float(mp.x[1] - mp.x[0]) if mp.x.size > 1 else 0.01
+    dy = float(mp.y[1] - mp.y[0]) if mp.y.size > 1 else 0.01
+    extent = (mp.x[0] - dx / 2, mp.x[-1] + dx / 2, mp.y[0] - dy / 2, mp.y[-1] + dy / 2)
+    end = run.poses[-1]
+    fig = _new_figure((6.4, 5.6))
+    ax = fig.add_subplot()
+    img = ax.imshow(
+        marg.T, origin="lower", extent=extent, cmap="Greys", vmin=0.0,
+        vmax=float(marg.max()) if marg.max() > 0 else 1.0, interpolation="nearest",
+    )
+    ax.plot(*end[:2], marker="+", color=_RED, ms=10, ls="none", label="noiseless end point")
+    half = _MAP_WINDOW / 2.0
+    ax.set_xlim(end[0] - half, end[0] + half)
+    ax.set_ylim(end[1] - half, end[1] + half)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(f"{run.config.name}: map {mp.name!r} ({mp.model} model), lost mass {mp.lost_mass:.2g}")
+    ax.legend(loc="upper right", fontsize="small")
+    fig.colorbar(img, ax=ax, label="probability density p(x, y) [1/m²]", shrink=0.85)
+    return fig
+
+
+def figure_set(run: RunResult) -> dict[str, Figure]:
+    """Every figure of a run, by file stem: ``trajectory``, ``cloud``, ``map_<name>``."""
+    figs: dict[str, Figure] = {"trajectory": trajectory_figure(run)}
+    cloud = cloud_figure(run)
+    if cloud is not None:
+        figs["cloud"] = cloud
+    for mp in run.maps:
+        figs[f"map_{mp.name}"] = map_figure(run, mp)
+    return figs
+
+
+def save_figure(fig: Figure, path: str | os.PathLike[str]) -> Path:
+    """Save with deterministic bytes: fixed metadata (no dates), fixed SVG ids, fixed dpi.
+
+    The format is taken from the suffix (png, svg or pdf).
+    """
+    p = Path(path)
+    fmt = p.suffix.lstrip(".").lower()
+    if fmt not in FORMATS:
+        raise ValueError(f"figure format must be one of {FORMATS}, got {fmt!r} ({p})")
+    metadata: dict[str, str | None] = {
+        "png": {"Software": _CREATOR},
+        "svg": {"Creator": _CREATOR, "Date": None},
+        "pdf": {"Creator": _CREATOR, "Producer": _CREATOR, "CreationDate": None, "ModDate": None},
+    }[fmt]
+    with mpl.rc_context(_RC):
+        fig.savefig(p, format=fmt, dpi=_DPI, metadata=metadata)
+    return p
+
+
+def render_figures(
+    run: RunResult, outdir: str | os.PathLike[str], formats: Iterable[str] = ("png", "svg")
+) -> list[Path]:
+    """Render every figure of ``run`` into ``outdir`` as ``<stem>.<format>``; return the paths.
+
+    Parameters
+    ----------
+    run : RunResult or RunLog
+    outdir : path-like — created if missing
+    formats : iterable of {"png", "svg", "pdf"}
+    """
+    fmts = list(formats)
+    for fmt in fmts:
+        if fmt not in FORMATS:
+            raise ValueError(f"figure format must be one of {FORMATS}, got {fmt!r}")
+    out = Path(outdir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths: list[Path] = []
+    with mpl.rc_context(_RC):
+        for stem, fig in figure_set(run).items():
+            for fmt in fmts:
+                paths.append(save_figure(fig, out / f"{stem}.{fmt}"))
+    return paths
+
+
