@@ -1,0 +1,1 @@
+"""On-demand speed benchmarks; results go to benchmarks/results/*.json (git-ignored)."""
