@@ -1,0 +1,590 @@
+"""How wrong each method is: coverage, density distances and likelihood against Monte Carlo.
+
+Every measure compares a method's predicted distribution of the end pose with a
+Monte Carlo cloud of end poses (the ground truth of the wheel-noise model):
+
+coverage
+    the fraction of particles inside the method's Pr-region, for
+    ``Pr ∈ {0.5, 0.9, 0.9889}`` (:data:`PRS`), nominal against actual. The
+    planar region (``coverage_xy``) of a density ``p(x, y)`` is its highest-density
+    region ``{p ≥ c}`` holding probability Pr — for the Cartesian Gaussian that
+    is the Pr-ellipse, for the exponential-coordinates Gaussian a banana, for a
+    gridded map a union of cells. The pose region (``coverage_pose``, Gaussian
+    methods) is the 3-D ellipsoid ``εᵀΣ⁻¹ε ≤ χ²₃(Pr)`` in each method's own
+    coordinates. The binomial standard error of an actual coverage is
+    ``√(Pr(1−Pr)/n)``.
+density distances
+    Hellinger distance ``H = √(1 − Σ √(p_i q_i))`` and ``KL(MC ‖ model) = Σ p_i
+    log(p_i/q_i)`` between the histogram of the particles' ``(x, y)`` (cell
+    probabilities ``p_i``) and the model's cell probabilities ``q_i`` on one
+    grid (:class:`Grid`, described in every result). Model cell probabilities
+    are the density at ``s × s`` points per cell times the cell area
+    (midpoint rule, ``s = supersample``); ``q_i`` is floored at
+    :data:`KL_FLOOR` for the KL. A finite cloud is never at distance 0 from
+    its own law; ``*_floor`` gives the distance of the Cartesian Gaussian to a
+    histogram of as many draws from itself, the level below which a distance
+    means nothing.
+likelihood
+    the mean log-likelihood of the particles under the method (the measure of
+    Long et al., RSS 2012): ``loglik_pose`` w.r.t. ``dx dy dθ`` (Gaussian
+    methods), ``loglik_xy`` w.r.t. ``dx dy`` (every method); higher is better.
+NEES
+    mean normalised estimation error squared ``(p − μ)ᵀΣ⁻¹(p − μ)`` of the
+    Gaussian methods; a consistent 3-D Gaussian gives 3 (``nees_pose``), its
+    planar block 2 (``nees_xy``).
+
+All functions are plain functions returning dicts of floats. A gridded density
+is any object with ``x`` (nx,), ``y`` (ny,) cell centres [m] and either
+``marginal_xy()`` returning (nx, ny) or ``values`` of shape (nx, ny) [1/m²]
+(e.g. ``pose_uncertainty.maps.ProbabilityMap``, or :class:`GriddedDensity`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy import stats as sstats
+
+from . import covariance as cv
+from . import expcoords as ec
+from .trajectories import Trajectory
+from .validation import (
+    check_finite,
+    check_last_axis,
+    check_positive_int,
+    check_probability,
+)
+
+__all__ = [
+    "KL_FLOOR",
+    "PRS",
+    "GriddedDensity",
+    "Grid",
+    "accuracy_vs_distance",
+    "cell_probabilities",
+    "compare_methods",
+    "coverage_ellipse",
+    "coverage_ellipsoid",
+    "coverage_gridded",
+    "density_at",
+    "evaluate_cartesian",
+    "evaluate_expcoords",
+    "evaluate_gridded",
+    "flatten",
+    "grid_for_cloud",
+    "hdr_level",
+    "hellinger",
+    "histogram_probabilities",
+    "kl_divergence",
+    "pr_label",
+]
+
+#: The probabilities of the credible regions compared: 50 %, 90 % and the thesis's 98.89 % (r = 3).
+PRS: tuple[float, ...] = (0.5, 0.9, cv.PR_3SIGMA)
+
+#: Floor of a model cell probability in the KL divergence (a zero would make it infinite).
+KL_FLOOR: float = 1e-12
+
+
+def pr_label(pr: float) -> str:
+    """Short key for a probability: 0.5 → "50", 0.9 → "90", 0.98889 → "98.89"."""
+    return f"{100.0 * pr:.4g}"
+
+
+# --- grids and histograms -------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class Grid:
+    """A rectangular grid in the plane, by its cell edges.
+
+    Attributes
+    ----------
+    x_edges : ndarray, shape (nx+1,) [m]; y_edges : ndarray, shape (ny+1,) [m]
+    """
+
+    x_edges: NDArray[np.float64]
+    y_edges: NDArray[np.float64]
+
+    @property
+    def x(self) -> NDArray[np.float64]:
+        """Cell centres along x, shape (nx,) [m]."""
+        return 0.5 * (self.x_edges[1:] + self.x_edges[:-1])
+
+    @property
+    def y(self) -> NDArray[np.float64]:
+        """Cell centres along y, shape (ny,) [m]."""
+        return 0.5 * (self.y_edges[1:] + self.y_edges[:-1])
+
+    @property
+    def dx(self) -> float:
+        """Cell width [m]."""
+        return float(self.x_edges[1] - self.x_edges[0])
+
+    @property
+    def dy(self) -> float:
+        """Cell height [m]."""
+        return float(self.y_edges[1] - self.y_edges[0])
+
+    @property
+    def cell_area(self) -> float:
+        """Cell area [m²]."""
+        return self.dx * self.dy
+
+    def describe(self) -> dict[str, float]:
+        """The binning, as floats: bins, cell sizes and the covered rectangle."""
+        return {
+            "grid_nx": float(self.x_edges.size - 1),
+            "grid_ny": float(self.y_edges.size - 1),
+            "grid_dx": self.dx,
+            "grid_dy": self.dy,
+            "grid_x_min": float(self.x_edges[0]),
+            "grid_x_max": float(self.x_edges[-1]),
+            "grid_y_min": float(self.y_edges[0]),
+            "grid_y_max": float(self.y_edges[-1]),
+        }
+
+
+def grid_for_cloud(xy: ArrayLike, n_bins: int = 60, pad: float = 0.05) -> Grid:
+    """The stated grid of the density comparisons: ``n_bins × n_bins`` equal cells.
+
+    It covers the bounding box of the whole cloud, widened by ``pad`` of its
+    extent on each side, so every particle falls in a cell.
+
+    Parameters
+    ----------
+    xy : array_like, shape (n, 2) [m]; n_bins : int; pad : float ≥ 0
+    """
+    p = check_last_axis("xy", xy, 2)
+    n_bins = check_positive_int("n_bins", n_bins)
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    span = np.maximum(hi - lo, 1e-9)
+    lo, hi = lo - pad * span, hi + pad * span
+    return Grid(np.linspace(lo[0], hi[0], n_bins + 1), np.linspace(lo[1], hi[1], n_bins + 1))
+
+
+def histogram_probabilities(xy: ArrayLike, grid: Grid) -> NDArray[np.float64]:
+    """Fraction of the points in each cell, shape (nx, ny) (sums to the fraction on the grid)."""
+    p = check_last_axis("xy", xy, 2)
+    h, _, _ = np.histogram2d(p[:, 0], p[:, 1], bins=(grid.x_edges, grid.y_edges))
+    return h / p.shape[0]
+
+
+def cell_probabilities(pdf: Any, grid: Grid, supersample: int = 4) -> NDArray[np.float64]:
+    """Model probability of each cell by the midpoint rule on ``s × s`` points per cell.
+
+    Parameters
+    ----------
+    pdf : callable, (m, 2) points [m] → (m,) density [1/m²]
+    grid : Grid; supersample : int ≥ 1
+
+    Returns
+    -------
+    ndarray, shape (nx, ny)
+    """
+    s = check_positive_int("supersample", supersample)
+    off = (np.arange(s) + 0.5) / s
+    xs = (grid.x_edges[:-1, None] + off[None, :] * grid.dx).ravel()
+    ys = (grid.y_edges[:-1, None] + off[None, :] * grid.dy).ravel()
+    X, Y = np.meshgrid(xs, ys, indexing="ij")
+    d = np.asarray(pdf(np.stack([X.ravel(), Y.ravel()], axis=-1))).reshape(X.shape)
+    nx, ny = grid.x_edges.size - 1, grid.y_edges.size - 1
+    return d.reshape(nx, s, ny, s).mean(axis=(1, 3)) * grid.cell_area
+
+
+def hellinger(p: ArrayLike, q: ArrayLike) -> float:
+    """Hellinger distance ``√(1 − Σ √(p_i q_i))`` between two cell-probability arrays (0 … 1)."""
+    pp = check_finite("p", p)
+    qq = check_finite("q", q)
+    bc = float(np.sum(np.sqrt(np.clip(pp, 0, None) * np.clip(qq, 0, None))))
+    return math.sqrt(max(0.0, 1.0 - bc))
+
+
+def kl_divergence(p: ArrayLike, q: ArrayLike, floor: float = KL_FLOOR) -> float:
+    """``KL(p ‖ q) = Σ_{p_i>0} p_i log(p_i / max(q_i, floor))`` [nats] of cell probabilities."""
+    pp = check_finite("p", p)
+    qq = check_finite("q", q)
+    m = pp > 0
+    return float(np.sum(pp[m] * np.log(pp[m] / np.maximum(qq[m], floor))))
+
+
+# --- coverage ---------------------------------------------------------------------------------
+
+
+def coverage_ellipse(
+    xy: ArrayLike, center: ArrayLike, cov_xy: ArrayLike, prs: Sequence[float] = PRS
+) -> dict[str, float]:
+    """Fraction of planar points inside the Pr-ellipses ``dᵀΣ⁻¹d ≤ −2 ln(1−Pr)``.
+
+    Returns ``{pr_label(pr): fraction}``.
+    """
+    from .stats import mahalanobis_sq
+
+    d2 = mahalanobis_sq(xy, center, cov_xy)
+    return {pr_label(pr): float(np.mean(d2 <= cv.pr_to_k(pr))) for pr in prs}
+
+
+def coverage_ellipsoid(
+    points: ArrayLike, center: ArrayLike, cov: ArrayLike, prs: Sequence[float] = PRS
+) -> dict[str, float]:
+    """Fraction of d-dimensional points inside ``dᵀΣ⁻¹d ≤ χ²_d(Pr)``; ``{pr_label: fraction}``."""
+    from .stats import mahalanobis_sq
+
+    C = check_finite("cov", cov)
+    d2 = mahalanobis_sq(points, center, C)
+    dim = C.shape[-1]
+    return {pr_label(pr): float(np.mean(d2 <= sstats.chi2.ppf(pr, dim))) for pr in prs}
+
+
+# --- gridded densities ------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class GriddedDensity:
+    """A planar density on cell centres: ``values[i, j]`` at ``(x[i], y[j])`` [1/m²]."""
+
+    x: NDArray[np.float64]
+    y: NDArray[np.float64]
+    values: NDArray[np.float64]
+
+    def marginal_xy(self) -> NDArray[np.float64]:
+        """The density itself, shape (nx, ny)."""
+        return self.values
+
+
+def _marginal(density: Any) -> tuple[NDArray, NDArray, NDArray]:
+    x = check_finite("density.x", density.x)
+    y = check_finite("density.y", density.y)
+    vals = density.marginal_xy() if hasattr(density, "marginal_xy") else density.values
+    v = check_finite("density values", vals)
+    if v.shape != (x.size, y.size):
+        raise ValueError(
+            f"density values must have shape (nx, ny) = ({x.size}, {y.size}), got {v.shape}"
+        )
+    if x.size < 2 or y.size < 2:
+        raise ValueError(f"density grid must have at least 2 cells per axis, got {v.shape}")
+    return x, y, v
+
+
+def _cell_index(x: NDArray, y: NDArray, xy: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+    """Index of the cell (centres x, y; uniform spacing) holding each point, and an inside mask."""
+    dx, dy = x[1] - x[0], y[1] - y[0]
+    i = np.floor((xy[:, 0] - (x[0] - dx / 2)) / dx).astype(np.intp)
+    j = np.floor((xy[:, 1] - (y[0] - dy / 2)) / dy).astype(np.intp)
+    inside = (i >= 0) & (i < x.size) & (j >= 0) & (j < y.size)
+    return np.clip(i, 0, x.size - 1), np.clip(j, 0, y.size - 1), inside
+
+
+def density_at(density: Any, xy: ArrayLike) -> NDArray[np.float64]:
+    """Value of a gridded density at points: the value of the cell holding each point, 0 off the grid.
+
+    Parameters
+    ----------
+    density : object with ``x``, ``y`` and ``marginal_xy()`` or ``values`` (nx, ny)
+    xy : array_like, shape (n, 2) [m]
+
+    Returns
+    -------
+    ndarray, shape (n,) [1/m²]
+    """
+    x, y, v = _marginal(density)
+    p = check_last_axis("xy", xy, 2).reshape(-1, 2)
+    i, j, inside = _cell_index(x, y, p)
+    return np.where(inside, v[i, j], 0.0)
+
+
+def hdr_level(values: ArrayLike, cell_area: float, pr: float) -> float:
+    """Density level ``c`` of the highest-density region of a gridded density holding ``pr``.
+
+    Cells sorted by density, highest first; ``c`` is the density of the cell at
+    which the cumulative probability first reaches ``pr`` of the total on the
+    grid (the mass off the grid is unknown here; a map reports it as ``lost_mass``).
+    """
+    v = np.sort(check_finite("values", values).ravel())[::-1]
+    pr_ = float(check_probability("pr", pr))
+    cum = np.cumsum(v) * cell_area
+    total = cum[-1]
+    if total <= 0:
+        raise ValueError("values must have positive total mass (allowed: a density), got total 0")
+    idx = int(np.searchsorted(cum, pr_ * total))
+    return float(v[min(idx, v.size - 1)])
+
+
+def coverage_gridded(density: Any, xy: ArrayLike, prs: Sequence[float] = PRS) -> dict[str, float]:
+    """Fraction of points inside the gridded density's Pr highest-density regions.
+
+    A point is inside when the cell holding it has density ≥ :func:`hdr_level`.
+    """
+    x, y, v = _marginal(density)
+    area = float((x[1] - x[0]) * (y[1] - y[0]))
+    at = density_at(density, xy)
+    return {pr_label(pr): float(np.mean(at >= hdr_level(v, area, pr))) for pr in prs}
+
+
+# --- per-method evaluation --------------------------------------------------------------------
+
+
+def _safe_mean_log(x: NDArray) -> float:
+    with np.errstate(divide="ignore"):
+        return float(np.mean(np.log(x)))
+
+
+def _distances(p: NDArray, q: NDArray) -> dict[str, float]:
+    return {
+        "hellinger": hellinger(p, q),
+        "kl": kl_divergence(p, q),
+        "model_mass_on_grid": float(q.sum()),
+    }
+
+
+def _gauss2_pdf(mean: NDArray, cov: NDArray) -> Any:
+    P = np.linalg.inv(cov)
+    norm = 1.0 / (2.0 * np.pi * math.sqrt(np.linalg.det(cov)))
+
+    def pdf(pts: NDArray) -> NDArray:
+        d = pts - mean
+        m2 = P[0, 0] * d[:, 0] ** 2 + 2.0 * P[0, 1] * d[:, 0] * d[:, 1] + P[1, 1] * d[:, 1] ** 2
+        return norm * np.exp(-0.5 * m2)
+
+    return pdf
+
+
+def _check_samples(samples: ArrayLike) -> NDArray:
+    s = check_last_axis("samples", samples, 3)
+    if s.ndim != 2 or s.shape[0] < 2:
+        raise ValueError(f"samples must have shape (n, 3) with n >= 2, got shape {s.shape}")
+    return s
+
+
+def evaluate_cartesian(
+    samples: ArrayLike,
+    pose: ArrayLike,
+    cov: ArrayLike,
+    grid: Grid | None = None,
+    prs: Sequence[float] = PRS,
+    supersample: int = 4,
+) -> dict[str, float]:
+    """All accuracy measures of the Cartesian Gaussian ``N(pose, cov)`` (Method A) against a cloud.
+
+    Parameters
+    ----------
+    samples : array_like, shape (n, 3) — Monte Carlo poses, unwrapped headings
+    pose : array_like, shape (3,) — the method's mean pose
+    cov : array_like, shape (3, 3) — its covariance, positive definite
+    grid : Grid, optional — default :func:`grid_for_cloud` of the samples
+    prs : probabilities of the credible regions; supersample : see :func:`cell_probabilities`
+
+    Returns
+    -------
+    dict: ``coverage_xy_<pr>``, ``coverage_pose_<pr>``, ``hellinger``, ``kl``,
+    ``model_mass_on_grid``, ``loglik_pose``, ``loglik_xy``, ``nees_pose``, ``nees_xy``.
+    """
+    from .stats import mahalanobis_sq
+
+    s = _check_samples(samples)
+    mu = check_last_axis("pose", pose, 3)
+    C = check_finite("cov", cov)
+    g = grid_for_cloud(s[:, :2]) if grid is None else grid
+    out: dict[str, float] = {}
+    for key, val in coverage_ellipse(s[:, :2], mu[:2], C[:2, :2], prs).items():
+        out[f"coverage_xy_{key}"] = val
+    for key, val in coverage_ellipsoid(s, mu, C, prs).items():
+        out[f"coverage_pose_{key}"] = val
+    q = cell_probabilities(_gauss2_pdf(mu[:2], C[:2, :2]), g, supersample)
+    out.update(_distances(histogram_probabilities(s[:, :2], g), q))
+    d3 = mahalanobis_sq(s, mu, C)
+    d2 = mahalanobis_sq(s[:, :2], mu[:2], C[:2, :2])
+    _, logdet3 = np.linalg.slogdet(C)
+    _, logdet2 = np.linalg.slogdet(C[:2, :2])
+    out["loglik_pose"] = float(np.mean(-0.5 * d3) - 0.5 * logdet3 - 1.5 * math.log(2 * math.pi))
+    out["loglik_xy"] = float(np.mean(-0.5 * d2) - 0.5 * logdet2 - math.log(2 * math.pi))
+    out["nees_pose"] = float(np.mean(d3))
+    out["nees_xy"] = float(np.mean(d2))
+    return out
+
+
+def evaluate_expcoords(
+    samples: ArrayLike,
+    pose: ArrayLike,
+    cov: ArrayLike,
+    rng: np.random.Generator,
+    grid: Grid | None = None,
+    prs: Sequence[float] = PRS,
+    supersample: int = 4,
+    n_threshold: int = 200_000,
+) -> dict[str, float]:
+    """All accuracy measures of the exponential-coordinates Gaussian ``μ exp(N(0, cov))``.
+
+    The planar Pr-region is the banana ``{p(x, y) ≥ c}`` with ``c`` from
+    :func:`pose_uncertainty.expcoords.hdr_threshold` (``n_threshold`` draws
+    from ``rng``); the pose region and NEES use the exponential coordinates
+    ``ε = log(μ⁻¹ g)``.
+
+    Parameters and returned keys as :func:`evaluate_cartesian` (``cov`` is Σ of ε).
+    """
+    s = _check_samples(samples)
+    mu = check_last_axis("pose", pose, 3)
+    C = check_finite("cov", cov)
+    g = grid_for_cloud(s[:, :2]) if grid is None else grid
+    out: dict[str, float] = {}
+    dens = ec.pdf_xy(s[:, :2], mu, C)
+    levels = ec.hdr_threshold(mu, C, np.asarray(prs), rng, n=n_threshold)
+    for pr, level in zip(prs, levels, strict=True):
+        out[f"coverage_xy_{pr_label(pr)}"] = float(np.mean(dens >= level))
+    eps = ec.coordinates(s, mu)
+    for key, val in coverage_ellipsoid(eps, np.zeros(3), C, prs).items():
+        out[f"coverage_pose_{key}"] = val
+    q = cell_probabilities(lambda pts: ec.pdf_xy(pts, mu, C), g, supersample)
+    out.update(_distances(histogram_probabilities(s[:, :2], g), q))
+    out["loglik_pose"] = float(np.mean(ec.logpdf_pose(s, mu, C)))
+    out["loglik_xy"] = _safe_mean_log(dens)
+    from .stats import mahalanobis_sq
+
+    # NEES in the method's own coordinates: εᵀΣ⁻¹ε (3 if consistent), planar block of ε (2)
+    out["nees_pose"] = float(np.mean(mahalanobis_sq(eps, np.zeros(3), C)))
+    out["nees_xy"] = float(np.mean(mahalanobis_sq(eps[:, :2], np.zeros(2), C[:2, :2])))
+    return out
+
+
+def evaluate_gridded(
+    density: Any,
+    samples: ArrayLike,
+    grid: Grid | None = None,
+    prs: Sequence[float] = PRS,
+) -> dict[str, float]:
+    """Accuracy measures of a gridded planar density (e.g. a probability map).
+
+    Coverage of its highest-density regions, Hellinger and KL on ``grid`` (the
+    map's density looked up at the ``grid``'s cell centres, supersampled
+    4 × 4), and ``loglik_xy`` (cell lookup; ``-inf`` if a particle falls
+    where the map is 0). No pose-space measures: a map's θ axis is not compared.
+
+    Returns
+    -------
+    dict: ``coverage_xy_<pr>``, ``hellinger``, ``kl``, ``model_mass_on_grid``,
+    ``loglik_xy``, ``fraction_off_map``.
+    """
+    s = _check_samples(samples)
+    x, y, _ = _marginal(density)
+    g = grid_for_cloud(s[:, :2]) if grid is None else grid
+    out: dict[str, float] = {}
+    for key, val in coverage_gridded(density, s[:, :2], prs).items():
+        out[f"coverage_xy_{key}"] = val
+    q = cell_probabilities(lambda pts: density_at(density, pts), g, 4)
+    out.update(_distances(histogram_probabilities(s[:, :2], g), q))
+    out["loglik_xy"] = _safe_mean_log(density_at(density, s[:, :2]))
+    _, _, inside = _cell_index(x, y, s[:, :2])
+    out["fraction_off_map"] = float(1.0 - inside.mean())
+    return out
+
+
+def _floor(pose: NDArray, cov_xy: NDArray, n: int, grid: Grid, rng: np.random.Generator) -> dict:
+    """Distances of the Cartesian Gaussian to a histogram of ``n`` of its own draws."""
+    draws = rng.multivariate_normal(pose[:2], cov_xy, size=n, method="eigh")
+    q = cell_probabilities(_gauss2_pdf(pose[:2], cov_xy), grid, 4)
+    p = histogram_probabilities(draws, grid)
+    return {"hellinger_floor": hellinger(p, q), "kl_floor": kl_divergence(p, q)}
+
+
+def compare_methods(
+    samples: ArrayLike,
+    cartesian: tuple[ArrayLike, ArrayLike],
+    expcoords: tuple[ArrayLike, ArrayLike] | None,
+    rng: np.random.Generator,
+    densities: Mapping[str, Any] | None = None,
+    prs: Sequence[float] = PRS,
+    n_bins: int = 60,
+) -> dict[str, dict[str, float]]:
+    """Every method against one Monte Carlo cloud, on one grid.
+
+    Parameters
+    ----------
+    samples : array_like, shape (n, 3) — Monte Carlo poses
+    cartesian : (pose (3,), cov (3, 3)) — Method A
+    expcoords : (pose (3,), cov (3, 3)) or None — exponential-coordinates Gaussian
+    rng : numpy.random.Generator — for the banana thresholds and the floors
+    densities : mapping name → gridded density, optional (e.g. probability maps)
+    prs : probabilities; n_bins : bins per axis of the stated grid
+
+    Returns
+    -------
+    dict: ``"grid"`` (the binning, with ``n_samples``), ``"monte_carlo"`` (the
+    floors and the binomial standard errors ``coverage_se_<pr>``),
+    ``"cartesian"``, ``"expcoords"``, and one entry per gridded density.
+    """
+    s = _check_samples(samples)
+    grid = grid_for_cloud(s[:, :2], n_bins=n_bins)
+    pose_a, cov_a = (np.asarray(v, dtype=float) for v in cartesian)
+    res: dict[str, dict[str, float]] = {"grid": {**grid.describe(), "n_samples": float(len(s))}}
+    mc = _floor(pose_a, cov_a[:2, :2], len(s), grid, rng)
+    for pr in prs:
+        mc[f"coverage_se_{pr_label(pr)}"] = math.sqrt(pr * (1 - pr) / len(s))
+    res["monte_carlo"] = mc
+    res["cartesian"] = evaluate_cartesian(s, pose_a, cov_a, grid, prs)
+    if expcoords is not None:
+        pose_e, cov_e = (np.asarray(v, dtype=float) for v in expcoords)
+        res["expcoords"] = evaluate_expcoords(s, pose_e, cov_e, rng, grid, prs)
+    for name, dens in (densities or {}).items():
+        res[name] = evaluate_gridded(dens, s, grid, prs)
+    return res
+
+
+def flatten(result: Mapping[str, Mapping[str, float]], prefix: str = "accuracy") -> dict[str, float]:
+    """``{"cartesian": {"kl": 0.1}}`` → ``{"accuracy_cartesian_kl": 0.1}`` (for run-log metrics)."""
+    return {
+        f"{prefix}_{method}_{key}".replace(".", "_"): float(val)
+        for method, d in result.items()
+        for key, val in d.items()
+    }
+
+
+def accuracy_vs_distance(
+    trajectory: Trajectory,
+    k_r: float,
+    k_l: float,
+    n: int,
+    rng: np.random.Generator,
+    *,
+    n_checkpoints: int = 5,
+    regime: str = "per_step",
+    prs: Sequence[float] = PRS,
+    n_bins: int = 60,
+) -> list[dict[str, Any]]:
+    """Accuracy of both Gaussian methods at evenly spaced points along a trajectory.
+
+    Draws ``n`` Monte Carlo runs (midpoint integration, ``regime``), keeps the
+    clouds at ``n_checkpoints`` steps (the last is the end), and runs
+    :func:`compare_methods` at each.
+
+    Returns
+    -------
+    list of dict, one per checkpoint: ``step``, ``distance`` [m] (path length
+    so far) and the entries of :func:`compare_methods`.
+    """
+    from .sampling import sample_end_poses
+
+    n = check_positive_int("n", n)
+    m = check_positive_int("n_checkpoints", n_checkpoints)
+    N = trajectory.n_steps
+    steps = sorted({max(1, round(N * (i + 1) / m)) for i in range(m)})
+    clouds = sample_end_poses(trajectory, k_r, k_l, n, rng, regime=regime, checkpoints=steps)
+    A = cv.propagate(trajectory, k_r, k_l)
+    E = ec.propagate(trajectory, k_r, k_l)
+    dist = np.concatenate([[0.0], np.cumsum(np.abs(trajectory.ds))])
+    rows = []
+    for c, st in enumerate(steps):
+        res = compare_methods(
+            clouds[:, c, :],
+            (A.poses[st], A.covs[st]),
+            (E.poses[st], E.covs[st]),
+            rng,
+            prs=prs,
+            n_bins=n_bins,
+        )
+        rows.append({"step": st, "distance": float(dist[st]), **res})
+    return rows
