@@ -17,8 +17,9 @@ Two named regimes of odometry error:
     square of distance, and the end-pose cloud bends into a banana.
 
 Particles are processed in chunks of a fixed size (a function of the number of
-steps only), each chunk with all its noise drawn at once from the caller's
-generator, so the same seed gives bit-identical output on any machine.
+steps only), each chunk with its own random stream spawned from the caller's
+generator, so the same seed gives bit-identical output on any machine and for
+any number of threads.
 """
 
 from __future__ import annotations
@@ -88,34 +89,55 @@ def integrate_end(
     return np.stack([p0[0] + cx[:, idx], p0[1] + cy[:, idx], p0[2] + ct[:, idx]], axis=-1)
 
 
-def _end_poses_inplace(
-    z: NDArray[np.float64], track: float, start: NDArray[np.float64], method: str
-) -> NDArray[np.float64]:
-    """End poses from noisy travels ``z = (Δs_r', Δs_l')`` of shape (2, m, N), overwriting ``z``.
+_HEADING_OFFSET = {"exact": 0.5, "midpoint": 0.5, "euler": 0.0, "euler_end": 1.0}
 
-    The same arithmetic as :func:`integrate_end` for the end pose only, done in
-    place to keep the chunk in cache; returns shape (m, 3).
+
+def _end_poses_perturbed(
+    trajectory: Trajectory, noise_r: NDArray[np.float64], noise_l: NDArray[np.float64], method: str
+) -> NDArray[np.float64]:
+    """End poses from wheel-travel perturbations, as nominal path + small heading perturbation.
+
+    With per-step perturbations ``(n_r, n_l)`` of shape (m, N), the heading
+    noise of step i is ``e_i = (n_r − n_l)/b`` and the particle's step heading is
+    ``φ_i = φ̄_i + δ_i``, with ``φ̄_i`` the nominal one and
+    ``δ_i = Σ_{j<i} e_j + c·e_i`` (c = ½ midpoint/exact, 0 Euler, 1 Euler-end).
+    Then ``x = x₀ + Σ Δs'_i (cos φ̄_i cos δ_i − sin φ̄_i sin δ_i)`` (likewise y):
+    the trigonometry of the particles is on the small δ only and the sums are
+    matrix–vector products. Same arithmetic as :func:`integrate_end` up to
+    rounding; returns shape (m, 3).
     """
-    r, l = z[0], z[1]
-    ds2 = r + l  # 2Δs
-    np.subtract(r, l, out=r)
-    r /= track  # Δθ per step
-    theta_end = r.sum(axis=-1)
-    theta = np.cumsum(r, axis=-1, out=l)  # heading after each step (relative to start)
-    if method in ("midpoint", "exact"):
-        r *= 0.5
-        theta -= r  # φ = θ_after − Δθ/2
-        if method == "exact":
-            ds2 *= np.sinc(r / np.pi)  # sin(Δθ/2)/(Δθ/2)
-    elif method == "euler":
-        theta -= r  # θ_before
-    # euler_end: φ = θ_after
-    theta += start[2]
-    np.cos(theta, out=r)
-    x = np.einsum("ij,ij->i", ds2, r)
-    np.sin(theta, out=r)
-    y = np.einsum("ij,ij->i", ds2, r)
-    return np.stack([start[0] + 0.5 * x, start[1] + 0.5 * y, start[2] + theta_end], axis=-1)
+    c = _HEADING_OFFSET[method]
+    b = trajectory.track
+    ds_nom, dth_nom = trajectory.ds, trajectory.dtheta
+    th_before = trajectory.start[2] + np.concatenate([[0.0], np.cumsum(dth_nom)[:-1]])
+    phi_nom = th_before + c * dth_nom
+    cos_nom, sin_nom = np.cos(phi_nom), np.sin(phi_nom)
+    ds = noise_r + noise_l
+    ds *= 0.5
+    ds += ds_nom  # Δs' per particle and step
+    e = noise_r  # reuse the buffer: heading noise per step
+    e -= noise_l
+    e /= b
+    heading_noise_end = e.sum(axis=-1)
+    delta = np.cumsum(e, axis=-1, out=noise_l)  # Σ_{j<=i} e_j
+    if c != 1.0:
+        e *= 1.0 - c
+        delta -= e  # Σ_{j<i} e_j + c e_i
+        e /= 1.0 - c
+    if method == "exact":
+        # Δs' · sin(Δθ'/2)/(Δθ'/2), Δθ' = Δθ̄ + e
+        e += dth_nom
+        e *= 1.0 / (2.0 * np.pi)
+        ds *= np.sinc(e)
+    np.cos(delta, out=e)
+    e *= ds  # u = Δs' cos δ
+    np.sin(delta, out=delta)
+    delta *= ds  # v = Δs' sin δ
+    x = e @ cos_nom - delta @ sin_nom
+    y = e @ sin_nom + delta @ cos_nom
+    x0, y0, th0 = trajectory.start
+    th_end = th0 + dth_nom.sum() + heading_noise_end
+    return np.stack([x0 + x, y0 + y, th_end], axis=-1)
 
 
 def _default_workers() -> int:
@@ -141,8 +163,8 @@ def sample_end_poses(
     trajectory : Trajectory
     k_r, k_l : float [m] — error constants, ≥ 0 (wheel-travel variance per metre)
     n : int ≥ 1 — number of particles
-    rng : numpy.random.Generator — the only source of randomness; one child
-        generator is spawned from it per chunk of particles
+    rng : numpy.random.Generator — the only source of randomness: one SFC64
+        stream per chunk of particles is spawned from its seed sequence
     regime : {"per_step", "per_run"} — see the module docstring
     method : {"exact", "euler", "euler_end", "midpoint"} — integration of each step
     checkpoints : sequence of int in [0, N], optional — step indices at which
@@ -183,29 +205,31 @@ def sample_end_poses(
         eps_std_l = np.sqrt(kl / L_l) if L_l > 0 else 0.0
     start = np.asarray(trajectory.start, dtype=np.float64)
     starts = list(range(0, n, chunk))
-    children = rng.spawn(len(starts))
+    # one SFC64 stream per chunk (the fastest of numpy's bit generators here), spawned from
+    # the caller's generator: fixed by the seed, independent of the number of threads
+    children = [
+        np.random.Generator(np.random.SFC64(s))
+        for s in rng.bit_generator.seed_seq.spawn(len(starts))
+    ]
 
     def run_chunk(j: int) -> None:
         lo = starts[j]
         m = min(chunk, n - lo)
         g = children[j]
+        z = g.standard_normal((2, m, N) if regime == "per_step" else (2, m, 1))
         if regime == "per_step":
-            z = g.standard_normal((2, m, N))
-            z[0] *= std_r
-            z[0] += ds_r
+            z[0] *= std_r  # Δs_r' − Δs_r ~ N(0, k_r|Δs_r|)
             z[1] *= std_l
-            z[1] += ds_l
-            if checkpoints is None:
-                out[lo : lo + m, 0] = _end_poses_inplace(z, trajectory.track, start, method)
-                return
-            nr, nl = z[0], z[1]
+            noise_r, noise_l = z[0], z[1]
         else:
-            eps = g.standard_normal((2, m, 1))
-            nr = ds_r * (1.0 + eps_std_r * eps[0])
-            nl = ds_l * (1.0 + eps_std_l * eps[1])
-        out[lo : lo + m] = integrate_end(
-            nr, nl, trajectory.track, trajectory.start, method, checkpoints
-        )
+            noise_r = (eps_std_r * z[0]) * ds_r  # Δs_r' − Δs_r = ε_r Δs_r
+            noise_l = (eps_std_l * z[1]) * ds_l
+        if checkpoints is None:
+            out[lo : lo + m, 0] = _end_poses_perturbed(trajectory, noise_r, noise_l, method)
+        else:
+            out[lo : lo + m] = integrate_end(
+                ds_r + noise_r, ds_l + noise_l, trajectory.track, start, method, checkpoints
+            )
 
     if n_workers == 1 or len(starts) == 1:
         for j in range(len(starts)):
