@@ -28,7 +28,8 @@ def test_speed_error_variance_by_monte_carlo():
     v = np.array([0.5, 1.0, 2.0])
     e = wn.sample_speed_errors(wn.SEED001, v, 200_000, rng)
     assert_allclose(e.var(axis=0), wn.speed_variance(wn.SEED001, v), rtol=0.015)
-    assert_allclose(e.mean(axis=0), 0.0, atol=5 * np.sqrt(wn.speed_variance(wn.SEED001, v) / 2e5))
+    se = np.sqrt(wn.speed_variance(wn.SEED001, v) / 2e5)
+    assert np.all(np.abs(e.mean(axis=0)) < 5 * se)
     # quantisation alone is uniform on ±q/2
     q_only = wn.WheelErrorSources(surface_rel_std=0.0, additive_std=0.0)
     eq = wn.sample_speed_errors(q_only, v, 10_000, rng)
