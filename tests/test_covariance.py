@@ -1,6 +1,5 @@
 """Method A: Jacobians, closed form on the straight line, two propagation routes, ellipses."""
 
-import math
 
 import numpy as np
 import pytest
@@ -39,7 +38,8 @@ def test_jacobians_equal_finite_differences(rng):
 def test_jacobians_batched_equal_single(rng):
     th, sr, sl = rng.normal(size=(3, 7, 5))
     J_p, J_d = cv.jacobians(th, sr, sl, 0.2)
-    assert J_p.shape == (7, 5, 3, 3) and J_d.shape == (7, 5, 3, 2)
+    assert J_p.shape == (7, 5, 3, 3)
+    assert J_d.shape == (7, 5, 3, 2)
     one_p, one_d = cv.jacobians(th[3, 2], sr[3, 2], sl[3, 2], 0.2)
     assert_allclose(J_p[3, 2], one_p)
     assert_allclose(J_d[3, 2], one_d)

@@ -55,8 +55,8 @@ def test_integration_orders_against_exact_arc():
     for n in (50, 100, 200):
         dth = np.full(n, math.pi / 2 / n)
         exact = kin.integrate(dth, dth, method="exact")[-1, :2]
-        for m in errs:
-            errs[m].append(np.linalg.norm(kin.integrate(dth, dth, method=m)[-1, :2] - exact))
+        for m, err in errs.items():
+            err.append(np.linalg.norm(kin.integrate(dth, dth, method=m)[-1, :2] - exact))
     for m in ("euler", "euler_end"):
         assert_allclose(errs[m][0] / errs[m][1], 2.0, rtol=0.02)
         assert_allclose(errs[m][1] / errs[m][2], 2.0, rtol=0.02)
@@ -97,7 +97,8 @@ def test_inverse_arc_batched(rng):
 def test_wrap_angle_range():
     a = np.linspace(-20, 20, 10001)
     w = kin.wrap_angle(a)
-    assert np.all(w > -math.pi) and np.all(w <= math.pi)
+    assert np.all(w > -math.pi)
+    assert np.all(w <= math.pi)
     assert_allclose(np.cos(w), np.cos(a), atol=1e-12)
     assert kin.wrap_angle(math.pi) == math.pi
     assert kin.wrap_angle(-math.pi) == math.pi

@@ -119,6 +119,7 @@ def test_bad_sampling_input(kwargs, match, rng):
 def test_stats_helpers(rng):
     x = rng.multivariate_normal([1, 2], [[2.0, 0.3], [0.3, 0.5]], size=100_000)
     m, C = stats.mean_cov(x)
+    assert_allclose(m, x.mean(axis=0))
     assert_allclose(C, np.cov(x.T))
     with pytest.raises(ValueError, match="n >= 2"):
         stats.mean_cov(x[:1])

@@ -229,8 +229,8 @@ def propagate_recursive(
     p0 = check_last_axis("start", start, 3)
     batch = np.broadcast_shapes(sr.shape[:-1], b.shape, kr.shape, kl.shape, S0.shape[:-2], p0.shape[:-1])
     n = sr.shape[-1]
-    poses = np.empty(batch + (n + 1, 3))
-    covs = np.empty(batch + (n + 1, 3, 3))
+    poses = np.empty((*batch, n + 1, 3))
+    covs = np.empty((*batch, n + 1, 3, 3))
     poses[..., 0, :] = p0
     covs[..., 0, :, :] = S0
     for i in range(n):
@@ -242,7 +242,7 @@ def propagate_recursive(
 
 def _prefix(x: NDArray) -> NDArray:
     """Prefix sums over the last axis with a leading 0: out[..., n] = Σ_{i<n} x[..., i]."""
-    out = np.zeros(x.shape[:-1] + (x.shape[-1] + 1,))
+    out = np.zeros((*x.shape[:-1], x.shape[-1] + 1))
     np.cumsum(x, axis=-1, out=out[..., 1:])
     return out
 
@@ -265,7 +265,7 @@ def _unit_responses(
     """
     _, J_d = jacobians(poses[..., :-1, 2], sr, sl, b[..., None])
     m = (-poses[..., 1], poses[..., 0])  # m(p) = (−y, x, 0), the zero entry left implicit
-    shape = poses.shape[:-1] + (3, 3)
+    shape = (*poses.shape[:-1], 3, 3)
     out = []
     for col, travel in ((0, sr), (1, sl)):
         w = np.abs(travel)
@@ -331,7 +331,7 @@ def propagate_travels(
     if np.any(S0):
         m = np.stack([-poses[..., 1], poses[..., 0], np.zeros_like(poses[..., 0])], axis=-1)
         c = m - m[..., :1, :]
-        A = np.broadcast_to(np.eye(3), c.shape[:-1] + (3, 3)).copy()
+        A = np.broadcast_to(np.eye(3), (*c.shape[:-1], 3, 3)).copy()
         A[..., :, 2] += c
         covs = covs + A @ S0[..., None, :, :] @ np.swapaxes(A, -1, -2)
     batch = covs.shape[:-3]

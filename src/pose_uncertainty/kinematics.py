@@ -154,7 +154,7 @@ def integrate(
     cum = np.cumsum(dth, axis=-1)
     theta_before = theta0 + np.concatenate([np.zeros_like(cum[..., :1]), cum[..., :-1]], axis=-1)
     dx, dy = _translation(theta_before, d, dth, method)
-    zero = np.zeros(d.shape[:-1] + (1,))
+    zero = np.zeros((*d.shape[:-1], 1))
     x = p0[..., 0, None] + np.concatenate([zero, np.cumsum(dx, axis=-1)], axis=-1)
     y = p0[..., 1, None] + np.concatenate([zero, np.cumsum(dy, axis=-1)], axis=-1)
     th = theta0 + np.concatenate([zero, cum], axis=-1)

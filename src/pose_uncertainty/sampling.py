@@ -24,9 +24,8 @@ any number of threads.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import os
+from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -82,9 +81,9 @@ def integrate_end(
             [p0[0] + dx.sum(axis=-1), p0[1] + dy.sum(axis=-1), p0[2] + theta[..., -1]], axis=-1
         )[:, None, :]
     idx = np.asarray(checkpoints, dtype=np.intp)
-    cx = np.concatenate([np.zeros(ds.shape[:-1] + (1,)), np.cumsum(dx, axis=-1)], axis=-1)
-    cy = np.concatenate([np.zeros(ds.shape[:-1] + (1,)), np.cumsum(dy, axis=-1)], axis=-1)
-    ct = np.concatenate([np.zeros(ds.shape[:-1] + (1,)), theta], axis=-1)
+    cx = np.concatenate([np.zeros((*ds.shape[:-1], 1)), np.cumsum(dx, axis=-1)], axis=-1)
+    cy = np.concatenate([np.zeros((*ds.shape[:-1], 1)), np.cumsum(dy, axis=-1)], axis=-1)
+    ct = np.concatenate([np.zeros((*ds.shape[:-1], 1)), theta], axis=-1)
     del n_steps
     return np.stack([p0[0] + cx[:, idx], p0[1] + cy[:, idx], p0[2] + ct[:, idx]], axis=-1)
 
@@ -183,7 +182,7 @@ def sample_end_poses(
     check_choice("regime", regime, REGIMES)
     check_choice("method", method, METHODS)
     if not isinstance(rng, np.random.Generator):
-        raise ValueError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
+        raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
     n_workers = _default_workers() if workers is None else check_positive_int("workers", workers)
     N = trajectory.n_steps
     if checkpoints is not None:
@@ -207,10 +206,10 @@ def sample_end_poses(
     starts = list(range(0, n, chunk))
     # one SFC64 stream per chunk (the fastest of numpy's bit generators here), spawned from
     # the caller's generator: fixed by the seed, independent of the number of threads
-    children = [
-        np.random.Generator(np.random.SFC64(s))
-        for s in rng.bit_generator.seed_seq.spawn(len(starts))
-    ]
+    seq = rng.bit_generator.seed_seq
+    if not isinstance(seq, np.random.SeedSequence):
+        raise TypeError("rng must be seeded from a SeedSequence (e.g. numpy.random.default_rng(seed))")
+    children = [np.random.Generator(np.random.SFC64(s)) for s in seq.spawn(len(starts))]
 
     def run_chunk(j: int) -> None:
         lo = starts[j]

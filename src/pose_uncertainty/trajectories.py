@@ -159,7 +159,7 @@ class Trajectory:
     @property
     def times(self) -> NDArray[np.float64]:
         """Times of the poses ``0, dt, …, N·dt`` [s], shape (N+1,)."""
-        return np.arange(self.n_steps + 1) * self.dt
+        return np.arange(self.n_steps + 1, dtype=np.float64) * self.dt
 
     @property
     def length(self) -> float:
