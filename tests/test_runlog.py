@@ -33,8 +33,11 @@ def synthetic_map(name: str, end: np.ndarray, rng: np.random.Generator) -> MapRe
     theta = np.linspace(-math.pi, math.pi, 16, endpoint=False)
     X, Y, T = np.meshgrid(x - end[0], y - end[1], theta, indexing="ij")
     values = np.exp(-(X**2 / 0.02 + Y**2 / 0.01 + T**2)) * (1.0 + 0.01 * rng.random(X.shape))
-    values /= values.sum() * (x[1] - x[0]) * (y[1] - y[0]) * (theta[1] - theta[0])
-    return MapRecord(name, "velocity", x, y, theta, values, lost_mass=1e-3, params={"alpha": [0.05] * 6})
+    values *= (1.0 - 1e-3) / values.sum()  # probability mass per cell; 1e-3 lost off the grid
+    return MapRecord(
+        name, "velocity", x, y, theta, values, lost_mass=1e-3,
+        params={"alphas": [0.05] * 6}, info={"synthetic": True},
+    )
 
 
 @pytest.fixture(scope="module")
@@ -70,7 +73,7 @@ def test_write_read_is_lossless_for_every_topic(result: RunResult, logfile: Path
     assert exact(log.checkpoints[40], result.checkpoints[40])
     assert len(log.maps) == len(result.maps) == 2
     for a, b in zip(log.maps, result.maps, strict=True):
-        assert (a.name, a.model, a.lost_mass, a.params) == (b.name, b.model, b.lost_mass, b.params)
+        assert (a.name, a.model, a.lost_mass, a.params, a.info) == (b.name, b.model, b.lost_mass, b.params, b.info)
         for attr in ("x", "y", "theta", "values"):
             assert exact(getattr(a, attr), getattr(b, attr)), attr
     assert log.metrics == result.metrics
@@ -139,14 +142,16 @@ def test_foxglove_topics_agree_with_the_exact_data(result: RunResult, logfile: P
     persistent = sorted(e.id for u in ellipses for e in u.entities if e.id != "ellipse/current")
     assert persistent == [f"ellipse/{i:06d}" for i in result.ellipse_steps()]
 
-    # the grid's density field is the θ-marginal of the exact volume, cell for cell
+    # the grid's mass field is the θ-marginal of the exact volume, cell for cell
     grid = _decoded(logfile, "/maps/vel/grid")[0]
     mp = result.maps[0]
+    assert [f.name for f in grid.fields] == ["mass", "red", "green", "blue", "alpha"]
     cells = np.frombuffer(grid.data, dtype=[("d", "<f8"), ("rgba", "u1", 4)]).reshape(mp.y.size, mp.x.size)
     assert exact(np.ascontiguousarray(cells["d"].T), mp.marginal_xy())
-    # marginal of a density normalised over the grid integrates to 1 (two routes to the mass)
-    mass = cells["d"].sum() * grid.cell_size.x * grid.cell_size.y
-    np.testing.assert_allclose(mass, 1.0, rtol=1e-12)
+    # in-grid mass + lost mass = 1 (grid route vs the volume's bookkeeping)
+    np.testing.assert_allclose(cells["d"].sum() + mp.lost_mass, 1.0, rtol=1e-12)
+    # the grid's corner is half a cell before the first cell centre
+    assert grid.pose.position.x == mp.x[0] - grid.cell_size.x / 2
     darkest = np.unravel_index(np.argmin(cells["rgba"][..., 0]), cells.shape)
     assert darkest == np.unravel_index(np.argmax(cells["d"]), cells.shape)  # darker = more probable
 
@@ -313,6 +318,53 @@ def test_state_at(result: RunResult, logfile: Path) -> None:
     assert end["step"] == result.n_steps and exact(end["cloud"], result.end_poses)
     with pytest.raises(ValueError, match="within the run"):
         log.state_at(float(result.times[-1]) + 1.0)
+
+
+# --- real maps from the config ---------------------------------------------------------------
+
+MAP_CONFIG = {
+    "name": "b1_arc",
+    "seed": 1,
+    # one step of V = 1 m/s, ω = 1 rad/s for Δt = 1 s (SPEC §4 B1, arc)
+    "trajectory": {"name": "arc", "radius": 1.0, "angle": 1.0, "speed": 1.0, "dt": 1.0},
+    "monte_carlo": {"n_particles": 500},
+    "maps": [
+        {"name": "vel", "model": "velocity", "resolution": 0.02, "theta_resolution": 0.2},
+        {"name": "odo", "model": "odometry", "resolution": 0.02, "theta_resolution": 0.2},
+    ],
+}
+
+
+def test_computed_maps_round_trip(tmp_path: Path) -> None:
+    from pose_uncertainty import maps
+
+    cfg = RunConfig.from_dict(MAP_CONFIG)
+    assert cfg.maps[0].params["alphas"] == [0.05] * 6  # the thesis's constants filled in
+    res = execute(cfg)
+    assert res.n_steps == 1 and [m.name for m in res.maps] == ["vel", "odo"]
+    # the map builder called directly, on a grid centred on the closed-form end of the
+    # arc (R = 1 m turned by 1 rad: (sin 1, 1 − cos 1, 1)), gives the same array
+    end = (math.sin(1.0), 1.0 - math.cos(1.0), 1.0)
+    grid = maps.MapGrid.centered(end, resolution=0.02, theta_resolution=0.2)
+    direct = maps.single_step_map("velocity", (0, 0, 0), (1.0, 1.0), 1.0, [0.05] * 6, grid=grid)
+    np.testing.assert_allclose(res.maps[0].values, direct.values, rtol=1e-12, atol=1e-300)
+    log = open_run(write_run(tmp_path / "maps.mcap", res))
+    assert runlog.compare_results(log, res) == []
+    for a, b in zip(log.maps, res.maps, strict=True):
+        assert exact(a.values, b.values) and a.info == b.info and a.params == b.params
+        pm = a.to_probability_map()
+        assert exact(pm.most_probable_xy(), b.to_probability_map().most_probable_xy())
+    # the odometry map's peak is off the noiseless end point, the velocity map's is on it (claim 10)
+    assert log.metrics["map_vel_peak_offset"] < 0.02 < log.metrics["map_odo_peak_offset"]
+
+
+def test_bad_map_config_names_the_key() -> None:
+    with pytest.raises(ValueError, match=r"'maps\[0\].resolutoin'"):
+        RunConfig.from_dict({**MAP_CONFIG, "maps": [{"model": "velocity", "resolutoin": 0.1}]})
+    with pytest.raises(ValueError, match=r"'maps\[0\].alphas'"):
+        RunConfig.from_dict({**MAP_CONFIG, "maps": [{"model": "odometry", "alphas": [0.1] * 6}]})
+    with pytest.raises(ValueError, match=r"'maps\[0\].model' must be one of"):
+        RunConfig.from_dict({**MAP_CONFIG, "maps": [{"model": "sensor"}]})
 
 
 # --- configs ---------------------------------------------------------------------------------

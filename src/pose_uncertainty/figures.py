@@ -133,34 +133,37 @@ def cloud_figure(run: RunResult) -> Figure | None:
 
 
 def map_figure(run: RunResult, mp: MapRecord) -> Figure:
-    """Probability map (θ marginalised), 1 m × 1 m around the noiseless end point, darker = more probable.
+    """Probability map (θ marginalised), 1 m × 1 m around the noiseless end pose, darker = more probable.
+
+    The window is centred on the centre of the map's grid, which
+    :func:`pose_uncertainty.run.execute` puts on the noiseless (exact-arc) end pose.
 
     Parameters
     ----------
     run : RunResult — gives the noiseless end point
     mp : MapRecord — one of ``run.maps``
     """
-    marg = mp.marginal_xy()  # (nx, ny) [1/m²]
-    dx = float(mp.x[1] - mp.x[0]) if mp.x.size > 1 else 0.01
-    dy = float(mp.y[1] - mp.y[0]) if mp.y.size > 1 else 0.01
+    marg = mp.marginal_xy()  # (nx, ny) mass per cell [1]
+    dx = dy = mp.resolution
     extent = (mp.x[0] - dx / 2, mp.x[-1] + dx / 2, mp.y[0] - dy / 2, mp.y[-1] + dy / 2)
-    end = run.poses[-1]
+    mid = ((mp.x[0] + mp.x[-1]) / 2.0, (mp.y[0] + mp.y[-1]) / 2.0)
     fig = _new_figure((6.4, 5.6))
     ax = fig.add_subplot()
     img = ax.imshow(
         marg.T, origin="lower", extent=extent, cmap="Greys", vmin=0.0,
         vmax=float(marg.max()) if marg.max() > 0 else 1.0, interpolation="nearest",
     )
-    ax.plot(*end[:2], marker="+", color=_RED, ms=10, ls="none", label="noiseless end point")
+    ax.plot(*mid, marker="+", color=_RED, ms=10, ls="none", label="noiseless end point (exact arc)")
     half = _MAP_WINDOW / 2.0
-    ax.set_xlim(end[0] - half, end[0] + half)
-    ax.set_ylim(end[1] - half, end[1] + half)
+    ax.set_xlim(mid[0] - half, mid[0] + half)
+    ax.set_ylim(mid[1] - half, mid[1] + half)
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_title(f"{run.config.name}: map {mp.name!r} ({mp.model} model), lost mass {mp.lost_mass:.2g}")
     ax.legend(loc="upper right", fontsize="small")
-    fig.colorbar(img, ax=ax, label="probability density p(x, y) [1/m²]", shrink=0.85)
+    cm = f"{100 * dx:.3g} cm"
+    fig.colorbar(img, ax=ax, label=f"probability per {cm} × {cm} cell (θ summed)", shrink=0.85)
     return fig
 
 

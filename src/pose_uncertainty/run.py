@@ -183,10 +183,15 @@ class MapConfig:
     model : {"velocity", "odometry"}
         Motion model.
     params : dict
-        Further keyword parameters of the map builder (``pose_uncertainty.maps``),
-        e.g. ``alpha`` [1] (error constants), ``extent`` [m], ``resolution`` [m],
-        ``n_theta`` [1], ``steps`` [1] (how many of the trajectory's last steps the
-        map covers; 1 = single-step map of the last control).
+        Parameters of the map (every one filled in by :meth:`from_dict`):
+        ``alphas`` [1] (6 velocity / 4 odometry error constants, default 0.05 each
+        as the thesis), ``noise`` (normal | triangular), ``scaling`` (squared | abs),
+        ``corrected`` (bool), ``cell_floor`` [cells], ``variance_from`` (odometry),
+        and the grid: ``size`` [m] (side, default 1 m), ``resolution`` [m] (cell,
+        default 0.01 m), ``theta_resolution`` [rad] (default 2°), centred on the
+        noiseless end pose. A one-step trajectory gives the thesis's single-step
+        map (``pose_uncertainty.maps.single_step_map``); a longer one the
+        multi-step map along the whole trajectory.
     """
 
     name: str
@@ -206,7 +211,7 @@ class MapConfig:
             raise _fail(f"{where}.model", "one of 'velocity', 'odometry'", model)
         name = _name(f"{where}.name", data.get("name", model))
         params = {k: v for k, v in data.items() if k not in ("name", "model")}
-        return cls(name=name, model=model, params=_plain(params))
+        return cls(name=name, model=model, params=_map_params(where, model, params))
 
     def to_dict(self) -> dict[str, Any]:
         """Plain mapping with every parameter."""
@@ -222,6 +227,35 @@ def _plain(value: Any) -> Any:
     if isinstance(value, np.generic):
         return value.item()
     return value
+
+
+#: Parameters of the map builders that the run supplies itself (not configurable).
+_MAP_SUPPLIED = ("model", "start", "control", "controls", "dt", "grid", "odometry")
+
+
+def _map_params(where: str, model: str, params: dict[str, Any]) -> dict[str, Any]:
+    """Validate a map's parameters against the map builder and fill in its defaults."""
+    from . import maps
+
+    defaults: dict[str, Any] = {"alphas": [0.05] * (6 if model == "velocity" else 4)}
+    for fn in (maps.single_step_map, maps.MapGrid.centered):
+        for p in inspect.signature(fn).parameters.values():
+            if p.name in _MAP_SUPPLIED or p.name in ("center", "self", "cls"):
+                continue
+            if p.default is not inspect.Parameter.empty:
+                defaults.setdefault(p.name, p.default)
+    unknown = sorted(set(params) - set(defaults))
+    if unknown:
+        raise ValueError(
+            f"unknown config key(s) {', '.join(repr(f'{where}.{k}') for k in unknown)} "
+            f"(allowed: name, model, {', '.join(sorted(defaults))})"
+        )
+    full = _plain({**defaults, **params})
+    try:
+        maps.check_alphas(full["alphas"], 6 if model == "velocity" else 4)
+    except ValueError as exc:
+        raise ValueError(f"config key '{where}.alphas': {exc}") from None
+    return full
 
 
 def _trajectory_params(data: Any) -> dict[str, Any]:
@@ -249,6 +283,10 @@ def _trajectory_params(data: Any) -> dict[str, Any]:
             f"(allowed for trajectory {name!r}: {', '.join(sorted(defaults))})"
         )
     full = {"name": name, **_plain({**defaults, **params})}
+    try:
+        builder(**{k: v for k, v in full.items() if k != "name"})
+    except ValueError as exc:
+        raise ValueError(f"config key 'trajectory' ({name}): {exc}") from None
     return full
 
 
@@ -394,30 +432,37 @@ class RunConfig:
             "maps": {
                 "name": "-",
                 "model": "- (velocity | odometry)",
-                "alpha": "1 (error constants)",
-                "extent": "m",
+                "alphas": "1 (error constants)",
+                "noise": "- (normal | triangular)",
+                "scaling": "- (squared | abs)",
+                "corrected": "- (bool)",
+                "cell_floor": "cells",
+                "variance_from": "- (hypothesis | odometry | null)",
+                "size": "m",
                 "resolution": "m",
-                "n_theta": "1",
+                "theta_resolution": "rad",
             },
         }
 
 
 @dataclass(frozen=True, eq=False)
 class MapRecord:
-    """A probability map over a discretised ``(x, y, θ)`` grid, as logged.
+    """A probability map over a discretised ``(x, y, θ)`` grid, as computed and logged.
 
-    Mirrors ``pose_uncertainty.maps.ProbabilityMap``.
+    Holds the data of ``pose_uncertainty.maps.ProbabilityMap`` plus the map's
+    name and parameters; :meth:`to_probability_map` gives the full object back.
 
     Attributes
     ----------
     name : str
-    model : str
+    model : str — ``"velocity"`` or ``"odometry"``
     x : ndarray, shape (nx,) — cell centres [m]
     y : ndarray, shape (ny,) — cell centres [m]
     theta : ndarray, shape (nθ,) — cell centres [rad]
-    values : ndarray, shape (nx, ny, nθ) — probability density [1/(m² rad)]
+    values : ndarray, shape (nx, ny, nθ) — probability mass per cell [1]
     lost_mass : float — probability outside the grid [1]
-    params : dict — the map's parameters
+    params : dict — the map's configuration parameters
+    info : dict — the map builder's diagnostics (JSON-compatible)
     """
 
     name: str
@@ -428,24 +473,50 @@ class MapRecord:
     values: NDArray[np.float64]
     lost_mass: float = 0.0
     params: dict[str, Any] = field(default_factory=dict)
+    info: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         for key in ("x", "y", "theta", "values"):
             object.__setattr__(self, key, np.ascontiguousarray(getattr(self, key), np.float64))
         shape = (self.x.size, self.y.size, self.theta.size)
         if self.values.shape != shape:
-            raise ValueError(f"map values must have shape {shape} (nx, ny, ntheta), got {self.values.shape}")
+            raise ValueError(
+                f"map values must have shape {shape} (nx, ny, ntheta), got {self.values.shape}"
+            )
 
     @property
-    def dtheta(self) -> float:
-        """Cell size along θ [rad] (2π/nθ when θ covers the circle)."""
-        if self.theta.size > 1:
-            return float(self.theta[1] - self.theta[0])
-        return 2.0 * math.pi
+    def resolution(self) -> float:
+        """Cell side [m] (along x; the grids are square)."""
+        if self.x.size > 1:
+            return float(self.x[1] - self.x[0])
+        return float(self.y[1] - self.y[0]) if self.y.size > 1 else 0.01
 
     def marginal_xy(self) -> NDArray[np.float64]:
-        """θ-marginalised density ``Σ_θ p(x, y, θ) Δθ`` [1/m²], shape (nx, ny)."""
-        return self.values.sum(axis=2) * self.dtheta
+        """Mass per ``(x, y)`` cell with θ summed out [1], shape (nx, ny)."""
+        return self.values.sum(axis=2)
+
+    def to_probability_map(self) -> Any:
+        """The equivalent ``pose_uncertainty.maps.ProbabilityMap`` (without its grid object)."""
+        from . import maps
+
+        return maps.ProbabilityMap(
+            self.x, self.y, self.theta, self.values, self.lost_mass, self.model, None, dict(self.info)
+        )
+
+    @classmethod
+    def from_probability_map(cls, name: str, pm: Any, params: dict[str, Any]) -> MapRecord:
+        """Wrap a ``ProbabilityMap`` with its name and parameters."""
+        return cls(
+            name=name,
+            model=str(pm.model),
+            x=pm.x,
+            y=pm.y,
+            theta=pm.theta,
+            values=pm.values,
+            lost_mass=float(pm.lost_mass),
+            params=_plain(params),
+            info=_plain(dict(getattr(pm, "info", {}) or {})),
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -628,7 +699,7 @@ def execute(config: RunConfig) -> RunResult:
     maps: list[MapRecord] = []
     for mcfg in config.maps:
         t0 = time.perf_counter()
-        maps.append(_compute_map(mcfg, traj, poses))
+        maps.append(_compute_map(mcfg, traj))
         timings[f"map_{mcfg.name}_s"] = time.perf_counter() - t0
 
     metrics, units = _metrics(config, traj, poses, covs, end_poses, maps, covariance, stats)
@@ -648,22 +719,34 @@ def execute(config: RunConfig) -> RunResult:
     )
 
 
-def _compute_map(mcfg: MapConfig, traj: Any, poses: NDArray[np.float64]) -> MapRecord:
-    """Compute one probability map with ``pose_uncertainty.maps`` (imported on demand)."""
-    from . import maps as maps_mod  # type: ignore[attr-defined]
+_GRID_KEYS = ("size", "resolution", "theta_resolution")
+
+
+def _compute_map(mcfg: MapConfig, traj: Any) -> MapRecord:
+    """Compute one probability map with ``pose_uncertainty.maps``.
+
+    A one-step trajectory gives the single-step map of its control ``(V, ω)``
+    over ``dt`` from the start pose; a longer one the multi-step map along all
+    its controls. The grid is centred on the noiseless (exact-arc) end pose.
+    """
+    from . import maps as maps_mod
 
     params = dict(mcfg.params)
-    pm = maps_mod.map_for_trajectory(traj, model=mcfg.model, **params)
-    return MapRecord(
-        name=mcfg.name,
-        model=mcfg.model,
-        x=pm.x,
-        y=pm.y,
-        theta=pm.theta,
-        values=pm.values,
-        lost_mass=float(pm.lost_mass),
-        params=_plain(params),
-    )
+    grid_kw = {k: params.pop(k) for k in _GRID_KEYS if k in params}
+    grid = maps_mod.MapGrid.centered(traj.poses[-1], **grid_kw)
+    if traj.n_steps == 1:
+        pm = maps_mod.single_step_map(
+            mcfg.model, traj.start, traj.controls[0], traj.dt, grid=grid, **params
+        )
+    else:
+        multi = getattr(maps_mod, "multi_step_map", None)
+        if multi is None:
+            raise ValueError(
+                f"map {mcfg.name!r}: multi-step maps are not available in this version "
+                f"(allowed: a one-step trajectory), got {traj.n_steps} steps"
+            )
+        pm = multi(mcfg.model, traj.start, traj.controls, traj.dt, grid=grid, **params)
+    return MapRecord.from_probability_map(mcfg.name, pm, mcfg.params)
 
 
 def _metrics(
@@ -708,9 +791,16 @@ def _metrics(
             norm = np.linalg.norm(cov_end[:2, :2])
             if norm > 0:
                 put("mc_cov_xy_rel_error", np.linalg.norm(cov_mc - cov_end[:2, :2]) / norm, "1")
+    # maps are centred on the noiseless exact-arc end pose (the trajectory's)
+    end_exact = traj.poses[-1]
     for mp in maps:
         marg = mp.marginal_xy()
         i, j = np.unravel_index(int(np.argmax(marg)), marg.shape)
-        put(f"map_{mp.name}_peak_offset", math.hypot(mp.x[i] - end[0], mp.y[j] - end[1]), "m")
+        put(f"map_{mp.name}_peak_offset", math.hypot(mp.x[i] - end_exact[0], mp.y[j] - end_exact[1]), "m")
+        total = float(marg.sum())
+        if total > 0:
+            mx = float(marg.sum(axis=1) @ mp.x) / total
+            my = float(marg.sum(axis=0) @ mp.y) / total
+            put(f"map_{mp.name}_mean_offset", math.hypot(mx - end_exact[0], my - end_exact[1]), "m")
         put(f"map_{mp.name}_lost_mass", mp.lost_mass, "1")
     return m, u

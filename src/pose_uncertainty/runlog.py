@@ -18,7 +18,7 @@ topic                              schema                              content
 ``/covariance/ellipse``            foxglove.SceneUpdate                Pr-ellipse per step (line loop)
 ``/monte_carlo/end_poses``         foxglove.PointCloud                 end poses, float64 x, y, theta
 ``/monte_carlo/checkpoints``       foxglove.PointCloud                 clouds at checkpoint steps
-``/maps/<name>/grid``              foxglove.Grid                       θ-marginal density + grey RGBA
+``/maps/<name>/grid``              foxglove.Grid                       θ-marginal mass + grey RGBA
 ``/maps/<name>/volume``            pose_uncertainty.ProbabilityMap3D   the full (x, y, θ) array
 ``/metrics``                       pose_uncertainty.Metrics            deterministic metrics
 ``/timings``                       pose_uncertainty.Metrics            wall-clock timings (opt-in)
@@ -202,6 +202,7 @@ def _our_schemas() -> dict[str, Any]:
             ("values", F.TYPE_MESSAGE, one, ".pose_uncertainty.Float64Array"),
             ("lost_mass", F.TYPE_DOUBLE, one, None),
             ("params_json", F.TYPE_STRING, one, None),
+            ("info_json", F.TYPE_STRING, one, None),
         ],
     )
     message(
@@ -292,17 +293,17 @@ def _cloud(poses: NDArray[np.float64], t_ns: int) -> Any:
 
 
 def _grid(mp: MapRecord, t_ns: int) -> Any:
-    """foxglove.Grid of the θ-marginal density (float64) and a grey RGBA (darker = more probable)."""
-    marg = mp.marginal_xy()  # (nx, ny)
+    """foxglove.Grid: θ-marginal mass per cell (float64, exact) and a grey RGBA, darker = more probable."""
+    marg = mp.marginal_xy()  # (nx, ny) [1]
     nx, ny = marg.shape
     dx = float(mp.x[1] - mp.x[0]) if nx > 1 else 0.01
     dy = float(mp.y[1] - mp.y[0]) if ny > 1 else 0.01
     peak = float(marg.max()) if marg.size and marg.max() > 0 else 1.0
     rel = np.clip(marg / peak, 0.0, 1.0)
-    cell = np.dtype([("density", "<f8"), ("red", "u1"), ("green", "u1"), ("blue", "u1"), ("alpha", "u1")])
+    cell = np.dtype([("mass", "<f8"), ("red", "u1"), ("green", "u1"), ("blue", "u1"), ("alpha", "u1")])
     rows = np.zeros((ny, nx), dtype=cell)  # row-major (y-major) order
     grey = np.round(255.0 * (1.0 - rel)).astype(np.uint8).T
-    rows["density"] = marg.T
+    rows["mass"] = marg.T
     rows["red"] = rows["green"] = rows["blue"] = grey
     rows["alpha"] = np.where(rel.T > 1e-3, 255, 0).astype(np.uint8)
     msg = Grid(
@@ -311,7 +312,7 @@ def _grid(mp: MapRecord, t_ns: int) -> Any:
         row_stride=cell.itemsize * nx,
         cell_stride=cell.itemsize,
         fields=_fields(
-            [("density", 0, _F64), ("red", 8, _U8), ("green", 9, _U8), ("blue", 10, _U8), ("alpha", 11, _U8)]
+            [("mass", 0, _F64), ("red", 8, _U8), ("green", 9, _U8), ("blue", 10, _U8), ("alpha", 11, _U8)]
         ),
         data=rows.tobytes(),
     )
@@ -333,6 +334,7 @@ def _volume(mp: MapRecord, t_ns: int) -> Any:
         theta=mp.theta.tolist(),
         lost_mass=float(mp.lost_mass),
         params_json=json.dumps(mp.params, sort_keys=True, separators=(",", ":")),
+        info_json=json.dumps(mp.info, sort_keys=True, separators=(",", ":")),
     )
     _stamp(msg, t_ns)
     msg.values.shape.extend(mp.values.shape)
@@ -807,6 +809,7 @@ def _assemble(p: Path, records: list[Any], *, partial: bool, problem: str | None
                 values=values.reshape(shape).astype(np.float64),
                 lost_mass=float(v.lost_mass),
                 params=json.loads(v.params_json) if v.params_json else {},
+                info=json.loads(v.info_json) if v.info_json else {},
             )
         )
 
