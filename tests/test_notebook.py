@@ -76,4 +76,6 @@ def test_notebook_runs_on_given_logs(kernel_env: Path, monkeypatch: pytest.Monke
 def test_notebook_makes_demo_runs_without_logs(kernel_env: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("POSE_UNCERTAINTY_RUNS", str(kernel_env / "nothing-here"))
     text = _text(_run(NOTEBOOK, kernel_env))
-    assert "demo runs: ['straight.mcap', 'circle.mcap']" in text
+    assert "demo runs: ['straight.mcap', 'circle.mcap', 'b1_arc.mcap']" in text
+    assert "b1_arc/odometry: grid (51, 51, 180)" in text
+    assert "maps: 2" in text

@@ -34,6 +34,7 @@ __all__ = [
     "cloud_figure",
     "figure_set",
     "map_figure",
+    "new_figure",
     "render_figures",
     "save_figure",
     "trajectory_figure",
@@ -52,10 +53,19 @@ _BLUE, _RED, _BLACK = "blue", "red", "black"
 _MAP_WINDOW = 1.0  # [m], side of the map window (the thesis's 1 m × 1 m)
 
 
-def _new_figure(size: tuple[float, float] = (6.0, 6.0)) -> Figure:
+def new_figure(size: tuple[float, float] = (6.0, 6.0)) -> Figure:
+    """An empty figure on the Agg canvas with the house dpi and constrained layout.
+
+    Parameters
+    ----------
+    size : (width, height) [inch]
+    """
     fig = Figure(figsize=size, dpi=_DPI, layout="constrained")
     FigureCanvasAgg(fig)
     return fig
+
+
+_new_figure = new_figure  # kept for callers of the earlier private name
 
 
 def _pct(pr: float) -> str:

@@ -258,8 +258,8 @@ def _map_params(where: str, model: str, params: dict[str, Any]) -> dict[str, Any
     return full
 
 
-def _trajectory_params(data: Any) -> dict[str, Any]:
-    """Validate the trajectory mapping and fill in every default of its builder."""
+def _trajectory_params(data: Any) -> tuple[dict[str, Any], int]:
+    """Validate the trajectory mapping, fill in every default of its builder; also return N."""
     if not isinstance(data, Mapping):
         raise _fail("trajectory", "a mapping with a 'name' key", data)
     if "name" not in data:
@@ -284,10 +284,10 @@ def _trajectory_params(data: Any) -> dict[str, Any]:
         )
     full = {"name": name, **_plain({**defaults, **params})}
     try:
-        builder(**{k: v for k, v in full.items() if k != "name"})
+        traj = builder(**{k: v for k, v in full.items() if k != "name"})
     except ValueError as exc:
         raise ValueError(f"config key 'trajectory' ({name}): {exc}") from None
-    return full
+    return full, traj.n_steps
 
 
 @dataclass(frozen=True)
@@ -354,7 +354,7 @@ class RunConfig:
         _check_keys("", data, cls.KEYS)
         if "trajectory" not in data:
             raise ValueError("config key 'trajectory' is missing (e.g. {name: straight})")
-        traj = _trajectory_params(data["trajectory"])
+        traj, n_steps = _trajectory_params(data["trajectory"])
         k_r = _float("k_r", data.get("k_r", 5e-4), nonneg=True)
         k_l = _float("k_l", data.get("k_l", 5e-4), nonneg=True)
         cov0_raw = data.get("cov0")
@@ -375,6 +375,9 @@ class RunConfig:
         n_ell = _int("n_ellipses", data.get("n_ellipses", 10), minimum=1)
         seed = _int("seed", data.get("seed", 0))
         mc = MonteCarloConfig.from_dict(data.get("monte_carlo", {}))
+        late = [c for c in mc.checkpoints if c > n_steps]
+        if late:
+            raise _fail("monte_carlo.checkpoints", f"step indices in 1..{n_steps} (the trajectory's N)", late)
         maps_raw = data.get("maps", ())
         if not isinstance(maps_raw, list | tuple):
             raise _fail("maps", "a list of map mappings", maps_raw)
@@ -674,9 +677,6 @@ def execute(config: RunConfig) -> RunResult:
     checkpoints: dict[int, NDArray[np.float64]] = {}
     mc = config.monte_carlo
     if mc.n_particles > 0:
-        bad = [c for c in mc.checkpoints if c > traj.n_steps]
-        if bad:
-            raise _fail("monte_carlo.checkpoints", f"step indices in 1..{traj.n_steps}", bad)
         t0 = time.perf_counter()
         steps = [*mc.checkpoints, traj.n_steps]
         out = sampling.sample_end_poses(
