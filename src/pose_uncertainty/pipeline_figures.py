@@ -1,0 +1,185 @@
+"""Figures the pipeline draws beyond a single run's (those are in :mod:`pose_uncertainty.figures`).
+
+* :func:`render_run_figure` — one figure of one run log, by kind (``trajectory``,
+  ``cloud``, ``map_<name>``), drawn by the same functions ``replay --figures`` uses;
+* :func:`growth_figure` — how each uncertainty measure grows with distance (log-log),
+  over the runs of a set;
+* :func:`cloud_polar_figure` — seed 001's Cartesian and polar views of the end-pose clouds.
+
+Every figure is saved by :func:`pose_uncertainty.figures.save_figure` (deterministic bytes).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from . import figures
+from .runlog import open_run
+
+__all__ = ["cloud_polar_figure", "growth_figure", "render_run_figure", "render_set_figure"]
+
+
+def render_run_figure(log: str | os.PathLike[str], kind: str, out: str | os.PathLike[str]) -> Path:
+    """Draw one figure of a run log and save it.
+
+    Parameters
+    ----------
+    log : path — run log (``*.mcap``)
+    kind : {"trajectory", "cloud", "map_<name>"}
+    out : path — ``*.png`` / ``*.svg`` / ``*.pdf``
+
+    Raises
+    ------
+    ValueError if the kind is unknown or the run lacks what the figure draws.
+    """
+    run = open_run(log)
+    if kind == "trajectory":
+        fig = figures.trajectory_figure(run)
+    elif kind == "cloud":
+        fig = figures.cloud_figure(run)
+        if fig is None:
+            raise ValueError(f"{log}: kind 'cloud' needs Monte Carlo end poses (monte_carlo.n_particles > 0)")
+    elif kind.startswith("map_"):
+        name = kind[4:]
+        maps = {m.name: m for m in run.maps}
+        if name not in maps:
+            raise ValueError(f"{log}: map {name!r} not in the run (allowed: {', '.join(maps) or 'none'})")
+        fig = figures.map_figure(run, maps[name])
+    else:
+        raise ValueError(f"figure kind must be 'trajectory', 'cloud' or 'map_<name>', got {kind!r}")
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    return figures.save_figure(fig, out)
+
+
+def _frame(theta: float) -> np.ndarray:
+    """Rows: unit vectors along and across a heading ``theta`` [rad]."""
+    c, s = math.cos(theta), math.sin(theta)
+    return np.array([[c, s], [-s, c]])
+
+
+def growth_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") -> Figure:
+    """Uncertainty measures against path length, log-log, with reference slopes.
+
+    Draws, for every run of the set (sorted by path length): Method A's standard
+    deviations along and across the end heading and of θ, the semi-axes of the
+    Pr-ellipse, and the Monte Carlo sample's along/across standard deviations.
+
+    Parameters
+    ----------
+    logs : sequence of paths to run logs
+    title : str
+    """
+    rows = []
+    for p in logs:
+        run = open_run(p)
+        end = run.poses[-1]
+        R = _frame(float(end[2]))
+        cov = R @ run.covs[-1][:2, :2] @ R.T
+        row = {
+            "L": run.metrics.get("path_length", float("nan")),
+            "A: σ along": math.sqrt(max(cov[0, 0], 0.0)),
+            "A: σ across": math.sqrt(max(cov[1, 1], 0.0)),
+            "A: σ_θ [rad]": math.sqrt(max(run.covs[-1][2, 2], 0.0)),
+            "A: ellipse major": run.metrics.get("ellipse_major", float("nan")),
+            "A: ellipse minor": run.metrics.get("ellipse_minor", float("nan")),
+        }
+        if run.end_poses is not None and run.end_poses.shape[0] > 2:
+            d = (run.end_poses[:, :2] - run.end_poses[:, :2].mean(axis=0)) @ R.T
+            row["MC: σ along"] = float(d[:, 0].std(ddof=1))
+            row["MC: σ across"] = float(d[:, 1].std(ddof=1))
+        rows.append(row)
+    rows.sort(key=lambda r: r["L"])
+    L = np.array([r["L"] for r in rows])
+    fig = figures._new_figure((6.4, 5.2))
+    ax = fig.add_subplot()
+    styles = {
+        "A: σ along": ("tab:blue", "-", "o"),
+        "A: σ across": ("tab:red", "-", "o"),
+        "A: σ_θ [rad]": ("tab:green", "-", "s"),
+        "A: ellipse major": ("0.3", ":", "^"),
+        "A: ellipse minor": ("0.6", ":", "v"),
+        "MC: σ along": ("tab:blue", "none", "x"),
+        "MC: σ across": ("tab:red", "none", "x"),
+    }
+    for key, (color, ls, marker) in styles.items():
+        vals = np.array([r.get(key, np.nan) for r in rows])
+        ok = np.isfinite(vals) & (vals > 0)
+        if ok.sum() == 0:
+            continue
+        ax.loglog(L[ok], vals[ok], color=color, ls=ls, marker=marker, ms=4, lw=1.0, label=key)
+    if L.size >= 2:
+        ref = np.array([L.min(), L.max()])
+        y0 = np.array([r["A: σ along"] for r in rows])[0]
+        for slope, ls in ((0.5, (0, (2, 2))), (1.5, (0, (6, 2)))):
+            ax.loglog(ref, y0 * (ref / ref[0]) ** slope, color="k", lw=0.6, ls=ls, label=f"slope {slope:g}")
+    ax.set_xlabel("path length L [m]")
+    ax.set_ylabel("uncertainty [m] (σ_θ in rad)")
+    ax.set_title(title or "growth of the uncertainty with distance")
+    ax.grid(True, which="both", lw=0.3, alpha=0.5)
+    ax.legend(fontsize="x-small", loc="upper left")
+    return fig
+
+
+def cloud_polar_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") -> Figure:
+    """Seed 001's two views of the end-pose clouds: Cartesian (x, y) and polar (bearing, range).
+
+    One column per run (at most 8 runs: the caller selects them); top row the
+    cloud in the plane with Method A's Pr-ellipse, bottom row the same cloud as
+    bearing ``atan2(y, x)`` [deg] against range ``√(x²+y²)`` [m] from the start.
+
+    Parameters
+    ----------
+    logs : sequence of paths to run logs (the first 8 are drawn)
+    title : str
+    """
+    runs = [open_run(p) for p in list(logs)[:8]]
+    n = max(len(runs), 1)
+    fig = figures._new_figure((3.0 * n, 6.0))
+    for j, run in enumerate(runs):
+        ax = fig.add_subplot(2, n, j + 1)
+        axp = fig.add_subplot(2, n, n + j + 1)
+        end, cov = run.poses[-1], run.covs[-1]
+        cloud = run.end_poses if run.end_poses is not None else np.zeros((0, 3))
+        ax.scatter(cloud[:, 0], cloud[:, 1], s=1.0, color="0.3", alpha=0.4, linewidths=0, rasterized=True)
+        from .covariance import ellipse_polyline
+
+        pts = ellipse_polyline(cov[:2, :2], run.config.pr, end[:2], 200)
+        ax.plot(pts[:, 0], pts[:, 1], color="red", lw=1.0)
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        ax.set_title(run.config.name, fontsize="small")
+        start = run.poses[0]
+        rel = cloud[:, :2] - start[:2]
+        bearing = np.degrees(np.arctan2(rel[:, 1], rel[:, 0]))
+        rng = np.hypot(rel[:, 0], rel[:, 1])
+        axp.scatter(bearing, rng, s=1.0, color="0.3", alpha=0.4, linewidths=0, rasterized=True)
+        erel = pts - start[:2]
+        axp.plot(np.degrees(np.arctan2(erel[:, 1], erel[:, 0])), np.hypot(erel[:, 0], erel[:, 1]), color="red", lw=1.0)
+        axp.set_xlabel("bearing from start [deg]")
+        axp.set_ylabel("range from start [m]")
+        axp.grid(True, lw=0.3, alpha=0.5)
+        ax.grid(True, lw=0.3, alpha=0.5)
+    if title:
+        fig.suptitle(title)
+    return fig
+
+
+def render_set_figure(
+    kind: str, logs: Sequence[str | os.PathLike[str]], out: str | os.PathLike[str], title: str = ""
+) -> Path:
+    """Draw a set-level figure (``growth`` or ``cloud_polar``) and save it."""
+    if kind == "growth":
+        fig = growth_figure(logs, title)
+    elif kind == "cloud_polar":
+        fig = cloud_polar_figure(logs, title)
+    else:
+        raise ValueError(f"set figure kind must be 'growth' or 'cloud_polar', got {kind!r}")
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    return figures.save_figure(fig, out)

@@ -1,0 +1,409 @@
+"""Per-run measures, the per-set tables and the self-contained HTML comparison report.
+
+* :func:`run_measures` — every number the report compares, from one run log:
+  Method A's uncertainty (σ along/across the end heading, ellipse axes, area),
+  the Monte Carlo cloud's (sample σ's, coverage of the Pr-ellipse at three
+  levels, Gaussianity and bend), each probability map's (peak, spread, 98.89 %
+  region area, lost mass) and the compute times;
+* :func:`collect_table` — one CSV per experiment set;
+* :func:`build_report` — ``reports/comparison.html`` from the Jinja2 template
+  ``templates/comparison.html.j2``: figures inlined as ``data:`` URIs, no
+  network requests, works offline.
+"""
+
+from __future__ import annotations
+
+import base64
+import csv
+import datetime as _dt
+import html
+import json
+import math
+import os
+import platform
+import sys
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "COVERAGE_LEVELS",
+    "build_report",
+    "collect_table",
+    "read_benchmarks",
+    "read_table",
+    "run_measures",
+]
+
+#: Probabilities at which the Monte Carlo coverage of Method A's ellipse is measured: radius 1, 2, 3.
+COVERAGE_LEVELS: dict[str, float] = {
+    "1s": 1.0 - math.exp(-0.5),
+    "2s": 1.0 - math.exp(-2.0),
+    "3s": 1.0 - math.exp(-4.5),
+}
+
+
+def _frame(theta: float) -> np.ndarray:
+    c, s = math.cos(theta), math.sin(theta)
+    return np.array([[c, s], [-s, c]])
+
+
+def _flat(prefix: str, value: Any, out: dict[str, Any]) -> None:
+    if isinstance(value, Mapping):
+        for k, v in value.items():
+            _flat(f"{prefix}.{k}" if prefix else str(k), v, out)
+    else:
+        out[prefix] = json.dumps(value) if isinstance(value, list | tuple) else value
+
+
+def _map_measures(mp: Any, end: np.ndarray, pr: float) -> dict[str, float]:
+    """Peak, spread along/across the end heading, Pr-region area and lost mass of one map."""
+    marg = mp.marginal_xy()  # (nx, ny) [1/m²]
+    dx = float(mp.x[1] - mp.x[0]) if mp.x.size > 1 else float("nan")
+    dy = float(mp.y[1] - mp.y[0]) if mp.y.size > 1 else float("nan")
+    w = marg * dx * dy
+    total = float(w.sum())
+    out: dict[str, float] = {"lost_mass": float(mp.lost_mass), "mass_on_grid": total}
+    i, j = np.unravel_index(int(np.argmax(marg)), marg.shape)
+    px, py = float(mp.x[i]), float(mp.y[j])
+    out["peak_x"], out["peak_y"] = px, py
+    out["peak_offset"] = math.hypot(px - end[0], py - end[1])
+    out["peak_angle"] = math.atan2(py - end[1], px - end[0])
+    if total > 0:
+        X, Y = np.meshgrid(mp.x, mp.y, indexing="ij")
+        p = w / total
+        mx, my = float((p * X).sum()), float((p * Y).sum())
+        cxx = float((p * (X - mx) ** 2).sum())
+        cyy = float((p * (Y - my) ** 2).sum())
+        cxy = float((p * (X - mx) * (Y - my)).sum())
+        R = _frame(float(end[2]))
+        c = R @ np.array([[cxx, cxy], [cxy, cyy]]) @ R.T
+        out["sigma_along"] = math.sqrt(max(c[0, 0], 0.0))
+        out["sigma_across"] = math.sqrt(max(c[1, 1], 0.0))
+        out["mean_offset"] = math.hypot(mx - end[0], my - end[1])
+        # highest-density region holding Pr of the on-grid mass
+        order = np.sort(p.ravel())[::-1]
+        k = int(np.searchsorted(np.cumsum(order), pr) + 1)
+        out["region_area"] = min(k, order.size) * dx * dy
+    return out
+
+
+def run_measures(log: str | os.PathLike[str], timings: str | os.PathLike[str] | None = None) -> dict[str, Any]:
+    """Every compared number of one run, as a flat mapping (units in the key suffix or the docs).
+
+    Lengths in m, angles in rad, areas in m², times in s. Keys:
+
+    * ``A_*`` — Method A at the end: ``sigma_along``, ``sigma_across`` (in the frame of
+      the noiseless end heading), ``sigma_theta``, ``ellipse_major``, ``ellipse_minor``,
+      ``ellipse_angle``, ``ellipse_area`` (π a b at the run's Pr);
+    * ``MC_*`` — the Monte Carlo end-pose cloud: sample ``sigma_along``, ``sigma_across``,
+      ``sigma_theta``, ``ellipse_major/minor/area`` of the sample covariance at Pr,
+      ``coverage_1s/2s/3s`` (fraction inside Method A's ellipse of probability
+      39.35 / 86.47 / 98.89 %) and the nominal levels, ``mean_offset``,
+      ``cov_rel_error`` (‖Σ_MC − Σ_A‖_F / ‖Σ_A‖_F), ``ks_gauss`` (Kolmogorov distance of the
+      squared Mahalanobis radii, w.r.t. the sample's own mean and covariance, from χ²₂:
+      0 for a Gaussian cloud, ~1.36/√n at the 5 % level), ``bend`` (correlation of the
+      along-track residual with the squared across-track residual: 0 for an ellipse);
+    * ``map_<name>_*`` — per probability map: ``peak_x/y/offset/angle``, ``sigma_along``,
+      ``sigma_across``, ``mean_offset``, ``region_area`` (highest-density region of
+      Pr), ``lost_mass``, ``mass_on_grid``;
+    * ``time_*`` — compute time per method [s] (wall clock; not reproducible).
+    """
+    from . import covariance, stats
+    from .runlog import open_run
+
+    run = open_run(log)
+    cfg = run.config
+    row: dict[str, Any] = {"run": cfg.name, "seed": cfg.seed, "n_steps": run.n_steps}
+    _flat("param", {"trajectory": cfg.trajectory, "k_r": cfg.k_r, "k_l": cfg.k_l, "pr": cfg.pr}, row)
+    row["param.monte_carlo.n_particles"] = cfg.monte_carlo.n_particles
+    row["param.monte_carlo.regime"] = cfg.monte_carlo.regime
+    row["param.monte_carlo.method"] = cfg.monte_carlo.method
+    row["path_length"] = run.metrics.get("path_length", float("nan"))
+    row["duration"] = run.metrics.get("duration", float("nan"))
+    end, cov = run.poses[-1], run.covs[-1]
+    row["end_x"], row["end_y"], row["end_theta"] = (float(v) for v in end)
+    R = _frame(float(end[2]))
+    c = R @ cov[:2, :2] @ R.T
+    row["A_sigma_along"] = math.sqrt(max(c[0, 0], 0.0))
+    row["A_sigma_across"] = math.sqrt(max(c[1, 1], 0.0))
+    row["A_sigma_theta"] = math.sqrt(max(cov[2, 2], 0.0))
+    alpha, a, b = (float(v) for v in covariance.ellipse(cov[:2, :2], cfg.pr))
+    row["A_ellipse_major"], row["A_ellipse_minor"], row["A_ellipse_angle"] = a, b, alpha
+    row["A_ellipse_area"] = math.pi * a * b
+    cloud = run.end_poses
+    if cloud is not None and cloud.shape[0] > 2:
+        n = cloud.shape[0]
+        row["MC_n"] = n
+        mean = cloud.mean(axis=0)
+        d = (cloud[:, :2] - mean[:2]) @ R.T
+        row["MC_sigma_along"] = float(d[:, 0].std(ddof=1))
+        row["MC_sigma_across"] = float(d[:, 1].std(ddof=1))
+        dth = np.angle(np.exp(1j * (cloud[:, 2] - end[2])))
+        row["MC_sigma_theta"] = float(dth.std(ddof=1))
+        cmc = np.cov(cloud[:, :2].T)
+        _, ma, mb = (float(v) for v in covariance.ellipse(cmc, cfg.pr))
+        row["MC_ellipse_major"], row["MC_ellipse_minor"] = ma, mb
+        row["MC_ellipse_area"] = math.pi * ma * mb
+        for key, level in COVERAGE_LEVELS.items():
+            row[f"MC_coverage_{key}"] = float(
+                stats.fraction_inside_ellipse(cloud[:, :2], end[:2], cov[:2, :2], level)
+            )
+            row[f"MC_level_{key}"] = level
+        row["MC_coverage_pr"] = float(stats.fraction_inside_ellipse(cloud[:, :2], end[:2], cov[:2, :2], cfg.pr))
+        row["MC_mean_offset"] = math.hypot(mean[0] - end[0], mean[1] - end[1])
+        norm = float(np.linalg.norm(cov[:2, :2]))
+        row["MC_cov_rel_error"] = float(np.linalg.norm(cmc - cov[:2, :2]) / norm) if norm > 0 else float("nan")
+        # Gaussianity of the shape: squared Mahalanobis radii vs chi2(2): CDF 1 - exp(-d2/2)
+        try:
+            d2 = np.einsum("ni,ij,nj->n", cloud[:, :2] - mean[:2], np.linalg.inv(cmc), cloud[:, :2] - mean[:2])
+            u = np.sort(1.0 - np.exp(-d2 / 2.0))
+            grid = np.arange(1, n + 1) / n
+            row["MC_ks_gauss"] = float(max(np.max(grid - u), np.max(u - (grid - 1.0 / n))))
+            row["MC_ks_crit"] = 1.358 / math.sqrt(n)
+        except np.linalg.LinAlgError:
+            pass
+        a2 = d[:, 1] ** 2
+        if d[:, 0].std() > 0 and a2.std() > 0:
+            row["MC_bend"] = float(np.corrcoef(d[:, 0], a2)[0, 1])
+            row["MC_bend_crit"] = 2.0 / math.sqrt(n)
+    for mp in run.maps:
+        for k, v in _map_measures(mp, end, cfg.pr).items():
+            row[f"map_{mp.name}_{k}"] = v
+        row[f"map_{mp.name}_model"] = mp.model
+    if timings is not None and Path(timings).is_file():
+        for k, v in json.loads(Path(timings).read_text(encoding="utf-8")).items():
+            row[f"time_{k.removesuffix('_s')}"] = float(v)
+    return row
+
+
+_FIRST = ("set", "run", "seed", "n_steps", "path_length", "duration")
+
+
+def collect_table(
+    set_name: str,
+    logs: Sequence[str | os.PathLike[str]],
+    timings: Sequence[str | os.PathLike[str] | None] | None,
+    out: str | os.PathLike[str],
+) -> Path:
+    """Collect :func:`run_measures` of a set's runs into one CSV (one row per run).
+
+    Columns: ``set``, ``run``, ... then every other key in sorted order; a missing
+    value is empty. Floats are written with ``repr`` (round-trip exact).
+    """
+    tims = list(timings) if timings is not None else [None] * len(logs)
+    rows = []
+    for log, tim in zip(logs, tims, strict=True):
+        row = run_measures(log, tim)
+        row["set"] = set_name
+        rows.append(row)
+    keys = sorted({k for r in rows for k in r})
+    cols = [k for k in _FIRST if k in keys] + [k for k in keys if k not in _FIRST]
+    p = Path(out)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    with open(p, "w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(cols)
+        for r in rows:
+            w.writerow(["" if r.get(k) is None else (repr(r[k]) if isinstance(r[k], float) else r[k]) for k in cols])
+    return p
+
+
+def _num(text: str) -> Any:
+    if text == "":
+        return None
+    try:
+        return int(text)
+    except ValueError:
+        pass
+    try:
+        return float(text)
+    except ValueError:
+        return text
+
+
+def read_table(path: str | os.PathLike[str]) -> list[dict[str, Any]]:
+    """Read a CSV written by :func:`collect_table` (numbers parsed, empty cells as None)."""
+    with open(path, newline="", encoding="utf-8") as fh:
+        return [{k: _num(v) for k, v in row.items()} for row in csv.DictReader(fh)]
+
+
+def read_benchmarks(paths: Sequence[str | os.PathLike[str]]) -> dict[str, dict[str, float]]:
+    """Per-rule wall-clock statistics from Snakemake ``benchmark:`` files.
+
+    The rule is the first directory under ``benchmarks/``
+    (``data/benchmarks/<rule>/...tsv``). Returns ``{rule: {jobs, total_s, mean_s, max_s}}``.
+    """
+    per: dict[str, list[float]] = {}
+    for p in paths:
+        parts = Path(p).parts
+        rule = parts[parts.index("benchmarks") + 1] if "benchmarks" in parts else Path(p).parent.name
+        with open(p, encoding="utf-8") as fh:
+            lines = fh.read().strip().splitlines()
+        if len(lines) < 2:
+            continue
+        head = lines[0].split("\t")
+        vals = lines[1].split("\t")
+        try:
+            s = float(vals[head.index("s")])
+        except (ValueError, IndexError):
+            continue
+        per.setdefault(rule, []).append(s)
+    return {
+        rule: {"jobs": len(v), "total_s": float(sum(v)), "mean_s": float(np.mean(v)), "max_s": float(max(v))}
+        for rule, v in sorted(per.items())
+    }
+
+
+# --- the report -------------------------------------------------------------------------
+
+
+def _data_uri(path: str | os.PathLike[str]) -> str:
+    p = Path(path)
+    mime = {"png": "image/png", "svg": "image/svg+xml", "jpg": "image/jpeg"}.get(p.suffix.lstrip(".").lower())
+    if mime is None:
+        raise ValueError(f"cannot inline {p} (allowed: .png, .svg, .jpg)")
+    return f"data:{mime};base64," + base64.b64encode(p.read_bytes()).decode("ascii")
+
+
+def _fmt(value: Any, digits: int = 4) -> str:
+    if value is None:
+        return "–"
+    if isinstance(value, float):
+        if math.isnan(value):
+            return "–"
+        if value == 0:
+            return "0"
+        if 1e-3 <= abs(value) < 1e4:
+            return f"{value:.{digits}g}"
+        return f"{value:.{digits - 1}e}"
+    return html.escape(str(value))
+
+
+def _versions() -> dict[str, str]:
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = {"python": sys.version.split()[0], "platform": platform.platform()}
+    for pkg in ("pose-uncertainty", "numpy", "scipy", "matplotlib", "mcap", "snakemake", "jinja2", "jsonschema"):
+        try:
+            out[pkg] = version(pkg)
+        except PackageNotFoundError:
+            out[pkg] = "not installed"
+    return out
+
+
+def build_report(
+    manifest: Mapping[str, Any],
+    tables: Mapping[str, str | os.PathLike[str]],
+    claims_path: str | os.PathLike[str],
+    benchmarks: Sequence[str | os.PathLike[str]],
+    out: str | os.PathLike[str],
+    *,
+    title: str = "Pose uncertainty: three methods compared",
+    config_text: str = "",
+) -> Path:
+    """Render ``reports/comparison.html``.
+
+    Parameters
+    ----------
+    manifest : mapping — ``{"sets": [{name, title, source, description, figures, runs: [{id,
+        log, swept, config, figures}]}], "config": {...}}`` (built by the workflow)
+    tables : mapping of set name to its CSV (from :func:`collect_table`)
+    claims_path : path — JSON written by :func:`pose_uncertainty.claims.write_claims`
+    benchmarks : paths of Snakemake benchmark files (per-rule times)
+    out : path — the HTML file (self-contained: images inlined, no external resources)
+    title : str
+    config_text : str — the validated config as YAML (shown verbatim)
+    """
+    import jinja2
+
+    from .run import environment_lock_sha256, git_commit
+
+    env = jinja2.Environment(
+        loader=jinja2.PackageLoader("pose_uncertainty", "templates"),
+        autoescape=jinja2.select_autoescape(["html", "j2"]),
+        undefined=jinja2.StrictUndefined,
+        trim_blocks=True,
+        lstrip_blocks=True,
+    )
+    env.filters["fmt"] = _fmt
+    env.filters["datauri"] = _data_uri
+    env.filters["pct"] = lambda v: "–" if v is None else f"{100.0 * float(v):.2f} %"
+    claims = json.loads(Path(claims_path).read_text(encoding="utf-8"))
+    rows = {name: read_table(path) for name, path in tables.items()}
+    sets = []
+    for s in manifest["sets"]:
+        table = {r["run"]: r for r in rows.get(s["name"], [])}
+        runs = []
+        for r in s["runs"]:
+            m = table.get(r["id"], {})
+            runs.append({**r, "m": m, "maps": [k[4:] for k in r["figures"] if k.startswith("map_")]})
+        sets.append({**s, "runs": runs})
+    git = git_commit()
+    bench = read_benchmarks(benchmarks)
+    template = env.get_template("comparison.html.j2")
+    text = template.render(
+        title=title,
+        sets=sets,
+        claims=claims,
+        bench=bench,
+        bench_total=sum(v["total_s"] for v in bench.values()),
+        versions=_versions(),
+        lock_sha256=environment_lock_sha256() or "unknown",
+        git_commit=(git[0] + (" (dirty)" if git[1] else "")) if git else "unknown",
+        config_text=config_text,
+        generated=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        levels=COVERAGE_LEVELS,
+        guide=method_guide(rows),
+    )
+    p = Path(out)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    p.write_text(text, encoding="utf-8")
+    return p
+
+
+def method_guide(rows: Mapping[str, Sequence[Mapping[str, Any]]]) -> list[dict[str, str]]:
+    """When to use which method, with the numbers behind each piece of advice.
+
+    Returns a list of ``{"advice", "evidence"}`` built from the collected tables.
+    """
+    all_rows = [r for rs in rows.values() for r in rs]
+    guide: list[dict[str, str]] = []
+    cov_err = [r["MC_coverage_3s"] - r["MC_level_3s"] for r in all_rows
+               if r.get("MC_coverage_3s") is not None and r.get("param.monte_carlo.regime") == "per_step"]
+    t_cov = [r["time_covariance"] for r in all_rows if r.get("time_covariance") is not None]
+    t_mc = [r["time_monte_carlo"] for r in all_rows if r.get("time_monte_carlo") is not None]
+    if cov_err:
+        worst = max(all_rows, key=lambda r: abs((r.get("MC_coverage_3s") or 0) - (r.get("MC_level_3s") or 0))
+                    if r.get("param.monte_carlo.regime") == "per_step" and r.get("MC_coverage_3s") is not None else -1)
+        guide.append({
+            "advice": "Method A (covariance propagation) for quick, repeated estimates while the heading "
+                      "uncertainty stays small.",
+            "evidence": f"Over {len(cov_err)} per-step runs the 98.89 % ellipse held a median "
+                        f"{100 * (float(np.median(cov_err)) + COVERAGE_LEVELS['3s']):.2f} % of the Monte Carlo "
+                        f"particles; worst {100 * (worst['MC_coverage_3s']):.2f} % (run {worst['run']}, "
+                        f"σ_θ = {_fmt(worst.get('A_sigma_theta'))} rad)."
+                        + (f" Median compute time {_fmt(float(np.median(t_cov)))} s vs "
+                           f"{_fmt(float(np.median(t_mc)))} s for Monte Carlo." if t_cov and t_mc else ""),
+        })
+    bends = [r for r in all_rows if r.get("MC_bend") is not None]
+    if bends:
+        b = max(bends, key=lambda r: abs(r["MC_bend"]))
+        guide.append({
+            "advice": "Monte Carlo when the cloud bends (large heading uncertainty, systematic errors): "
+                      "a single ellipse then misstates the shape.",
+            "evidence": f"Largest bend statistic {_fmt(b['MC_bend'])} (run {b['run']}, σ_θ = "
+                        f"{_fmt(b.get('A_sigma_theta'))} rad; 0 for an ellipse, noise level "
+                        f"±{_fmt(b.get('MC_bend_crit'))}).",
+        })
+    maps = [k for r in all_rows for k in r if k.startswith("map_") and k.endswith("_region_area")]
+    if maps:
+        guide.append({
+            "advice": "Probability maps (Method B) for single steps with large or non-Gaussian noise, "
+                      "where the full density (several peaks, off-centre peak) matters; their cost grows "
+                      "with the grid.",
+            "evidence": f"{len(maps)} maps computed; see the claims 6, 9 and 10 for their shapes.",
+        })
+    return guide

@@ -1,0 +1,440 @@
+"""Experiment sets: validate the pipeline config and expand each set into runs.
+
+The pipeline config (``config/config.yaml``, validated against
+``workflow/schemas/config.schema.yaml``, JSON Schema 2020-12) holds named
+*experiment sets*. A set is a sweep: a ``base`` run configuration (the keys of
+:class:`pose_uncertainty.run.RunConfig`) and a list of *axes*; each axis maps
+dotted keys (``trajectory.speed``, ``k_r``, ``monte_carlo.method``, ``maps``)
+to equal-length lists whose values are taken together (zipped); the runs of
+the set are the product of its axes::
+
+    A3_parameters:
+      base: {trajectory: {name: straight, length: 1.0}}
+      sweep:
+        - k_r: [5.0e-4, 5.0e-5, 9.0e-4, 1.0e-4]
+          k_l: [5.0e-4, 5.0e-5, 1.0e-4, 9.0e-4]
+        - trajectory.track: [0.1, 0.2, 0.5]
+
+expands into 4 × 3 = 12 runs. An axis may carry ``labels`` (one per value)
+that replace the automatic label of its values in the run id.
+
+Run ids are readable and stable: they are built from the swept values only
+(``straight_L1_b0.2``), so an id changes exactly when a swept value changes,
+and a change of a base value keeps the ids (Snakemake reruns the affected runs
+because their parameters changed). Two different runs of one set that would
+get the same id are an error; identical runs are merged.
+"""
+
+from __future__ import annotations
+
+import copy
+import itertools
+import json
+import math
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+__all__ = [
+    "ConfigError",
+    "Run",
+    "expand_all",
+    "expand_set",
+    "format_schema_error",
+    "label_value",
+    "load_schema",
+    "run_label",
+    "simulate",
+    "validate_config",
+]
+
+#: Short names of swept keys used in run ids (the key's last component otherwise).
+ABBREVIATIONS: dict[str, str] = {
+    "length": "L",
+    "radius": "r",
+    "angle": "a",
+    "speed": "v",
+    "angular_speed": "w",
+    "dt": "dt",
+    "track": "b",
+    "laps": "laps",
+    "dx": "dx",
+    "dy": "dy",
+    "k_r": "kr",
+    "k_l": "kl",
+    "n_particles": "n",
+    "seed": "seed",
+    "pr": "pr",
+}
+
+#: Keys whose value alone is readable (no ``key`` prefix in the id).
+BARE_KEYS: frozenset[str] = frozenset({"name", "profile", "method", "regime", "model"})
+
+_SAFE = re.compile(r"[^A-Za-z0-9_.-]+")
+
+
+class ConfigError(ValueError):
+    """A pipeline config that breaks the schema or the run rules; names key, value and what is allowed."""
+
+
+@dataclass(frozen=True)
+class Run:
+    """One run of an experiment set.
+
+    Attributes
+    ----------
+    set : str — experiment set name
+    id : str — run id, unique within the set (letters, digits, ``_ . -``)
+    config : dict — the full run configuration (``RunConfig.from_dict`` input, with ``name`` = id)
+    swept : dict — the swept dotted keys and their values for this run
+    """
+
+    set: str
+    id: str
+    config: dict[str, Any]
+    swept: dict[str, Any]
+
+    @property
+    def path(self) -> str:
+        """Relative path of the run log, ``data/runs/<set>/<id>.mcap``."""
+        return f"data/runs/{self.set}/{self.id}.mcap"
+
+
+# --- schema validation ------------------------------------------------------------------
+
+
+def load_schema(path: str | Path) -> dict[str, Any]:
+    """Load a JSON Schema written as YAML (or JSON)."""
+    import yaml
+
+    with open(path, encoding="utf-8") as fh:
+        return yaml.safe_load(fh)
+
+
+def _dotted(path: Sequence[Any]) -> str:
+    out = ""
+    for part in path:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += ("." if out else "") + str(part)
+    return out or "<config>"
+
+
+def _allowed(error: Any) -> str:
+    """Describe what the failing schema keyword allows."""
+    kw, val, sch = error.validator, error.validator_value, error.schema
+    if kw == "enum":
+        return "one of " + ", ".join(json.dumps(v) for v in val)
+    if kw == "const":
+        return json.dumps(val)
+    if kw == "type":
+        return f"type {val}"
+    if kw in ("minimum", "exclusiveMinimum", "maximum", "exclusiveMaximum"):
+        parts = []
+        for k, sym in (("minimum", ">="), ("exclusiveMinimum", ">"), ("maximum", "<="), ("exclusiveMaximum", "<")):
+            if k in sch:
+                parts.append(f"{sym} {sch[k]}")
+        return " and ".join(parts)
+    if kw == "additionalProperties":
+        props = sorted(sch.get("properties", {}))
+        return "only the keys " + ", ".join(props) if props else "no further keys"
+    if kw == "required":
+        return "the keys " + ", ".join(val) + " are required"
+    if kw == "pattern":
+        return f"strings matching {val}"
+    if kw == "propertyNames":
+        return "key names as described in the schema"
+    if kw in ("minItems", "maxItems", "minProperties", "maxProperties", "minLength"):
+        return f"{kw} {val}"
+    return f"{kw}: {json.dumps(val, default=str)}"
+
+
+def format_schema_error(error: Any) -> str:
+    """One line naming the key, the bad value and what the schema allows."""
+    path = list(error.absolute_path)
+    value = error.instance
+    if error.validator == "additionalProperties" and isinstance(value, Mapping):
+        allowed_keys = set(error.schema.get("properties", {}))
+        pattern = error.schema.get("patternProperties", {})
+        extra = sorted(
+            k for k in value if k not in allowed_keys and not any(re.search(p, k) for p in pattern)
+        )
+        key = _dotted([*path, extra[0]]) if extra else _dotted(path)
+        return (
+            f"config key {key!r} is not allowed (value {json.dumps(value.get(extra[0]) if extra else value, default=str)}); "
+            f"allowed: {_allowed(error)}"
+        )
+    if error.validator == "required":
+        missing = [k for k in error.validator_value if isinstance(value, Mapping) and k not in value]
+        key = _dotted([*path, missing[0]]) if missing else _dotted(path)
+        return f"config key {key!r} is missing; allowed: {_allowed(error)}"
+    shown = json.dumps(value, default=str)
+    if len(shown) > 120:
+        shown = shown[:117] + "..."
+    return f"config key {_dotted(path)!r} has bad value {shown}; allowed: {_allowed(error)}"
+
+
+def _resolve(schema: Mapping[str, Any], root: Mapping[str, Any]) -> Mapping[str, Any]:
+    ref = schema.get("$ref")
+    if isinstance(ref, str) and ref.startswith("#/"):
+        node: Any = root
+        for part in ref[2:].split("/"):
+            node = node[part]
+        return node
+    return schema
+
+
+def _fill_defaults(schema: Mapping[str, Any], instance: Any, root: Mapping[str, Any] | None = None) -> None:
+    """Insert schema ``default`` values for missing object keys, recursively (in place).
+
+    Local ``$ref`` are followed; a schema with ``x-fill-defaults: false`` (the run
+    configuration, whose defaults :class:`~pose_uncertainty.run.RunConfig` fills) is left alone.
+    """
+    root = schema if root is None else root
+    schema = _resolve(schema, root)
+    if not isinstance(instance, dict) or schema.get("x-fill-defaults") is False:
+        return
+    props = schema.get("properties", {})
+    for key, sub in props.items():
+        sub_r = _resolve(sub, root)
+        if key not in instance and "default" in sub:
+            instance[key] = copy.deepcopy(sub["default"])
+        elif key not in instance and "default" in sub_r:
+            instance[key] = copy.deepcopy(sub_r["default"])
+        if key in instance:
+            _fill_defaults(sub, instance[key], root)
+    addl = schema.get("additionalProperties")
+    if isinstance(addl, Mapping):
+        for key, val in instance.items():
+            if key not in props:
+                _fill_defaults(addl, val, root)
+
+
+def validate_config(config: Mapping[str, Any], schema: Mapping[str, Any]) -> dict[str, Any]:
+    """Validate a pipeline config against its JSON Schema (2020-12), fill defaults, expand the sets.
+
+    Parameters
+    ----------
+    config : mapping — the pipeline config as loaded from YAML
+    schema : mapping — the JSON Schema (``workflow/schemas/config.schema.yaml``)
+
+    Returns
+    -------
+    dict — the config with every default filled in
+
+    Raises
+    ------
+    ConfigError
+        On the first schema violation (the most specific one) or when a set's
+        runs are not valid run configurations; the message names the key, the
+        value and what is allowed.
+    """
+    from jsonschema import Draft202012Validator
+    from jsonschema.exceptions import best_match
+
+    Draft202012Validator.check_schema(schema)
+    validator = Draft202012Validator(schema)
+    err = best_match(validator.iter_errors(config), key=_relevance)
+    if err is not None:
+        raise ConfigError(format_schema_error(err))
+    filled = copy.deepcopy(dict(config))
+    _fill_defaults(schema, filled)
+    expand_all(filled)  # raises ConfigError for bad runs
+    return filled
+
+
+def _relevance(error: Any) -> Any:
+    from jsonschema.exceptions import relevance
+
+    # prefer the deepest error, as best_match does
+    return relevance(error)
+
+
+# --- expansion ---------------------------------------------------------------------------
+
+
+def _set_dotted(target: dict[str, Any], key: str, value: Any) -> None:
+    parts = key.split(".")
+    node = target
+    for p in parts[:-1]:
+        child = node.get(p)
+        if not isinstance(child, dict):
+            child = {}
+            node[p] = child
+        node = child
+    last = parts[-1]
+    if isinstance(value, Mapping) and isinstance(node.get(last), Mapping):
+        node[last] = _deep_merge(node[last], value)
+    else:
+        node[last] = copy.deepcopy(value)
+
+
+def _deep_merge(a: Mapping[str, Any], b: Mapping[str, Any]) -> dict[str, Any]:
+    out = copy.deepcopy(dict(a))
+    for k, v in b.items():
+        if isinstance(v, Mapping) and isinstance(out.get(k), Mapping):
+            out[k] = _deep_merge(out[k], v)
+        else:
+            out[k] = copy.deepcopy(v)
+    return out
+
+
+def label_value(value: Any) -> str:
+    """Readable, file-name-safe label of one value (numbers as ``%g``)."""
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, int | float):
+        v = float(value)
+        if v == int(v) and abs(v) < 1e6:
+            return str(int(v))
+        if math.isclose(v, round(v, 5), rel_tol=0, abs_tol=1e-12) and 1e-3 <= abs(v) < 1e6:
+            text = f"{round(v, 5):g}"
+        else:
+            text = f"{v:.3g}"
+        return text.replace("+", "")
+    if isinstance(value, str):
+        return _SAFE.sub("-", value).strip("-") or "x"
+    if isinstance(value, Mapping):
+        parts = []
+        if "name" in value:
+            parts.append(label_value(value["name"]))
+        if "model" in value:
+            parts.append(label_value(value["model"]))
+        for k in sorted(value):
+            if k in ("name", "model"):
+                continue
+            parts.append(run_label(k, value[k]))
+        return "-".join(p for p in parts if p)
+    if isinstance(value, list | tuple):
+        return "-".join(label_value(v) for v in value) or "none"
+    return _SAFE.sub("-", str(value))
+
+
+def run_label(key: str, value: Any) -> str:
+    """Label of one swept ``key = value`` in a run id: ``b0.2``, ``kr5e-04``, ``straight``."""
+    last = key.split(".")[-1]
+    text = label_value(value)
+    if last in BARE_KEYS or isinstance(value, Mapping | list | tuple):
+        return text
+    return ABBREVIATIONS.get(last, _SAFE.sub("", last)) + text
+
+
+def expand_set(name: str, spec: Mapping[str, Any], defaults: Mapping[str, Any] | None = None) -> list[Run]:
+    """Expand one experiment set into its runs (product of axes, zipped within an axis).
+
+    Parameters
+    ----------
+    name : str — set name
+    spec : mapping with ``base`` (partial run config) and ``sweep`` (list of axes)
+    defaults : mapping, optional — run-config defaults shared by every set
+
+    Returns
+    -------
+    list of Run, in sweep order, duplicates merged
+
+    Raises
+    ------
+    ConfigError naming ``experiment_sets.<name>...`` keys for unequal axis
+    lengths, id clashes and invalid run configurations.
+    """
+    from .run import RunConfig
+
+    where = f"experiment_sets.{name}"
+    base = _deep_merge(defaults or {}, spec.get("base", {}) or {})
+    axes: list[list[tuple[dict[str, Any], list[str]]]] = []
+    for ai, axis in enumerate(spec.get("sweep", []) or []):
+        keys = [k for k in axis if k != "labels"]
+        lengths = {k: len(axis[k]) for k in keys}
+        if len(set(lengths.values())) > 1:
+            raise ConfigError(
+                f"config key '{where}.sweep[{ai}]' has lists of unequal length {lengths}; "
+                "allowed: equal lengths (the values of one axis are taken together)"
+            )
+        n = next(iter(lengths.values()), 0)
+        labels = axis.get("labels")
+        if labels is not None and len(labels) != n:
+            raise ConfigError(
+                f"config key '{where}.sweep[{ai}].labels' has {len(labels)} labels for {n} values; "
+                "allowed: one label per value"
+            )
+        points = []
+        for i in range(n):
+            values = {k: axis[k][i] for k in keys}
+            lab = [label_value(labels[i])] if labels is not None else [run_label(k, v) for k, v in values.items()]
+            points.append((values, lab))
+        axes.append(points)
+    runs: dict[str, Run] = {}
+    for combo in itertools.product(*axes) if axes else [()]:
+        cfg = copy.deepcopy(base)
+        swept: dict[str, Any] = {}
+        labels: list[str] = []
+        for values, lab in combo:
+            for k, v in values.items():
+                _set_dotted(cfg, k, v)
+                swept[k] = copy.deepcopy(v)
+            labels.extend(lab)
+        run_id = "_".join(x for x in labels if x) or "run"
+        run_id = _SAFE.sub("-", run_id)
+        cfg["name"] = run_id
+        try:
+            full = RunConfig.from_dict(cfg).to_dict()
+        except ValueError as exc:
+            raise ConfigError(f"{where}, run {run_id!r}: {exc}") from None
+        if run_id in runs:
+            if runs[run_id].config != full:
+                raise ConfigError(
+                    f"config key '{where}.sweep' gives two different runs the id {run_id!r}; "
+                    "allowed: distinct labels (add 'labels' to the axis)"
+                )
+            continue
+        runs[run_id] = Run(set=name, id=run_id, config=full, swept=swept)
+    return list(runs.values())
+
+
+def expand_all(config: Mapping[str, Any]) -> dict[str, list[Run]]:
+    """Expand every experiment set of a (validated, defaults-filled) pipeline config.
+
+    Returns
+    -------
+    dict of set name to list of Run, in config order
+    """
+    defaults = dict(config.get("defaults", {}) or {})
+    if "seed" in config and "seed" not in defaults:
+        defaults["seed"] = config["seed"]
+    return {
+        name: expand_set(name, spec, defaults)
+        for name, spec in (config.get("experiment_sets", {}) or {}).items()
+    }
+
+
+# --- running -----------------------------------------------------------------------------
+
+
+def simulate(config: Mapping[str, Any], out: str | Path, timings_out: str | Path | None = None) -> Path:
+    """Execute one run and write its log (and, optionally, its wall-clock timings as JSON).
+
+    Parameters
+    ----------
+    config : mapping — a run configuration (``RunConfig.from_dict`` input)
+    out : path — destination ``.mcap`` (written atomically, byte-reproducible: no timings inside)
+    timings_out : path, optional — JSON file with the run's timings [s]
+
+    Returns
+    -------
+    Path — ``out``
+    """
+    from .run import RunConfig, execute
+    from .runlog import write_run
+
+    result = execute(RunConfig.from_dict(config))
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    path = write_run(out, result)
+    if timings_out is not None:
+        Path(timings_out).write_text(
+            json.dumps({k: float(v) for k, v in sorted(result.timings.items())}, indent=1) + "\n",
+            encoding="utf-8",
+        )
+    return path

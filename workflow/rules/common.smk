@@ -1,0 +1,133 @@
+# Config validation (JSON Schema 2020-12, before any rule reads the config) and input functions.
+import json
+import sys
+
+from pose_uncertainty import sweep as _sweep
+
+# A config file given on the command line (--configfile config/quick.yaml) REPLACES
+# config/config.yaml instead of deep-merging into it (whose sets would otherwise leak in);
+# --config key=value overrides still apply on top.
+if workflow.overwrite_configfiles:
+    import copy as _copy
+
+    config.clear()
+    config.update(_copy.deepcopy(workflow.config_settings.overwrite_config))
+
+_SCHEMA = _sweep.load_schema(workflow.source_path("../schemas/config.schema.yaml"))
+try:
+    _validated = _sweep.validate_config(config, _SCHEMA)
+except _sweep.ConfigError as _exc:
+    raise WorkflowError(f"invalid config: {_exc}") from None
+config.clear()
+config.update(_validated)  # in place: every default filled in
+
+RUNS = _sweep.expand_all(config)  # {set: [Run, ...]}
+RUN_BY_ID = {(s, r.id): r for s, runs in RUNS.items() for r in runs}
+SETS = list(RUNS)
+
+
+wildcard_constraints:
+    set="[A-Za-z0-9_]+",
+    run="[A-Za-z0-9_.-]+",
+    map="[A-Za-z0-9_.-]+",
+
+
+def run_config(wildcards):
+    """The full run configuration of data/runs/<set>/<run>.mcap (a rule param)."""
+    return RUN_BY_ID[(wildcards.set, wildcards.run)].config
+
+
+def run_logs(set_name):
+    return [f"data/runs/{set_name}/{r.id}.mcap" for r in RUNS[set_name]]
+
+
+def run_timings(set_name):
+    return [f"data/runs/{set_name}/{r.id}.timings.json" for r in RUNS[set_name]]
+
+
+def run_figures(set_name, run):
+    """Per-run figures of one run, by kind."""
+    base = f"reports/figures/{set_name}/{run.id}"
+    figs = {"trajectory": f"{base}/trajectory.png"}
+    if run.config["monte_carlo"]["n_particles"] > 0:
+        figs["cloud"] = f"{base}/cloud.png"
+    for m in run.config["maps"]:
+        figs[f"map_{m['name']}"] = f"{base}/map_{m['name']}.png"
+    return figs
+
+
+def set_figures(set_name):
+    """Set-level figures (config key experiment_sets.<set>.plots)."""
+    return {p: f"reports/figures/{set_name}/{p}.png" for p in config["experiment_sets"][set_name]["plots"]}
+
+
+def figures_of_set(wildcards_or_name):
+    name = getattr(wildcards_or_name, "set", wildcards_or_name)
+    out = list(set_figures(name).values())
+    for r in RUNS[name]:
+        out.extend(run_figures(name, r).values())
+    return out
+
+
+def all_figures(wildcards=None):
+    return [f for s in SETS for f in figures_of_set(s)]
+
+
+def all_tables(wildcards=None):
+    return [f"reports/tables/{s}.csv" for s in SETS]
+
+
+def all_benchmarks(wildcards=None):
+    """Benchmark files of every job the report depends on (per-rule times in the report)."""
+    out = []
+    for s in SETS:
+        for r in RUNS[s]:
+            out.append(f"data/benchmarks/simulate_run/{s}/{r.id}.tsv")
+            for kind in run_figures(s, r):
+                if kind.startswith("map_"):
+                    out.append(f"data/benchmarks/render_map_figure/{s}/{r.id}/{kind[4:]}.tsv")
+                else:
+                    out.append(f"data/benchmarks/render_{kind}_figure/{s}/{r.id}.tsv")
+        for kind in set_figures(s):
+            out.append(f"data/benchmarks/render_{kind}_figure/{s}.tsv")
+        out.append(f"data/benchmarks/collect_metrics/{s}.tsv")
+    out.append("data/benchmarks/evaluate_claims/all.tsv")
+    return out
+
+
+def report_manifest():
+    """Everything the report builder needs to know about the sets, runs and figures (a rule param)."""
+    sets = []
+    for s in SETS:
+        spec = config["experiment_sets"][s]
+        sets.append(
+            {
+                "name": s,
+                "title": spec["title"] or s,
+                "source": spec["source"],
+                "description": spec["description"],
+                "table": f"reports/tables/{s}.csv",
+                "figures": set_figures(s),
+                "runs": [
+                    {
+                        "id": r.id,
+                        "log": r.path,
+                        "swept": r.swept,
+                        "config": r.config,
+                        "figures": run_figures(s, r),
+                    }
+                    for r in RUNS[s]
+                ],
+            }
+        )
+    return {"sets": sets, "config": config}
+
+
+def all_outputs():
+    return ["reports/comparison.html", *all_tables(), *all_figures()]
+
+
+def polar_logs(wildcards):
+    """Runs drawn in seed 001's Cartesian/polar view: the midpoint-sampler runs (at most 8)."""
+    runs = [r for r in RUNS[wildcards.set] if r.config["monte_carlo"]["method"] == "midpoint"]
+    return [r.path for r in (runs or RUNS[wildcards.set])[:8]]

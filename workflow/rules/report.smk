@@ -1,0 +1,35 @@
+# The claims of SPEC §5 evaluated from the tables, and the self-contained HTML report.
+
+
+rule evaluate_claims:
+    input:
+        tables=all_tables,
+    output:
+        "reports/claims.json",
+    params:
+        sets=SETS,
+    log:
+        "logs/evaluate_claims.log",
+    benchmark:
+        "data/benchmarks/evaluate_claims/all.tsv"
+    script:
+        "../scripts/evaluate_claims.py"
+
+
+rule build_report:
+    input:
+        tables=all_tables,
+        claims=rules.evaluate_claims.output[0],
+        figures=all_figures,
+        benchmarks=all_benchmarks,
+        template=workflow.source_path("../../src/pose_uncertainty/templates/comparison.html.j2"),
+    output:
+        "reports/comparison.html",
+    params:
+        manifest=report_manifest(),
+        sets=SETS,
+        title=config["report"]["title"],
+    log:
+        "logs/build_report.log",
+    script:
+        "../scripts/build_report.py"

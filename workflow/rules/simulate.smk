@@ -1,0 +1,15 @@
+# One run → one MCAP log (byte-reproducible) + its wall-clock timings.
+
+
+rule simulate_run:
+    output:
+        log="data/runs/{set}/{run}.mcap",
+        timings="data/runs/{set}/{run}.timings.json",
+    params:
+        config=run_config,
+    log:
+        "logs/simulate_run/{set}/{run}.log",
+    benchmark:
+        "data/benchmarks/simulate_run/{set}/{run}.tsv"
+    script:
+        "../scripts/simulate_run.py"
