@@ -84,6 +84,16 @@ def test_replay_figures_identical_to_pipeline(logged: Path, tmp_path: Path) -> N
         assert (tmp_path / "replay" / p.name).read_bytes() == p.read_bytes(), p.name
 
 
+def test_run_with_figures_matches_replay(logged: Path, tmp_path: Path) -> None:
+    cfg = tmp_path / "config.yaml"
+    cfg.write_text(yaml.safe_dump(CONFIG), encoding="utf-8")
+    assert main(["run", str(cfg), "-o", str(tmp_path / "r.mcap"), "--figures", str(tmp_path / "a")]) == 0
+    assert main(["replay", str(logged), "--figures", str(tmp_path / "b"), "--format", "png"]) == 0
+    assert sorted(p.name for p in (tmp_path / "b").iterdir()) == ["cloud.png", "trajectory.png"]
+    for p in (tmp_path / "b").iterdir():
+        assert p.read_bytes() == (tmp_path / "a" / p.name).read_bytes()
+
+
 def test_verify_passes_on_fresh_and_fails_on_tampered(
     logged: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

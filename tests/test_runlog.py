@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from pose_uncertainty import covariance, figures, runlog
+from pose_uncertainty import covariance, figures, runlog, trajectories
 from pose_uncertainty.run import MapRecord, RunConfig, RunResult, execute
 from pose_uncertainty.runlog import PartialLogWarning, RunLogError, open_run, write_run
 
@@ -342,20 +342,46 @@ def test_computed_maps_round_trip(tmp_path: Path) -> None:
     assert cfg.maps[0].params["alphas"] == [0.05] * 6  # the thesis's constants filled in
     res = execute(cfg)
     assert res.n_steps == 1 and [m.name for m in res.maps] == ["vel", "odo"]
-    # the map builder called directly, on a grid centred on the closed-form end of the
-    # arc (R = 1 m turned by 1 rad: (sin 1, 1 − cos 1, 1)), gives the same array
-    end = (math.sin(1.0), 1.0 - math.cos(1.0), 1.0)
-    grid = maps.MapGrid.centered(end, resolution=0.02, theta_resolution=0.2)
-    direct = maps.single_step_map("velocity", (0, 0, 0), (1.0, 1.0), 1.0, [0.05] * 6, grid=grid)
-    np.testing.assert_allclose(res.maps[0].values, direct.values, rtol=1e-12, atol=1e-300)
+    # the map is centred on the closed-form end of the arc (R = 1 m turned by 1 rad)
+    center = res.maps[0].center
+    np.testing.assert_allclose(center, [math.sin(1.0), 1.0 - math.cos(1.0), 1.0], rtol=0, atol=1e-15)
+    # the map builder called directly with the trajectory's control, (V, ω) = (1, 1) up to
+    # rounding, on that grid gives the same array, bit for bit
+    traj = trajectories.build(**cfg.trajectory)
+    np.testing.assert_allclose(traj.controls[0], [1.0, 1.0], rtol=0, atol=1e-15)
+    grid = maps.MapGrid.centered(center, resolution=0.02, theta_resolution=0.2)
+    direct = maps.single_step_map("velocity", traj.start, traj.controls[0], 1.0, [0.05] * 6, grid=grid)
+    assert exact(res.maps[0].values, direct.values)
     log = open_run(write_run(tmp_path / "maps.mcap", res))
     assert runlog.compare_results(log, res) == []
     for a, b in zip(log.maps, res.maps, strict=True):
-        assert exact(a.values, b.values) and a.info == b.info and a.params == b.params
+        assert exact(a.values, b.values) and exact(a.center, b.center)
+        assert a.info == b.info and a.params == b.params
         pm = a.to_probability_map()
         assert exact(pm.most_probable_xy(), b.to_probability_map().most_probable_xy())
     # the odometry map's peak is off the noiseless end point, the velocity map's is on it (claim 10)
     assert log.metrics["map_vel_peak_offset"] < 0.02 < log.metrics["map_odo_peak_offset"]
+
+
+def test_multi_step_map_round_trip(tmp_path: Path) -> None:
+    """A five-step arc: the map is the multi-step (histogram-filter) map along the path."""
+    cfg = RunConfig.from_dict(
+        {
+            "name": "multi",
+            "trajectory": {"name": "arc", "radius": 0.5, "angle": 1.0, "speed": 1.0, "dt": 0.1},
+            "monte_carlo": {"n_particles": 200},
+            "maps": [{"name": "odo", "model": "odometry", "resolution": 0.02, "theta_resolution": 0.2}],
+        }
+    )
+    assert cfg.maps[0].params["size"] is None and "max_cells" in cfg.maps[0].params
+    res = execute(cfg)
+    assert res.n_steps == 5
+    mp = res.maps[0]
+    np.testing.assert_allclose(mp.values.sum() + mp.lost_mass, 1.0, rtol=0, atol=1e-12)
+    log = open_run(write_run(tmp_path / "multi.mcap", res))
+    assert runlog.compare_results(log, res) == []
+    with pytest.raises(ValueError, match=r"'maps\[0\].corrected'.*multi-step"):
+        RunConfig.from_dict({**cfg.to_dict(), "maps": [{"model": "velocity", "corrected": True}]})
 
 
 def test_bad_map_config_names_the_key() -> None:

@@ -34,6 +34,7 @@ __all__ = [
     "cloud_figure",
     "figure_set",
     "map_figure",
+    "map_window",
     "new_figure",
     "render_figures",
     "save_figure",
@@ -142,21 +143,44 @@ def cloud_figure(run: RunResult) -> Figure | None:
     return fig
 
 
-def map_figure(run: RunResult, mp: MapRecord) -> Figure:
-    """Probability map (θ marginalised), 1 m × 1 m around the noiseless end pose, darker = more probable.
+def map_window(mp: MapRecord, center: tuple[float, float], hold: float = 0.99) -> float:
+    """Side [m] of the square map window around ``center``: 1 m (the thesis), or larger.
 
-    The window is centred on the centre of the map's grid, which
-    :func:`pose_uncertainty.run.execute` puts on the noiseless (exact-arc) end pose.
+    The smallest square centred on ``center`` holding ``hold`` of the grid's
+    mass, rounded up to 0.5 m, when that exceeds 1 m (multi-step maps spread further).
+    """
+    marg = mp.marginal_xy()
+    total = float(marg.sum())
+    if total <= 0:
+        return _MAP_WINDOW
+    dist = np.maximum(np.abs(mp.x - center[0])[:, None], np.abs(mp.y - center[1])[None, :])
+    order = np.argsort(dist, axis=None, kind="stable")
+    cum = np.cumsum(marg.ravel()[order])
+    k = int(np.searchsorted(cum, hold * total))
+    half = float(dist.ravel()[order][min(k, order.size - 1)]) + mp.resolution / 2.0
+    return max(_MAP_WINDOW, 0.5 * np.ceil(2.0 * half / 0.5))
+
+
+def map_figure(run: RunResult, mp: MapRecord) -> Figure:
+    """Probability map (θ marginalised) around the noiseless end pose, darker = more probable.
+
+    The window is 1 m × 1 m as in the thesis (larger when the map spreads
+    further, see :func:`map_window`), centred on the map's noiseless
+    (exact-arc) end pose ``mp.center``.
 
     Parameters
     ----------
-    run : RunResult — gives the noiseless end point
+    run : RunResult — gives the run's name
     mp : MapRecord — one of ``run.maps``
     """
     marg = mp.marginal_xy()  # (nx, ny) mass per cell [1]
     dx = dy = mp.resolution
     extent = (mp.x[0] - dx / 2, mp.x[-1] + dx / 2, mp.y[0] - dy / 2, mp.y[-1] + dy / 2)
-    mid = ((mp.x[0] + mp.x[-1]) / 2.0, (mp.y[0] + mp.y[-1]) / 2.0)
+    if np.all(np.isfinite(mp.center)):
+        mid = (float(mp.center[0]), float(mp.center[1]))
+    else:
+        mid = ((mp.x[0] + mp.x[-1]) / 2.0, (mp.y[0] + mp.y[-1]) / 2.0)
+    side = map_window(mp, mid)
     fig = _new_figure((6.4, 5.6))
     ax = fig.add_subplot()
     img = ax.imshow(
@@ -164,9 +188,8 @@ def map_figure(run: RunResult, mp: MapRecord) -> Figure:
         vmax=float(marg.max()) if marg.max() > 0 else 1.0, interpolation="nearest",
     )
     ax.plot(*mid, marker="+", color=_RED, ms=10, ls="none", label="noiseless end point (exact arc)")
-    half = _MAP_WINDOW / 2.0
-    ax.set_xlim(mid[0] - half, mid[0] + half)
-    ax.set_ylim(mid[1] - half, mid[1] + half)
+    ax.set_xlim(mid[0] - side / 2, mid[0] + side / 2)
+    ax.set_ylim(mid[1] - side / 2, mid[1] + side / 2)
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
@@ -218,6 +241,8 @@ def render_figures(
     outdir : path-like — created if missing
     formats : iterable of {"png", "svg", "pdf"}
     """
+    if run.times.size == 0:
+        raise ValueError("the run has no steps (e.g. a partial log recovered nothing): no figures to draw")
     fmts = list(formats)
     for fmt in fmts:
         if fmt not in FORMATS:

@@ -51,6 +51,7 @@ __all__ = [
     "RunConfig",
     "RunResult",
     "execute",
+    "map_kind",
     "environment_lock_sha256",
     "git_commit",
     "provenance",
@@ -186,12 +187,15 @@ class MapConfig:
         Parameters of the map (every one filled in by :meth:`from_dict`):
         ``alphas`` [1] (6 velocity / 4 odometry error constants, default 0.05 each
         as the thesis), ``noise`` (normal | triangular), ``scaling`` (squared | abs),
-        ``corrected`` (bool), ``cell_floor`` [cells], ``variance_from`` (odometry),
-        and the grid: ``size`` [m] (side, default 1 m), ``resolution`` [m] (cell,
-        default 0.01 m), ``theta_resolution`` [rad] (default 2°), centred on the
-        noiseless end pose. A one-step trajectory gives the thesis's single-step
-        map (``pose_uncertainty.maps.single_step_map``); a longer one the
-        multi-step map along the whole trajectory.
+        ``resolution`` [m] (cell, default 0.01 m), ``theta_resolution`` [rad]
+        (default 2°). A one-step trajectory gives the thesis's single-step map
+        (``pose_uncertainty.maps.single_step_map``: also ``corrected``,
+        ``cell_floor`` [cells], ``variance_from``, ``size`` [m], the side of the
+        grid centred on the noiseless end pose, default 1 m); a longer one the
+        multi-step map along the whole trajectory (``multi_step_map``: also
+        ``max_cells``, ``n_nodes_max``, and ``size`` [m]: None = a grid that grows
+        with the spread, a number = a fixed square grid of that side centred
+        between the start and the noiseless end).
     """
 
     name: str
@@ -199,8 +203,11 @@ class MapConfig:
     params: dict[str, Any] = field(default_factory=dict)
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any], index: int = 0) -> MapConfig:
-        """Validate and build from a mapping with keys ``name``, ``model`` and map parameters."""
+    def from_dict(cls, data: Mapping[str, Any], index: int = 0, n_steps: int = 1) -> MapConfig:
+        """Validate and build from a mapping with keys ``name``, ``model`` and map parameters.
+
+        ``n_steps`` (the trajectory's N) selects the builder whose parameters apply.
+        """
         where = f"maps[{index}]"
         if not isinstance(data, Mapping):
             raise _fail(where, "a mapping", data)
@@ -211,7 +218,7 @@ class MapConfig:
             raise _fail(f"{where}.model", "one of 'velocity', 'odometry'", model)
         name = _name(f"{where}.name", data.get("name", model))
         params = {k: v for k, v in data.items() if k not in ("name", "model")}
-        return cls(name=name, model=model, params=_map_params(where, model, params))
+        return cls(name=name, model=model, params=_map_params(where, model, params, n_steps))
 
     def to_dict(self) -> dict[str, Any]:
         """Plain mapping with every parameter."""
@@ -230,25 +237,44 @@ def _plain(value: Any) -> Any:
 
 
 #: Parameters of the map builders that the run supplies itself (not configurable).
-_MAP_SUPPLIED = ("model", "start", "control", "controls", "dt", "grid", "odometry")
+_MAP_SUPPLIED = ("model", "start", "control", "controls", "dt", "grid", "odometry", "workers")
 
 
-def _map_params(where: str, model: str, params: dict[str, Any]) -> dict[str, Any]:
-    """Validate a map's parameters against the map builder and fill in its defaults."""
+def map_kind(n_steps: int) -> str:
+    """``"single"`` (the thesis's one-step map) for a one-step trajectory, else ``"multi"``."""
+    return "single" if n_steps == 1 else "multi"
+
+
+def _map_defaults(model: str, kind: str) -> dict[str, Any]:
+    """Every configurable parameter of a map builder with its default."""
     from . import maps
 
     defaults: dict[str, Any] = {"alphas": [0.05] * (6 if model == "velocity" else 4)}
-    for fn in (maps.single_step_map, maps.MapGrid.centered):
+    if kind == "single":
+        fns: tuple[Any, ...] = (maps.single_step_map, maps.MapGrid.centered)
+    else:
+        fns = (maps.multi_step_map,)
+        defaults["size"] = None  # None: the growing grid; a number: a fixed square grid [m]
+    for fn in fns:
         for p in inspect.signature(fn).parameters.values():
             if p.name in _MAP_SUPPLIED or p.name in ("center", "self", "cls"):
                 continue
             if p.default is not inspect.Parameter.empty:
                 defaults.setdefault(p.name, p.default)
+    return defaults
+
+
+def _map_params(where: str, model: str, params: dict[str, Any], n_steps: int) -> dict[str, Any]:
+    """Validate a map's parameters against its builder and fill in the builder's defaults."""
+    from . import maps
+
+    kind = map_kind(n_steps)
+    defaults = _map_defaults(model, kind)
     unknown = sorted(set(params) - set(defaults))
     if unknown:
         raise ValueError(
             f"unknown config key(s) {', '.join(repr(f'{where}.{k}') for k in unknown)} "
-            f"(allowed: name, model, {', '.join(sorted(defaults))})"
+            f"(allowed for a {kind}-step {model} map: name, model, {', '.join(sorted(defaults))})"
         )
     full = _plain({**defaults, **params})
     try:
@@ -381,7 +407,7 @@ class RunConfig:
         maps_raw = data.get("maps", ())
         if not isinstance(maps_raw, list | tuple):
             raise _fail("maps", "a list of map mappings", maps_raw)
-        maps = tuple(MapConfig.from_dict(m, i) for i, m in enumerate(maps_raw))
+        maps = tuple(MapConfig.from_dict(m, i, n_steps) for i, m in enumerate(maps_raw))
         names = [m.name for m in maps]
         if len(set(names)) != len(names):
             raise _fail("maps[].name", "unique", names)
@@ -466,6 +492,7 @@ class MapRecord:
     lost_mass : float — probability outside the grid [1]
     params : dict — the map's configuration parameters
     info : dict — the map builder's diagnostics (JSON-compatible)
+    center : ndarray, shape (3,) — the noiseless end pose the map is about [m, m, rad]
     """
 
     name: str
@@ -477,9 +504,10 @@ class MapRecord:
     lost_mass: float = 0.0
     params: dict[str, Any] = field(default_factory=dict)
     info: dict[str, Any] = field(default_factory=dict)
+    center: NDArray[np.float64] = field(default_factory=lambda: np.full(3, np.nan))
 
     def __post_init__(self) -> None:
-        for key in ("x", "y", "theta", "values"):
+        for key in ("x", "y", "theta", "values", "center"):
             object.__setattr__(self, key, np.ascontiguousarray(getattr(self, key), np.float64))
         shape = (self.x.size, self.y.size, self.theta.size)
         if self.values.shape != shape:
@@ -507,9 +535,12 @@ class MapRecord:
         )
 
     @classmethod
-    def from_probability_map(cls, name: str, pm: Any, params: dict[str, Any]) -> MapRecord:
-        """Wrap a ``ProbabilityMap`` with its name and parameters."""
+    def from_probability_map(
+        cls, name: str, pm: Any, params: dict[str, Any], center: Any = None
+    ) -> MapRecord:
+        """Wrap a ``ProbabilityMap`` with its name, parameters and noiseless end pose."""
         return cls(
+            center=np.full(3, np.nan) if center is None else np.asarray(center, np.float64),
             name=name,
             model=str(pm.model),
             x=pm.x,
@@ -719,34 +750,37 @@ def execute(config: RunConfig) -> RunResult:
     )
 
 
-_GRID_KEYS = ("size", "resolution", "theta_resolution")
-
-
 def _compute_map(mcfg: MapConfig, traj: Any) -> MapRecord:
     """Compute one probability map with ``pose_uncertainty.maps``.
 
     A one-step trajectory gives the single-step map of its control ``(V, ω)``
-    over ``dt`` from the start pose; a longer one the multi-step map along all
-    its controls. The grid is centred on the noiseless (exact-arc) end pose.
+    over ``dt`` from the start pose, on a grid centred on the noiseless
+    (exact-arc) end pose; a longer one the multi-step map along all its controls
+    (on a growing grid unless ``size`` is set).
     """
     from . import maps as maps_mod
 
     params = dict(mcfg.params)
-    grid_kw = {k: params.pop(k) for k in _GRID_KEYS if k in params}
-    grid = maps_mod.MapGrid.centered(traj.poses[-1], **grid_kw)
-    if traj.n_steps == 1:
+    end = np.asarray(traj.poses[-1], dtype=np.float64)
+    if map_kind(traj.n_steps) == "single":
+        grid_kw = {k: params.pop(k) for k in ("size", "resolution", "theta_resolution")}
+        grid = maps_mod.MapGrid.centered(end, **grid_kw)
         pm = maps_mod.single_step_map(
             mcfg.model, traj.start, traj.controls[0], traj.dt, grid=grid, **params
         )
     else:
-        multi = getattr(maps_mod, "multi_step_map", None)
-        if multi is None:
-            raise ValueError(
-                f"map {mcfg.name!r}: multi-step maps are not available in this version "
-                f"(allowed: a one-step trajectory), got {traj.n_steps} steps"
+        size = params.pop("size")
+        grid = None
+        if size is not None:
+            # a fixed grid must hold the start: centre it between the start and the end
+            mid = (np.asarray(traj.start, dtype=np.float64) + end) / 2.0
+            grid = maps_mod.MapGrid.centered(
+                (mid[0], mid[1], end[2]), size, params["resolution"], params["theta_resolution"]
             )
-        pm = multi(mcfg.model, traj.start, traj.controls, traj.dt, grid=grid, **params)
-    return MapRecord.from_probability_map(mcfg.name, pm, mcfg.params)
+        pm = maps_mod.multi_step_map(
+            mcfg.model, traj.controls, traj.dt, start=traj.start, grid=grid, **params
+        )
+    return MapRecord.from_probability_map(mcfg.name, pm, mcfg.params, center=end)
 
 
 def _metrics(

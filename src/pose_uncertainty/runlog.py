@@ -203,6 +203,7 @@ def _our_schemas() -> dict[str, Any]:
             ("lost_mass", F.TYPE_DOUBLE, one, None),
             ("params_json", F.TYPE_STRING, one, None),
             ("info_json", F.TYPE_STRING, one, None),
+            ("center", F.TYPE_DOUBLE, many, None),
         ],
     )
     message(
@@ -335,6 +336,7 @@ def _volume(mp: MapRecord, t_ns: int) -> Any:
         lost_mass=float(mp.lost_mass),
         params_json=json.dumps(mp.params, sort_keys=True, separators=(",", ":")),
         info_json=json.dumps(mp.info, sort_keys=True, separators=(",", ":")),
+        center=mp.center.tolist(),
     )
     _stamp(msg, t_ns)
     msg.values.shape.extend(mp.values.shape)
@@ -421,6 +423,13 @@ def _write_stream(stream: Any, result: RunResult, include_timings: bool) -> None
             f"result arrays must have shapes times (N+1,), poses (N+1, 3), covs (N+1, 3, 3), "
             f"got {times.shape}, {poses.shape}, {covs.shape}"
         )
+    clouds = {"end_poses": result.end_poses, **{f"checkpoints[{k}]": v for k, v in result.checkpoints.items()}}
+    for name, cloud in clouds.items():
+        if cloud is not None and (cloud.ndim != 2 or cloud.shape[1] != 3):
+            raise ValueError(f"{name} must have shape (n, 3), got shape {cloud.shape}")
+    bad_steps = [k for k in result.checkpoints if not 0 <= k < n]
+    if bad_steps:
+        raise ValueError(f"checkpoint steps must be in [0, {n - 1}], got {bad_steps}")
     log = _Log(stream)
     log.w.add_metadata(METADATA_NAME, _metadata(result))
     t_ns = [_ns(t) for t in times]
@@ -810,6 +819,7 @@ def _assemble(p: Path, records: list[Any], *, partial: bool, problem: str | None
                 lost_mass=float(v.lost_mass),
                 params=json.loads(v.params_json) if v.params_json else {},
                 info=json.loads(v.info_json) if v.info_json else {},
+                center=np.array(v.center, dtype=np.float64) if len(v.center) == 3 else np.full(3, np.nan),
             )
         )
 
@@ -949,12 +959,12 @@ def compare_results(logged: RunResult, fresh: RunResult) -> list[str]:
         out.append(f"maps: {[m.name for m in logged.maps]} != {[m.name for m in fresh.maps]}")
     else:
         for a, b in zip(logged.maps, fresh.maps, strict=True):
-            for attr in ("x", "y", "theta", "values"):
+            for attr in ("x", "y", "theta", "values", "center"):
                 d = _diff(f"map {a.name}.{attr}", getattr(a, attr), getattr(b, attr))
                 if d:
                     out.append(d)
-            if a.lost_mass != b.lost_mass or a.model != b.model or a.params != b.params:
-                out.append(f"map {a.name}: model/lost_mass/params differ")
+            if (a.lost_mass, a.model, a.params, a.info) != (b.lost_mass, b.model, b.params, b.info):
+                out.append(f"map {a.name}: model/lost_mass/params/info differ")
     if sorted(logged.metrics) != sorted(fresh.metrics):
         out.append(f"metrics: keys {sorted(logged.metrics)} != {sorted(fresh.metrics)}")
     else:
