@@ -1,9 +1,12 @@
 """Run-log speed: write and summarise a run of 1000 steps, 10⁵ end particles and 3 maps.
 
 Targets (issue 4): write ≤ 2 s, summary ≤ 1 s. The run is computed with the real
-trajectory, covariance and Monte Carlo code; the three maps are 101 × 101 × 64
-(x, y, θ) float64 arrays (5.2 MB each), computed by ``pose_uncertainty.maps``
-when a config asks for them, otherwise synthetic arrays of that size.
+trajectory, covariance and Monte Carlo code; the three maps are synthetic
+101 × 101 × 180 (x, y, θ) float64 arrays, the size of the default map grid
+(1 m × 1 m at 1 cm, 2° headings; 14.7 MB each), since multi-step maps along
+1000 steps take far longer to compute than to log. Timed: ``write_run`` (best
+of 3), ``open_run`` + ``format_summary`` in process (best of 3), and
+``pose-uncertainty replay RUN.mcap`` end to end in a fresh interpreter.
 
     .venv/bin/python -m benchmarks.bench_runlog     → benchmarks/results/runlog.json
 """
@@ -31,7 +34,7 @@ CONFIG = {
     "trajectory": {"name": "circle", "radius": 1.0, "speed": 0.2 * math.pi, "dt": 0.01},
     "monte_carlo": {"n_particles": 100_000},
 }
-N_MAPS, NX, NY, NTH = 3, 101, 101, 64
+N_MAPS, NX, NY, NTH = 3, 101, 101, 180  # the default map grid: 1 m × 1 m at 1 cm, 2° headings
 
 
 def _maps(result: RunResult) -> tuple[MapRecord, ...]:
