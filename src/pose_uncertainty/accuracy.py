@@ -499,6 +499,7 @@ def compare_methods(
     densities: Mapping[str, Any] | None = None,
     prs: Sequence[float] = PRS,
     n_bins: int = 60,
+    n_threshold: int = 200_000,
 ) -> dict[str, dict[str, float]]:
     """Every method against one Monte Carlo cloud, on one grid.
 
@@ -510,6 +511,7 @@ def compare_methods(
     rng : numpy.random.Generator — for the banana thresholds and the floors
     densities : mapping name → gridded density, optional (e.g. probability maps)
     prs : probabilities; n_bins : bins per axis of the stated grid
+    n_threshold : draws for the banana's density thresholds (:func:`evaluate_expcoords`)
 
     Returns
     -------
@@ -528,7 +530,7 @@ def compare_methods(
     res["cartesian"] = evaluate_cartesian(s, pose_a, cov_a, grid, prs)
     if expcoords is not None:
         pose_e, cov_e = (np.asarray(v, dtype=float) for v in expcoords)
-        res["expcoords"] = evaluate_expcoords(s, pose_e, cov_e, rng, grid, prs)
+        res["expcoords"] = evaluate_expcoords(s, pose_e, cov_e, rng, grid, prs, n_threshold=n_threshold)
     for name, dens in (densities or {}).items():
         res[name] = evaluate_gridded(dens, s, grid, prs)
     return res

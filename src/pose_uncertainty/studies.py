@@ -1,0 +1,700 @@
+"""The seed-001 studies and the growth laws, as functions returning tables (lists of dicts).
+
+* :func:`integration_vs_step` — the three integration methods against step
+  size: error of the end pose from the exact arc, and the fitted order;
+  :func:`method_cloud_spread` — whether the cloud depends on the method.
+* :func:`number_type_drift`, :func:`number_type_clouds` — integer
+  millimetres, float32, float64 and long double: a sequential step loop in
+  the given type (the one place a per-step loop is the point), its drift from
+  the exact end pose and what it does to the cloud of end poses.
+* :func:`error_sources_vs_monte_carlo` — seed 001's error sources mapped to
+  the equivalent ``k`` (:mod:`pose_uncertainty.wheel_noise`) and checked
+  against Monte Carlo; :func:`regime_growth` — systematic (per-run) against
+  random (per-step) errors and their growth with distance.
+* :func:`polar_vs_cartesian` — moments of the cloud in Cartesian ``(x, y)``
+  and polar ``(r, φ)`` coordinates about the start.
+* :func:`growth_laws` — how σ_along, σ_across, σ_θ and the credible-region
+  area grow with distance: log-log power-law fits against exponential fits.
+* :func:`accuracy_table` — coverage and distances of both Gaussian methods on
+  the long paths (straight 1, 5, 20 m; 1 and 3 laps of a circle; larger k).
+
+``python -m pose_uncertainty.studies [--quick]`` runs all of them with the
+default (thesis) parameters and prints one JSON document.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy import stats as sstats
+
+from . import accuracy as ac
+from . import covariance as cv
+from . import expcoords as ec
+from . import sampling as sp
+from . import trajectories as tr
+from . import wheel_noise as wn
+from .kinematics import METHODS, integrate
+from .validation import check_choice, check_positive, check_positive_int
+
+__all__ = [
+    "NUMBER_TYPES",
+    "accuracy_table",
+    "along_across",
+    "constant_speed_trajectory",
+    "error_sources_vs_monte_carlo",
+    "exact_constant_arc",
+    "fit_growth",
+    "growth_laws",
+    "integrate_in_type",
+    "integration_vs_step",
+    "method_cloud_spread",
+    "number_type_clouds",
+    "number_type_drift",
+    "polar_vs_cartesian",
+    "regime_growth",
+]
+
+NUMBER_TYPES: tuple[str, ...] = ("int_mm", "float32", "float64", "longdouble")
+
+
+# --- trajectories of seed 001 -------------------------------------------------------------------
+
+
+def constant_speed_trajectory(
+    v_r: float = 1.0, v_l: float = 0.95, duration: float = 1.0, dt: float = 0.01, track: float = 0.1
+) -> tr.Trajectory:
+    """Seed 001's run: constant wheel speeds [m/s] for ``duration`` [s] in steps of ``dt`` [s]."""
+    n = check_positive_int("n_steps", max(1, round(float(check_positive("duration", duration)) / dt)))
+    return tr.Trajectory(
+        ds_r=np.full(n, v_r * dt), ds_l=np.full(n, v_l * dt), dt=dt, track=track,
+        name=f"constant wheels {v_r:g}/{v_l:g} m/s, {n} steps of {dt:g} s",
+    )
+
+
+def exact_constant_arc(
+    v_r: float, v_l: float, t: ArrayLike, track: float, dtype: Any = np.longdouble
+) -> NDArray:
+    """Closed-form pose after driving constant wheel speeds for time ``t`` from (0, 0, 0).
+
+    ``x = V t sinc(ωt/2) cos(ωt/2)``, ``y = V t sinc(ωt/2) sin(ωt/2)``,
+    ``θ = ωt``, evaluated in ``dtype`` (long double by default: the reference
+    of the number-type study). Returns shape (..., 3).
+    """
+    T = np.dtype(dtype).type
+    tt = np.asarray(t, dtype=dtype)
+    V = (T(v_r) + T(v_l)) / T(2)
+    w = (T(v_r) - T(v_l)) / T(track)
+    th = w * tt
+    half = th / T(2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        sinc = np.where(half == 0, T(1), np.sin(half) / np.where(half == 0, T(1), half))
+    chord = V * tt * sinc
+    return np.stack([chord * np.cos(half), chord * np.sin(half), th], axis=-1)
+
+
+# --- 1. integration methods against step size -----------------------------------------------------
+
+
+def integration_vs_step(
+    dts: Sequence[float] = (0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001),
+    *,
+    v_r: float = 1.0,
+    v_l: float = 0.95,
+    duration: float = 1.0,
+    track: float = 0.1,
+    methods: Sequence[str] = ("euler", "euler_end", "midpoint", "exact"),
+) -> dict[str, Any]:
+    """End-pose error of each integration method against the exact arc, for several steps.
+
+    Wheel speeds are constant (seed 001's arc: 1 and 0.95 m/s, b = 0.1 m,
+    1 s), so the exact arc is the truth for every step size.
+
+    Returns
+    -------
+    dict: ``rows`` — one per (dt, method): ``dt`` [s], ``method``,
+    ``position_error`` [m], ``heading_error`` [rad]; ``order`` — per method the
+    log-log slope of the position error against dt (1 for Euler, 2 for the
+    midpoint rule; the exact arc is at rounding level).
+    """
+    truth = exact_constant_arc(v_r, v_l, duration, track, np.float64)
+    rows = []
+    for dt in dts:
+        t = constant_speed_trajectory(v_r, v_l, duration, dt, track)
+        for m in methods:
+            check_choice("method", m, METHODS)
+            end = t.poses_by(m)[-1]
+            rows.append(
+                {
+                    "dt": float(dt),
+                    "method": m,
+                    "position_error": float(math.hypot(end[0] - truth[0], end[1] - truth[1])),
+                    "heading_error": float(abs(end[2] - truth[2])),
+                }
+            )
+    order = {}
+    for m in methods:
+        e = np.array([r["position_error"] for r in rows if r["method"] == m])
+        d = np.array([r["dt"] for r in rows if r["method"] == m])
+        ok = e > 1e-13
+        order[m] = float(np.polyfit(np.log(d[ok]), np.log(e[ok]), 1)[0]) if ok.sum() >= 2 else 0.0
+    return {"rows": rows, "order": order}
+
+
+def method_cloud_spread(
+    trajectory: tr.Trajectory,
+    k_r: float,
+    k_l: float,
+    n: int,
+    seed: int,
+    methods: Sequence[str] = ("euler", "euler_end", "midpoint", "exact"),
+) -> dict[str, Any]:
+    """Does the cloud depend on the integration method? Same noise, four methods.
+
+    The same wheel-travel draws (same seed) are integrated by each method.
+
+    Returns
+    -------
+    dict: per method ``mean`` (3,) and ``cov`` (3, 3) of the cloud, and
+    ``max_rel_cov_difference`` — the largest relative difference of a
+    covariance entry (x, y, θ diagonal) from the exact-arc cloud.
+    """
+    out: dict[str, Any] = {}
+    clouds = {
+        m: sp.sample_end_poses(trajectory, k_r, k_l, n, np.random.default_rng(seed), method=m)
+        for m in methods
+    }
+    ref = np.cov(clouds["exact"].T) if "exact" in clouds else None
+    for m, c in clouds.items():
+        C = np.cov(c.T)
+        row = {"mean": c.mean(0).tolist(), "cov": C.tolist()}
+        if ref is not None:
+            row["max_rel_cov_difference"] = float(np.max(np.abs(np.diag(C) / np.diag(ref) - 1)))
+        out[m] = row
+    return out
+
+
+# --- 2. number types ----------------------------------------------------------------------------
+
+
+def integrate_in_type(
+    ds_r: ArrayLike,
+    ds_l: ArrayLike,
+    track: float,
+    dt: float,
+    number_type: str,
+    *,
+    method: str = "exact",
+    scheme: str = "full",
+) -> NDArray[np.float64]:
+    """Integrate wheel travels with a sequential step loop in one number type.
+
+    As in seed 001, lengths are millimetres inside the loop and the wheel
+    *speeds* [mm/s] are stored in the type (for integers: truncated toward
+    zero, C's conversion); each step's travel is speed × step. The result is
+    returned in metres as float64.
+
+    Parameters
+    ----------
+    ds_r, ds_l : array_like, shape (n, N) — per-run, per-step wheel travels [m]
+    track : float [m]; dt : float — step [s]
+    number_type : {"int_mm", "float32", "float64", "longdouble"}
+    method : {"exact", "midpoint", "euler", "euler_end"}
+    scheme : {"full", "seed001"}
+        ``full`` — every quantity (speeds, step, heading, trigonometry,
+        positions) in the type (floats only); ``seed001`` — as seed 001's C++:
+        positions and speeds in the type, heading and the increments in double,
+        each increment added to the stored position and converted back to the
+        type (for integers with truncation toward zero). ``int_mm`` always
+        uses ``seed001``.
+
+    Returns
+    -------
+    ndarray, shape (n, 3) — end poses [m, m, rad]
+    """
+    check_choice("number_type", number_type, NUMBER_TYPES)
+    check_choice("method", method, METHODS)
+    check_choice("scheme", scheme, ("full", "seed001"))
+    step = float(check_positive("dt", dt))
+    r_m = np.atleast_2d(np.asarray(ds_r, dtype=np.float64))
+    l_m = np.atleast_2d(np.asarray(ds_l, dtype=np.float64))
+    is_int = number_type == "int_mm"
+    if is_int:
+        scheme = "seed001"
+    T = {"int_mm": np.int64, "float32": np.float32, "float64": np.float64,
+         "longdouble": np.longdouble}[number_type]
+
+    def store(v: NDArray) -> NDArray:
+        return np.trunc(v).astype(np.int64) if is_int else v.astype(T)
+
+    n_runs, n_steps = r_m.shape
+    # wheel speeds [mm/s] stored in the type (seed 001 keeps them in TYPENAME)
+    vr_t = store(r_m / step * 1000.0)
+    vl_t = store(l_m / step * 1000.0)
+    x = np.zeros(n_runs, dtype=T)
+    y = np.zeros(n_runs, dtype=T)
+    if scheme == "full":
+        b = T(track * 1000.0)
+        h = T(step)
+        half, two = T(0.5), T(2)
+        th = np.zeros(n_runs, dtype=T)
+        for i in range(n_steps):  # the sequential loop in the type is the experiment
+            r, l = vr_t[:, i] * h, vl_t[:, i] * h
+            ds = (r + l) * half
+            dth = (r - l) / b
+            phi, scale = _phi_scale(th, ds, dth, method, half, T)
+            x = x + scale * np.cos(phi)
+            y = y + scale * np.sin(phi)
+            th = th + dth
+        th64 = th.astype(np.float64)
+    else:
+        bd = track * 1000.0
+        th64 = np.zeros(n_runs)
+        for i in range(n_steps):
+            r = vr_t[:, i].astype(np.float64) * step
+            l = vl_t[:, i].astype(np.float64) * step
+            ds = (r + l) * 0.5
+            dth = (r - l) / bd
+            phi, scale = _phi_scale(th64, ds, dth, method, 0.5, np.float64)
+            # iX += increment: computed in double, converted back to the stored type
+            x = store(x.astype(np.float64) + scale * np.cos(phi)) if is_int else (
+                x + scale * np.cos(phi)).astype(T)
+            y = store(y.astype(np.float64) + scale * np.sin(phi)) if is_int else (
+                y + scale * np.sin(phi)).astype(T)
+            th64 = th64 + dth
+    return np.stack([x.astype(np.float64) / 1000.0, y.astype(np.float64) / 1000.0, th64], -1)
+
+
+def _phi_scale(
+    th: NDArray, ds: NDArray, dth: NDArray, method: str, half: Any, T: Any
+) -> tuple[NDArray, NDArray]:
+    """Heading of the chord and its length for one step, in the arrays' type."""
+    if method == "euler":
+        return th, ds
+    if method == "euler_end":
+        return th + dth, ds
+    phi = th + dth * half
+    if method == "midpoint":
+        return phi, ds
+    h = dth * half
+    safe = np.where(h == 0, T(1), h)
+    sinc = np.where(h == 0, T(1), np.sin(safe) / safe)
+    return phi, ds * sinc
+
+
+def number_type_drift(
+    n_steps: Sequence[int] = (100, 1000, 10_000),
+    *,
+    v_r: float = 1.0,
+    v_l: float = 0.95,
+    dt: float = 0.01,
+    track: float = 0.1,
+    scheme: str = "full",
+    number_types: Sequence[str] = NUMBER_TYPES,
+) -> list[dict[str, Any]]:
+    """Drift of the noiseless end pose computed in each number type from the exact result.
+
+    Constant wheel speeds (seed 001's arc), exact-arc steps, so the only error
+    is arithmetic; the reference is the closed form in long double.
+
+    Returns
+    -------
+    list of dict: ``number_type``, ``scheme``, ``n_steps``, ``distance`` [m],
+    ``position_error`` [m], ``heading_error`` [rad].
+    """
+    rows = []
+    for N in n_steps:
+        N = check_positive_int("n_steps", N)
+        truth = exact_constant_arc(v_r, v_l, N * dt, track).astype(np.float64)
+        r = np.full((1, N), v_r * dt)
+        l = np.full((1, N), v_l * dt)
+        for nt in number_types:
+            end = integrate_in_type(r, l, track, dt, nt, scheme=scheme)[0]
+            rows.append(
+                {
+                    "number_type": nt,
+                    "scheme": "seed001" if nt == "int_mm" else scheme,
+                    "n_steps": N,
+                    "distance": N * dt * (v_r + v_l) / 2,
+                    "position_error": float(math.hypot(end[0] - truth[0], end[1] - truth[1])),
+                    "heading_error": float(abs(end[2] - truth[2])),
+                }
+            )
+    return rows
+
+
+def number_type_clouds(
+    trajectory: tr.Trajectory,
+    sources: wn.WheelErrorSources,
+    n: int,
+    seed: int,
+    *,
+    regime: str = "per_step",
+    scheme: str = "seed001",
+    number_types: Sequence[str] = NUMBER_TYPES,
+) -> dict[str, dict[str, Any]]:
+    """What each number type does to the cloud: same wheel-speed draws, four arithmetics.
+
+    Returns
+    -------
+    dict per number type: ``mean`` (3,), ``std`` (3,), ``distinct_y`` (number
+    of distinct y values: integer millimetres collapse the across-track
+    spread onto a few values), and ``max_abs_difference_m`` — the largest
+    position difference of a run from its long-double result.
+    """
+    ds_r, ds_l = wn.sample_wheel_travels(trajectory, sources, n, np.random.default_rng(seed), regime)
+    ends = {
+        nt: integrate_in_type(ds_r, ds_l, trajectory.track, trajectory.dt, nt, scheme=scheme)
+        for nt in number_types
+    }
+    ref = ends.get("longdouble")
+    out = {}
+    for nt, e in ends.items():
+        row = {
+            "mean": e.mean(0).tolist(),
+            "std": e.std(0, ddof=1).tolist(),
+            "distinct_y": int(np.unique(e[:, 1]).size),
+        }
+        if ref is not None:
+            row["max_abs_difference_m"] = float(np.max(np.hypot(*(e[:, :2] - ref[:, :2]).T)))
+        out[nt] = row
+    return out
+
+
+# --- 3. error sources → k, and the two regimes ---------------------------------------------------
+
+
+def error_sources_vs_monte_carlo(
+    sources: wn.WheelErrorSources = wn.SEED001,
+    *,
+    speed: float = 1.0,
+    duration: float = 1.0,
+    dt: float = 0.01,
+    track: float = 0.1,
+    n: int = 100_000,
+    seed: int = 1,
+) -> dict[str, float]:
+    """Seed 001's error sources → equivalent ``k`` → Method A, against Monte Carlo of the sources.
+
+    Straight run at ``speed``; per-step regime.
+
+    Returns
+    -------
+    dict: ``k_equivalent`` [m], ``k_seed001_factor`` (seed 001's
+    ``0.01·σ_v²``), the Monte Carlo total-travel variance per metre of the
+    right wheel ``k_mc_travel`` [m], and Method A's against the Monte Carlo
+    end-pose variances ``var_<x|y|theta>_method_a`` / ``_mc``.
+    """
+    t = constant_speed_trajectory(speed, speed, duration, dt, track)
+    rng = np.random.default_rng(seed)
+    k = float(wn.k_equivalent(sources, speed, dt))
+    ds_r, ds_l = wn.sample_wheel_travels(t, sources, n, rng, "per_step")
+    L = t.wheel_travel[0]
+    ends = sp.integrate_end(ds_r, ds_l, track)[:, 0, :]
+    A = cv.propagate(t, k, k).covs[-1]
+    C = np.cov(ends.T)
+    out = {
+        "speed_variance": float(wn.speed_variance(sources, speed)),
+        "k_equivalent": k,
+        "k_seed001_factor": 0.01 * float(wn.speed_variance(sources, speed)),
+        "k_mc_travel": float(ds_r.sum(axis=1).var(ddof=1) / L),
+        "n_samples": float(n),
+    }
+    for i, name in enumerate(("x", "y", "theta")):
+        out[f"var_{name}_method_a"] = float(A[i, i])
+        out[f"var_{name}_mc"] = float(C[i, i])
+    return out
+
+
+def along_across(
+    poses: NDArray[np.float64], covs: NDArray[np.float64]
+) -> dict[str, NDArray[np.float64]]:
+    """Standard deviations along and across the path (frame of the nominal heading) and of θ.
+
+    Parameters
+    ----------
+    poses : ndarray, shape (M, 3); covs : ndarray, shape (M, 3, 3)
+
+    Returns
+    -------
+    dict of ndarray (M,): ``sigma_along``, ``sigma_across`` [m], ``sigma_theta`` [rad],
+    ``area`` — area of the 98.89 % ellipse ``π k √det Σ_xy`` [m²]
+    """
+    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+    sxx, syy, sxy = covs[:, 0, 0], covs[:, 1, 1], covs[:, 0, 1]
+    along = c * c * sxx + 2 * c * s * sxy + s * s * syy
+    across = s * s * sxx - 2 * c * s * sxy + c * c * syy
+    det = np.maximum(sxx * syy - sxy**2, 0.0)
+    return {
+        "sigma_along": np.sqrt(np.maximum(along, 0)),
+        "sigma_across": np.sqrt(np.maximum(across, 0)),
+        "sigma_theta": np.sqrt(np.maximum(covs[:, 2, 2], 0)),
+        "area": math.pi * float(cv.pr_to_k(cv.PR_3SIGMA)) * np.sqrt(det),
+    }
+
+
+def fit_growth(distance: ArrayLike, value: ArrayLike) -> dict[str, float]:
+    """Fit ``value = a·s^p`` (log-log) and ``value = a·e^{c s}`` (semi-log) by least squares.
+
+    Returns
+    -------
+    dict: ``power_exponent`` p, ``power_rms_log_residual``, ``exp_rate`` c [1/m],
+    ``exp_rms_log_residual`` — the residuals are rms of ``log value``, so the
+    smaller one is the better law; ``local_exponent_end`` — d log v / d log s
+    over the last fifth of the range.
+    """
+    s = np.asarray(distance, dtype=float)
+    v = np.asarray(value, dtype=float)
+    ok = (s > 0) & (v > 0)
+    s, v = s[ok], v[ok]
+    if s.size < 3:
+        raise ValueError(f"need at least 3 positive points to fit a growth law, got {s.size}")
+    lv = np.log(v)
+    p, a = np.polyfit(np.log(s), lv, 1)
+    res_p = lv - (a + p * np.log(s))
+    c, b = np.polyfit(s, lv, 1)
+    res_e = lv - (b + c * s)
+    tail = s >= s[0] + 0.8 * (s[-1] - s[0])
+    if tail.sum() >= 2:
+        local = float(np.polyfit(np.log(s[tail]), lv[tail], 1)[0])
+    else:
+        local = float(p)
+    return {
+        "power_exponent": float(p),
+        "power_rms_log_residual": float(np.sqrt(np.mean(res_p**2))),
+        "exp_rate": float(c),
+        "exp_rms_log_residual": float(np.sqrt(np.mean(res_e**2))),
+        "local_exponent_end": local,
+    }
+
+
+def regime_growth(
+    trajectory: tr.Trajectory,
+    k_r: float,
+    k_l: float,
+    n: int,
+    seed: int,
+    n_checkpoints: int = 10,
+) -> dict[str, Any]:
+    """Per-step (random) against per-run (systematic) errors: spreads against distance.
+
+    Both regimes have the same total-travel variance at the end of the path
+    (:mod:`pose_uncertainty.sampling`); along the way the per-run spread grows
+    faster. Spreads are Monte Carlo standard deviations along/across the
+    nominal heading.
+
+    Returns
+    -------
+    dict: ``distance`` (C,), per regime ``sigma_along``, ``sigma_across``,
+    ``sigma_theta`` lists and ``fits`` (:func:`fit_growth` of each).
+    """
+    N = trajectory.n_steps
+    steps = sorted({max(1, round(N * (i + 1) / n_checkpoints)) for i in range(n_checkpoints)})
+    dist = np.concatenate([[0.0], np.cumsum(np.abs(trajectory.ds))])[steps]
+    nominal = trajectory.poses[steps]
+    out: dict[str, Any] = {"distance": dist.tolist()}
+    for regime in ("per_step", "per_run"):
+        clouds = sp.sample_end_poses(
+            trajectory, k_r, k_l, n, np.random.default_rng(seed), regime=regime, checkpoints=steps
+        )
+        covs = np.stack([np.cov(clouds[:, i, :].T) for i in range(len(steps))])
+        aa = along_across(nominal, covs)
+        row: dict[str, Any] = {k: v.tolist() for k, v in aa.items() if k != "area"}
+        row["fits"] = {k: fit_growth(dist, aa[k]) for k in ("sigma_along", "sigma_across", "sigma_theta")}
+        out[regime] = row
+    return out
+
+
+# --- 4. polar against Cartesian -------------------------------------------------------------------
+
+
+def _moments(v: NDArray) -> dict[str, float]:
+    return {
+        "mean": float(v.mean()),
+        "std": float(v.std(ddof=1)),
+        "skewness": float(sstats.skew(v)),
+        "excess_kurtosis": float(sstats.kurtosis(v)),
+    }
+
+
+def polar_vs_cartesian(samples: ArrayLike, origin: ArrayLike = (0.0, 0.0)) -> dict[str, Any]:
+    """Moments of a cloud of end positions in Cartesian and in polar coordinates about ``origin``.
+
+    Gaussianity of each view: ``coverage_98.89`` is the fraction of points
+    inside the 98.89 % ellipse of the view's own mean and covariance (98.89 %
+    for a Gaussian cloud); ``|skewness|`` and ``|excess kurtosis|`` near 0.
+
+    Returns
+    -------
+    dict: ``cartesian`` {``x``, ``y``, ``coverage_98.89``}, ``polar`` {``r``, ``phi``, ``coverage_98.89``}
+    """
+    s = np.asarray(samples, dtype=float)
+    o = np.asarray(origin, dtype=float)
+    d = s[:, :2] - o
+    r = np.hypot(d[:, 0], d[:, 1])
+    phi = np.unwrap(np.arctan2(d[:, 1], d[:, 0]) - np.arctan2(d[:, 1].mean(), d[:, 0].mean()))
+    phi = (phi + np.pi) % (2 * np.pi) - np.pi + np.arctan2(d[:, 1].mean(), d[:, 0].mean())
+
+    def cover(a: NDArray, b: NDArray) -> float:
+        X = np.stack([a, b], -1)
+        return ac.coverage_ellipse(X, X.mean(0), np.cov(X.T), (cv.PR_3SIGMA,))["98.89"]
+
+    return {
+        "cartesian": {"x": _moments(s[:, 0]), "y": _moments(s[:, 1]),
+                      "coverage_98.89": cover(s[:, 0], s[:, 1])},
+        "polar": {"r": _moments(r), "phi": _moments(phi), "coverage_98.89": cover(r, phi)},
+    }
+
+
+# --- 5. growth laws -------------------------------------------------------------------------------
+
+
+def growth_laws(
+    trajectory: tr.Trajectory,
+    k_r: float,
+    k_l: float,
+    n_points: int = 50,
+    skip: float = 0.05,
+    *,
+    n_particles: int = 0,
+    seed: int = 0,
+    regime: str = "per_step",
+) -> dict[str, Any]:
+    """Fitted growth of the spreads with distance: Method A and (optionally) Monte Carlo.
+
+    ``n_points`` poses evenly spaced in path length from ``skip`` of the path to
+    its end; for each measure — σ_along, σ_across (in the frame of the nominal
+    heading), σ_θ, and the area of the 98.89 % ellipse ``π k √det Σ_xy`` — a
+    power law and an exponential are fitted (:func:`fit_growth`). With
+    ``n_particles > 0`` the same measures of the Monte Carlo cloud (its sample
+    covariance) are fitted too. (The exponential-coordinates Gaussian has the
+    same second moments as Method A to first order, so it is not repeated.)
+
+    Returns
+    -------
+    dict: ``distance`` list; ``method_a`` and possibly ``monte_carlo``:
+    {measure: values list, ``fits``: {measure: fit}}
+    """
+    A = cv.propagate(trajectory, k_r, k_l)
+    dist = np.concatenate([[0.0], np.cumsum(np.abs(trajectory.ds))])
+    targets = np.linspace(skip * dist[-1], dist[-1], check_positive_int("n_points", n_points))
+    idx = np.unique(np.clip(np.searchsorted(dist, targets), 1, trajectory.n_steps))
+    s = dist[idx]
+    out: dict[str, Any] = {"distance": s.tolist()}
+    measures = {"method_a": along_across(A.poses[idx], A.covs[idx])}
+    if n_particles > 0:
+        clouds = sp.sample_end_poses(
+            trajectory, k_r, k_l, n_particles, np.random.default_rng(seed), regime=regime,
+            checkpoints=idx.tolist(),
+        )
+        covs = np.stack([np.cov(clouds[:, i, :].T) for i in range(idx.size)])
+        measures["monte_carlo"] = along_across(trajectory.poses[idx], covs)
+    for name, d in measures.items():
+        out[name] = {k: v.tolist() for k, v in d.items()}
+        out[name]["fits"] = {k: fit_growth(s, v) for k, v in d.items()}
+    return out
+
+
+# --- 6. accuracy on long paths --------------------------------------------------------------------
+
+
+def accuracy_cases(dt: float = 0.01) -> list[tuple[str, tr.Trajectory, float]]:
+    """The paths of the accuracy table: (label, trajectory, k)."""
+    return [
+        ("straight 1 m", tr.straight(1.0, dt=dt, track=0.2), 5e-4),
+        ("straight 5 m", tr.straight(5.0, dt=dt, track=0.2), 5e-4),
+        ("straight 20 m", tr.straight(20.0, dt=dt, track=0.2), 5e-4),
+        ("circle r=1 m, 1 lap", tr.circle(1.0, laps=1, dt=dt, track=0.2), 5e-4),
+        ("circle r=1 m, 3 laps", tr.circle(1.0, laps=3, dt=dt, track=0.2), 5e-4),
+        ("straight 1 m, k=5e-5", tr.straight(1.0, dt=dt, track=0.2), 5e-5),
+        ("straight 1 m, k=5e-3", tr.straight(1.0, dt=dt, track=0.2), 5e-3),
+    ]
+
+
+def accuracy_table(
+    n: int = 100_000, seed: int = 2026, dt: float = 0.01, n_bins: int = 60,
+    n_threshold: int = 200_000,
+) -> list[dict[str, Any]]:
+    """Coverage, Hellinger, KL, log-likelihood and NEES of both Gaussian methods on each case.
+
+    Returns
+    -------
+    list of dict: ``case``, ``k``, ``length`` [m] and the entries of
+    :func:`pose_uncertainty.accuracy.compare_methods`.
+    """
+    rows = []
+    for i, (label, t, k) in enumerate(accuracy_cases(dt)):
+        rng = np.random.default_rng([seed, i])
+        cloud = sp.sample_end_poses(t, k, k, n, rng)
+        A = cv.propagate(t, k, k)
+        E = ec.propagate(t, k, k)
+        res = ac.compare_methods(
+            cloud, (A.poses[-1], A.covs[-1]), (E.poses[-1], E.covs[-1]), rng, n_bins=n_bins,
+            n_threshold=n_threshold,
+        )
+        rows.append({"case": label, "k": k, "length": t.length, **res})
+    return rows
+
+
+# --- command line ---------------------------------------------------------------------------------
+
+
+def run_all(quick: bool = False) -> dict[str, Any]:
+    """Every study with the default (thesis) parameters; ``quick`` uses fewer particles."""
+    n = 20_000 if quick else 100_000
+    out: dict[str, Any] = {}
+    out["integration_vs_step"] = integration_vs_step()
+    out["method_cloud_spread"] = method_cloud_spread(
+        constant_speed_trajectory(), 4.17e-6, 4.17e-6, n, 7
+    )
+    out["number_type_drift_full"] = number_type_drift(
+        (100, 1000, 10_000) if quick else (100, 1000, 10_000, 100_000)
+    )
+    out["number_type_drift_seed001"] = number_type_drift((100, 1000, 10_000), scheme="seed001")
+    out["number_type_clouds"] = number_type_clouds(
+        constant_speed_trajectory(1.0, 1.0), wn.SEED001, 1000, 3
+    )
+    out["error_sources"] = error_sources_vs_monte_carlo(n=n)
+    out["regime_growth_straight_5m"] = regime_growth(
+        tr.straight(5.0, dt=0.01, track=0.2), 5e-4, 5e-4, n // 5, 4
+    )
+    cloud = sp.sample_end_poses(tr.straight(1.0, dt=0.01, track=0.2), 5e-4, 5e-4, n,
+                                np.random.default_rng(5))
+    out["polar_vs_cartesian_straight_1m"] = polar_vs_cartesian(cloud)
+    out["growth_laws_straight_20m"] = _fits_only(
+        growth_laws(tr.straight(20.0, dt=0.01, track=0.2), 5e-4, 5e-4, 20, n_particles=n // 5)
+    )
+    out["growth_laws_circle_3_laps"] = _fits_only(
+        growth_laws(tr.circle(1.0, laps=3, dt=0.01, track=0.2), 5e-4, 5e-4, 20, n_particles=n // 5)
+    )
+    out["accuracy_table"] = accuracy_table(n=n)
+    return out
+
+
+def _fits_only(g: dict[str, Any]) -> dict[str, Any]:
+    return {m: g[m]["fits"] for m in ("method_a", "monte_carlo") if m in g}
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m pose_uncertainty.studies [--quick] [-o OUT.json]``: run every study, print JSON."""
+    p = argparse.ArgumentParser(prog="python -m pose_uncertainty.studies", description=__doc__)
+    p.add_argument("--quick", action="store_true", help="fewer particles (2e4 instead of 1e5)")
+    p.add_argument("-o", "--output", help="also write the JSON here")
+    args = p.parse_args(argv)
+    text = json.dumps(run_all(args.quick), indent=1)
+    if args.output:
+        with open(args.output, "w", encoding="utf-8") as fh:
+            fh.write(text)
+    sys.stdout.write(text + "\n")
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())
