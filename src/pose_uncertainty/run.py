@@ -709,23 +709,24 @@ def execute(config: RunConfig) -> RunResult:
     mc = config.monte_carlo
     if mc.n_particles > 0:
         t0 = time.perf_counter()
-        steps = [*mc.checkpoints, traj.n_steps]
-        out = sampling.sample_end_poses(
-            traj,
-            config.k_r,
-            config.k_l,
-            mc.n_particles,
-            rng,
-            regime=mc.regime,
-            method=mc.method,
-            checkpoints=steps,
-        )  # (n, C, 3): the clouds at the checkpoints, then at the end
+        common = dict(regime=mc.regime, method=mc.method)
+        if not mc.checkpoints:
+            # the sampler's fast path: end poses only, shape (n, 3)
+            out = sampling.sample_end_poses(
+                traj, config.k_r, config.k_l, mc.n_particles, rng, **common
+            )
+            end_poses = np.ascontiguousarray(out, dtype=np.float64)
+        else:
+            steps = [*mc.checkpoints, traj.n_steps]
+            out = sampling.sample_end_poses(
+                traj, config.k_r, config.k_l, mc.n_particles, rng, checkpoints=steps, **common
+            )  # (n, C, 3): the clouds at the checkpoints, then at the end
+            end_poses = np.ascontiguousarray(out[:, -1, :], dtype=np.float64)
+            checkpoints = {
+                step: np.ascontiguousarray(out[:, j, :], dtype=np.float64)
+                for j, step in enumerate(mc.checkpoints)
+            }
         timings["monte_carlo_s"] = time.perf_counter() - t0
-        end_poses = np.ascontiguousarray(out[:, -1, :], dtype=np.float64)
-        checkpoints = {
-            step: np.ascontiguousarray(out[:, j, :], dtype=np.float64)
-            for j, step in enumerate(mc.checkpoints)
-        }
 
     maps: list[MapRecord] = []
     for mcfg in config.maps:
