@@ -35,8 +35,10 @@ NEES
 
 All functions are plain functions returning dicts of floats. A gridded density
 is any object with ``x`` (nx,), ``y`` (ny,) cell centres [m] and either
-``marginal_xy()`` returning (nx, ny) or ``values`` of shape (nx, ny) [1/m²]
-(e.g. ``pose_uncertainty.maps.ProbabilityMap``, or :class:`GriddedDensity`).
+``marginal_xy()`` returning (nx, ny) or ``values`` of shape (nx, ny) — a
+density [1/m²] (e.g. :class:`GriddedDensity`), except for a
+``pose_uncertainty.maps.ProbabilityMap``, whose ``marginal_xy()`` is mass per
+cell and is divided by the cell area here.
 """
 
 from __future__ import annotations
@@ -257,11 +259,23 @@ class GriddedDensity:
         return self.values
 
 
+def _is_mass_map(density: Any) -> bool:
+    """True for :class:`pose_uncertainty.maps.ProbabilityMap`, whose values are mass per cell."""
+    try:
+        from .maps import ProbabilityMap
+    except ImportError:  # pragma: no cover - maps not available
+        return False
+    return isinstance(density, ProbabilityMap)
+
+
 def _marginal(density: Any) -> tuple[NDArray, NDArray, NDArray]:
+    """Cell centres and the planar *density* [1/m²] of a gridded density or probability map."""
     x = check_finite("density.x", density.x)
     y = check_finite("density.y", density.y)
     vals = density.marginal_xy() if hasattr(density, "marginal_xy") else density.values
     v = check_finite("density values", vals)
+    if _is_mass_map(density) and x.size > 1 and y.size > 1:
+        v = v / float((x[1] - x[0]) * (y[1] - y[0]))  # mass per cell → density
     if v.shape != (x.size, y.size):
         raise ValueError(
             f"density values must have shape (nx, ny) = ({x.size}, {y.size}), got {v.shape}"
@@ -298,20 +312,25 @@ def density_at(density: Any, xy: ArrayLike) -> NDArray[np.float64]:
     return np.where(inside, v[i, j], 0.0)
 
 
-def hdr_level(values: ArrayLike, cell_area: float, pr: float) -> float:
+def hdr_level(values: ArrayLike, cell_area: float, pr: float, total: float | None = None) -> float:
     """Density level ``c`` of the highest-density region of a gridded density holding ``pr``.
 
     Cells sorted by density, highest first; ``c`` is the density of the cell at
-    which the cumulative probability first reaches ``pr`` of the total on the
-    grid (the mass off the grid is unknown here; a map reports it as ``lost_mass``).
+    which the cumulative probability first reaches ``pr·total``. ``total`` is
+    the probability of the whole distribution in the units of ``values``:
+    default the mass on the grid (a relative map); for a map that lost mass
+    off its grid, 1 — then ``nan`` if the grid holds less than ``pr``.
     """
     v = np.sort(check_finite("values", values).ravel())[::-1]
     pr_ = float(check_probability("pr", pr))
     cum = np.cumsum(v) * cell_area
-    total = cum[-1]
-    if total <= 0:
+    on_grid = cum[-1]
+    if on_grid <= 0:
         raise ValueError("values must have positive total mass (allowed: a density), got total 0")
-    idx = int(np.searchsorted(cum, pr_ * total))
+    need = pr_ * (on_grid if total is None else total)
+    if need > on_grid * (1 + 1e-12):
+        return float("nan")
+    idx = int(np.searchsorted(cum, need))
     return float(v[min(idx, v.size - 1)])
 
 
@@ -319,11 +338,20 @@ def coverage_gridded(density: Any, xy: ArrayLike, prs: Sequence[float] = PRS) ->
     """Fraction of points inside the gridded density's Pr highest-density regions.
 
     A point is inside when the cell holding it has density ≥ :func:`hdr_level`.
+    For an object with ``lost_mass > 0`` (a map whose grid missed part of the
+    distribution) Pr is a fraction of the whole distribution (``nan`` when the
+    grid holds less than Pr); otherwise of the mass on the grid.
     """
     x, y, v = _marginal(density)
     area = float((x[1] - x[0]) * (y[1] - y[0]))
+    lost = float(getattr(density, "lost_mass", 0.0) or 0.0)
+    total = 1.0 if lost > 0 else None
     at = density_at(density, xy)
-    return {pr_label(pr): float(np.mean(at >= hdr_level(v, area, pr))) for pr in prs}
+    out = {}
+    for pr in prs:
+        level = hdr_level(v, area, pr, total)
+        out[pr_label(pr)] = float(np.mean(at >= level)) if math.isfinite(level) else float("nan")
+    return out
 
 
 # --- per-method evaluation --------------------------------------------------------------------

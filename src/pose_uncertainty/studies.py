@@ -55,6 +55,7 @@ __all__ = [
     "growth_laws",
     "integrate_in_type",
     "integration_vs_step",
+    "map_vs_sampler",
     "method_cloud_spread",
     "number_type_clouds",
     "number_type_drift",
@@ -602,7 +603,56 @@ def growth_laws(
     return out
 
 
-# --- 6. accuracy on long paths --------------------------------------------------------------------
+# --- 6. probability maps against their own sampler ------------------------------------------------
+
+
+def map_vs_sampler(
+    model: str = "velocity",
+    control: Sequence[float] = (1.0, 1.0),
+    alphas: Sequence[float] | None = None,
+    n: int = 100_000,
+    seed: int = 0,
+    size: float = 3.0,
+    resolution: float = 0.02,
+) -> dict[str, dict[str, float]]:
+    """Single-step probability maps (thesis's and corrected) against the model's own sampler.
+
+    The Monte Carlo truth is ``motion_models.sample_velocity`` (or
+    ``sample_odometry``, with the odometry ``u`` the noiseless velocity motion)
+    from (0, 0, 0) for ``Δt = 1``; the maps are
+    ``maps.single_step_map(corrected=False)`` (Thrun's density, as the thesis)
+    and ``corrected=True`` (the sampler's pose-space density), on a square
+    grid of side ``size`` [m] centred on the noiseless end pose. Measures as
+    :func:`pose_uncertainty.accuracy.evaluate_gridded`.
+
+    Returns
+    -------
+    dict: ``thesis_map``, ``corrected_map`` → measures (plus ``lost_mass``)
+    """
+    from . import maps
+    from . import motion_models as mm
+
+    check_choice("model", model, ("velocity", "odometry"))
+    al = np.full(6 if model == "velocity" else 4, 0.05) if alphas is None else np.asarray(alphas)
+    u = np.asarray(control, dtype=float)
+    start = np.zeros(3)
+    end = mm.noiseless_velocity_poses(start, u[None, :], 1.0)[-1]
+    grid = maps.MapGrid.centered(end, size=size, resolution=resolution)
+    rng = np.random.default_rng(seed)
+    if model == "velocity":
+        samples = mm.sample_velocity(start, u, 1.0, al, n, rng)
+    else:
+        samples = mm.sample_odometry(start, start, end, al, n, rng)
+    out = {}
+    for name, corrected in (("thesis_map", False), ("corrected_map", True)):
+        pm = maps.single_step_map(model, start, u, 1.0, al, grid=grid, corrected=corrected)
+        res = ac.evaluate_gridded(pm, samples)
+        res["lost_mass"] = float(pm.lost_mass)
+        out[name] = res
+    return out
+
+
+# --- 7. accuracy on long paths --------------------------------------------------------------------
 
 
 def accuracy_cases(dt: float = 0.01) -> list[tuple[str, tr.Trajectory, float]]:
@@ -674,6 +724,8 @@ def run_all(quick: bool = False) -> dict[str, Any]:
     out["growth_laws_circle_3_laps"] = _fits_only(
         growth_laws(tr.circle(1.0, laps=3, dt=0.01, track=0.2), 5e-4, 5e-4, 20, n_particles=n // 5)
     )
+    out["map_vs_sampler_velocity_arc"] = map_vs_sampler("velocity", (1.0, 1.0), n=n)
+    out["map_vs_sampler_odometry_arc"] = map_vs_sampler("odometry", (1.0, 1.0), n=n)
     out["accuracy_table"] = accuracy_table(n=n)
     return out
 
