@@ -197,7 +197,9 @@ def test_calibrate_command_velocity_table(tmp_path, capsys):
     data = np.column_stack([U, np.ones(len(X)), X])
     np.savetxt(p, data, delimiter=",", header="v,omega,dt,x,y,theta", comments="")
     out = _run_cli(["calibrate", str(p), "--model", "velocity"], capsys)
-    assert "alpha1" in out and "alpha6" in out and "95 % CI (profile)" in out
+    assert "alpha1" in out
+    assert "alpha6" in out
+    assert "95 % CI (profile)" in out
 
 
 def test_calibrate_command_needs_trajectory(tmp_path):

@@ -65,8 +65,8 @@ from .validation import (
 __all__ = [
     "KL_FLOOR",
     "PRS",
-    "GriddedDensity",
     "Grid",
+    "GriddedDensity",
     "accuracy_vs_distance",
     "cell_probabilities",
     "compare_methods",

@@ -404,7 +404,7 @@ def fit_variance_regression(
     a0, _ = optimize.nnls(F, r**2)
     col = np.abs(F).mean(axis=0)
     if np.any(col == 0):
-        bad = [names[i] for i in np.flatnonzero(col == 0)]
+        bad = [names[int(i)] for i in np.flatnonzero(col == 0)]
         raise ValueError(
             f"the data do not identify {', '.join(bad)} (allowed: controls for which each "
             "constant's feature is nonzero in some sample)"

@@ -41,7 +41,7 @@ from . import expcoords as ec
 from . import sampling as sp
 from . import trajectories as tr
 from . import wheel_noise as wn
-from .kinematics import METHODS, integrate
+from .kinematics import METHODS
 from .validation import check_choice, check_positive, check_positive_int
 
 __all__ = [
@@ -229,7 +229,7 @@ def integrate_in_type(
     is_int = number_type == "int_mm"
     if is_int:
         scheme = "seed001"
-    T = {"int_mm": np.int64, "float32": np.float32, "float64": np.float64,
+    T: Any = {"int_mm": np.int64, "float32": np.float32, "float64": np.float64,
          "longdouble": np.longdouble}[number_type]
 
     def store(v: NDArray) -> NDArray:
@@ -244,7 +244,7 @@ def integrate_in_type(
     if scheme == "full":
         b = T(track * 1000.0)
         h = T(step)
-        half, two = T(0.5), T(2)
+        half = T(0.5)
         th = np.zeros(n_runs, dtype=T)
         for i in range(n_steps):  # the sequential loop in the type is the experiment
             r, l = vr_t[:, i] * h, vl_t[:, i] * h
