@@ -75,8 +75,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import optimize
-from scipy import stats as sstats
 
 from . import covariance as cv
 from . import expcoords as ec
@@ -176,6 +174,8 @@ Objective = Callable[[NDArray], tuple[float, NDArray]]
 
 def _minimise(nll: Objective, x0: NDArray) -> NDArray:
     """argmin over x ≥ 0 of ``nll`` (returns value and gradient; parameters scaled to order 1)."""
+    from scipy import optimize  # imported here: keeps `pose-uncertainty --help` fast
+
     best = None
     for start in (x0, np.full_like(x0, 1.0)):
         res = optimize.minimize(
@@ -192,6 +192,8 @@ def _profile_interval(
     nll: Objective, xhat: NDArray, j: int, crit: float, se: float
 ) -> tuple[float, float]:
     """Profile-likelihood interval of parameter j: where 2(nll_p − nll_min) = crit."""
+    from scipy import optimize
+
     nll_min = nll(xhat)[0]
     others = [i for i in range(xhat.size) if i != j]
 
@@ -252,6 +254,8 @@ def _finish(
     info: dict[str, Any],
 ) -> CalibrationResult:
     """Estimates, Fisher standard errors and intervals in original units (x = θ/scale)."""
+    from scipy import stats as sstats
+
     try:
         cov = np.linalg.inv(fisher)
         se_scaled = np.sqrt(np.maximum(np.diag(cov), 0.0))
@@ -392,6 +396,8 @@ def fit_variance_regression(
     -------
     CalibrationResult
     """
+    from scipy import optimize
+
     check_choice("ci_method", ci_method, CI_METHODS)
     lvl = float(check_probability("level", level))
     r = check_finite("residuals", residuals).ravel()
