@@ -57,7 +57,8 @@ def main() -> None:
     result = execute(RunConfig.from_dict(CONFIG))
     t_execute = time.perf_counter() - t0
     result = dataclasses.replace(result, maps=_maps(result))
-    assert result.n_steps == 1000 and result.end_poses.shape == (100_000, 3)
+    assert result.n_steps == 1000
+    assert result.end_poses.shape == (100_000, 3)
 
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "run.mcap"

@@ -56,7 +56,7 @@ def test_replay_prints_summary(logged: Path, capsys: pytest.CaptureFixture[str])
     assert topic_lines["/covariance"] == [str(n), "pose_uncertainty.PoseCovariance2D"]
     assert topic_lines["/monte_carlo/end_poses"] == ["1", "foxglove.PointCloud"]
     assert "trajectory.radius = 0.5  [m]" in out
-    assert "monte_carlo.regime = \"per_run\"" in out
+    assert 'monte_carlo.regime = "per_run"' in out
     assert f"final state (step {n - 1}," in out
     assert "mc_coverage = " in out
     assert "environment_lock_sha256: " in out
@@ -70,7 +70,8 @@ def test_replay_at_time(logged: Path, capsys: pytest.CaptureFixture[str]) -> Non
     assert f"state at step 7, t = {log.times[7]:.9g} s" in out
     assert main(["replay", str(logged), "--at", "1e6"]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("error: --at: time must be within the run") and err.count("\n") == 1
+    assert err.startswith("error: --at: time must be within the run")
+    assert err.count("\n") == 1
 
 
 def test_replay_figures_identical_to_pipeline(logged: Path, tmp_path: Path) -> None:
@@ -79,7 +80,12 @@ def test_replay_figures_identical_to_pipeline(logged: Path, tmp_path: Path) -> N
     pipeline = figures.render_figures(execute(RunConfig.from_dict(CONFIG)), tmp_path / "pipeline")
     replayed = sorted((tmp_path / "replay").iterdir())
     assert [p.name for p in replayed] == sorted(p.name for p in pipeline)
-    assert {p.name for p in replayed} == {"trajectory.png", "trajectory.svg", "cloud.png", "cloud.svg"}
+    assert {p.name for p in replayed} == {
+        "trajectory.png",
+        "trajectory.svg",
+        "cloud.png",
+        "cloud.svg",
+    }
     for p in pipeline:
         assert (tmp_path / "replay" / p.name).read_bytes() == p.read_bytes(), p.name
 
@@ -87,7 +93,10 @@ def test_replay_figures_identical_to_pipeline(logged: Path, tmp_path: Path) -> N
 def test_run_with_figures_matches_replay(logged: Path, tmp_path: Path) -> None:
     cfg = tmp_path / "config.yaml"
     cfg.write_text(yaml.safe_dump(CONFIG), encoding="utf-8")
-    assert main(["run", str(cfg), "-o", str(tmp_path / "r.mcap"), "--figures", str(tmp_path / "a")]) == 0
+    assert (
+        main(["run", str(cfg), "-o", str(tmp_path / "r.mcap"), "--figures", str(tmp_path / "a")])
+        == 0
+    )
     assert main(["replay", str(logged), "--figures", str(tmp_path / "b"), "--format", "png"]) == 0
     assert sorted(p.name for p in (tmp_path / "b").iterdir()) == ["cloud.png", "trajectory.png"]
     for p in (tmp_path / "b").iterdir():
@@ -113,7 +122,7 @@ def test_verify_passes_on_fresh_and_fails_on_tampered(
 def test_verify_catches_a_changed_display_topic(logged: Path, tmp_path: Path) -> None:
     """Same data but a different Pr-ellipse drawing: only the byte comparison can see it."""
     res = execute(RunConfig.from_dict(CONFIG))
-    import pose_uncertainty.runlog as runlog
+    from pose_uncertainty import runlog
 
     original = runlog._ELLIPSE_POINTS
     runlog._ELLIPSE_POINTS = original + 2
@@ -128,7 +137,8 @@ def _expect_clean_error(args: list[str], capsys: pytest.CaptureFixture[str], *ne
     assert main(args) == 2
     captured = capsys.readouterr()
     err = captured.err
-    assert err.count("\n") == 1 and err.startswith("error: "), err
+    assert err.count("\n") == 1, err
+    assert err.startswith("error: "), err
     assert "Traceback" not in err
     for needle in needles:
         assert needle in err, err
@@ -136,13 +146,17 @@ def _expect_clean_error(args: list[str], capsys: pytest.CaptureFixture[str], *ne
 
 
 @pytest.mark.parametrize("cut", [8, 100, 4000, -500, -9])
-def test_truncated_logs(logged: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], cut: int) -> None:
+def test_truncated_logs(
+    logged: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], cut: int
+) -> None:
     bad = tmp_path / "cut.mcap"
     bad.write_bytes(logged.read_bytes()[:cut])
     _expect_clean_error(["replay", str(bad)], capsys, str(bad), "truncated")
 
 
-def test_flipped_empty_text_and_missing(logged: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_flipped_empty_text_and_missing(
+    logged: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     data = bytearray(logged.read_bytes())
     data[len(data) // 2] ^= 0x10
     flipped = tmp_path / "flipped.mcap"
@@ -157,7 +171,9 @@ def test_flipped_empty_text_and_missing(logged: Path, tmp_path: Path, capsys: py
     _expect_clean_error(["replay", str(tmp_path / "nope.mcap")], capsys, "no such file")
 
 
-def test_recover_reads_a_partial_log(logged: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_recover_reads_a_partial_log(
+    logged: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     part = tmp_path / "part.mcap"
     part.write_bytes(logged.read_bytes()[: logged.stat().st_size * 2 // 3])
     assert main(["replay", str(part), "--recover"]) == 0
@@ -170,7 +186,9 @@ def test_recover_reads_a_partial_log(logged: Path, tmp_path: Path, capsys: pytes
 def test_bad_config_names_the_key(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     cfg = tmp_path / "bad.yaml"
     cfg.write_text(yaml.safe_dump({**CONFIG, "seeed": 3}), encoding="utf-8")
-    _expect_clean_error(["run", str(cfg), "-o", str(tmp_path / "x.mcap")], capsys, "'seeed'", str(cfg))
+    _expect_clean_error(
+        ["run", str(cfg), "-o", str(tmp_path / "x.mcap")], capsys, "'seeed'", str(cfg)
+    )
     cfg.write_text("trajectory: [unclosed\n", encoding="utf-8")
     _expect_clean_error(["run", str(cfg), "-o", str(tmp_path / "x.mcap")], capsys, "not valid YAML")
     assert not (tmp_path / "x.mcap").exists()
@@ -189,4 +207,7 @@ def test_console_entry_point_never_shows_a_traceback(tmp_path: Path) -> None:
     )
     assert proc.returncode == 2
     assert proc.stdout == ""
-    assert proc.stderr == f"error: {text}: not an MCAP file (no MCAP magic; starts with text 'not mcap')\n"
+    assert (
+        proc.stderr
+        == f"error: {text}: not an MCAP file (no MCAP magic; starts with text 'not mcap')\n"
+    )

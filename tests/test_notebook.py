@@ -60,20 +60,33 @@ def test_notebook_runs_on_given_logs(kernel_env: Path, monkeypatch: pytest.Monke
 
     runs = kernel_env / "runs"
     runs.mkdir()
-    for name, traj in (("nb_straight", {"name": "straight"}), ("nb_arc", {"name": "arc", "radius": 0.5})):
-        cfg = {"name": name, "seed": 2, "trajectory": traj, "monte_carlo": {"n_particles": 500, "checkpoints": [20]}}
+    for name, traj in (
+        ("nb_straight", {"name": "straight"}),
+        ("nb_arc", {"name": "arc", "radius": 0.5}),
+    ):
+        cfg = {
+            "name": name,
+            "seed": 2,
+            "trajectory": traj,
+            "monte_carlo": {"n_particles": 500, "checkpoints": [20]},
+        }
         write_run(runs / f"{name}.mcap", execute(RunConfig.from_dict(cfg)))
     monkeypatch.setenv("POSE_UNCERTAINTY_RUNS", str(runs))
     nb = _run(NOTEBOOK, kernel_env)
     text = _text(nb)
     assert "2 run logs under" in text
-    assert "nb_straight" in text and "nb_arc" in text
+    assert "nb_straight" in text
+    assert "nb_arc" in text
     assert "step 20 (t = 0.20 s): 500 particles" in text
-    images = sum("image/png" in o.get("data", {}) for c in nb["cells"] for o in c.get("outputs", []))
+    images = sum(
+        "image/png" in o.get("data", {}) for c in nb["cells"] for o in c.get("outputs", [])
+    )
     assert images >= 3  # trajectory, σ(t), cloud
 
 
-def test_notebook_makes_demo_runs_without_logs(kernel_env: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_notebook_makes_demo_runs_without_logs(
+    kernel_env: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     monkeypatch.setenv("POSE_UNCERTAINTY_RUNS", str(kernel_env / "nothing-here"))
     text = _text(_run(NOTEBOOK, kernel_env))
     assert "demo runs: ['straight.mcap', 'circle.mcap', 'b1_arc.mcap']" in text

@@ -35,8 +35,15 @@ def synthetic_map(name: str, end: np.ndarray, rng: np.random.Generator) -> MapRe
     values = np.exp(-(X**2 / 0.02 + Y**2 / 0.01 + T**2)) * (1.0 + 0.01 * rng.random(X.shape))
     values *= (1.0 - 1e-3) / values.sum()  # probability mass per cell; 1e-3 lost off the grid
     return MapRecord(
-        name, "velocity", x, y, theta, values, lost_mass=1e-3,
-        params={"alphas": [0.05] * 6}, info={"synthetic": True},
+        name,
+        "velocity",
+        x,
+        y,
+        theta,
+        values,
+        lost_mass=1e-3,
+        params={"alphas": [0.05] * 6},
+        info={"synthetic": True},
     )
 
 
@@ -73,7 +80,13 @@ def test_write_read_is_lossless_for_every_topic(result: RunResult, logfile: Path
     assert exact(log.checkpoints[40], result.checkpoints[40])
     assert len(log.maps) == len(result.maps) == 2
     for a, b in zip(log.maps, result.maps, strict=True):
-        assert (a.name, a.model, a.lost_mass, a.params, a.info) == (b.name, b.model, b.lost_mass, b.params, b.info)
+        assert (a.name, a.model, a.lost_mass, a.params, a.info) == (
+            b.name,
+            b.model,
+            b.lost_mass,
+            b.params,
+            b.info,
+        )
         for attr in ("x", "y", "theta", "values"):
             assert exact(getattr(a, attr), getattr(b, attr)), attr
     assert log.metrics == result.metrics
@@ -146,7 +159,9 @@ def test_foxglove_topics_agree_with_the_exact_data(result: RunResult, logfile: P
     grid = _decoded(logfile, "/maps/vel/grid")[0]
     mp = result.maps[0]
     assert [f.name for f in grid.fields] == ["mass", "red", "green", "blue", "alpha"]
-    cells = np.frombuffer(grid.data, dtype=[("d", "<f8"), ("rgba", "u1", 4)]).reshape(mp.y.size, mp.x.size)
+    cells = np.frombuffer(grid.data, dtype=[("d", "<f8"), ("rgba", "u1", 4)]).reshape(
+        mp.y.size, mp.x.size
+    )
     assert exact(np.ascontiguousarray(cells["d"].T), mp.marginal_xy())
     # in-grid mass + lost mass = 1 (grid route vs the volume's bookkeeping)
     np.testing.assert_allclose(cells["d"].sum() + mp.lost_mass, 1.0, rtol=1e-12)
@@ -191,12 +206,15 @@ def test_same_config_and_seed_give_identical_bytes(result: RunResult, tmp_path: 
 def test_timings_are_opt_in(result: RunResult) -> None:
     with_t = runlog.log_bytes(result, include_timings=True)
     without = runlog.log_bytes(result)
-    assert b"/timings" in with_t and b"/timings" not in without
+    assert b"/timings" in with_t
+    assert b"/timings" not in without
     changed = dataclasses.replace(result, timings={k: v + 1.0 for k, v in result.timings.items()})
     assert runlog.log_bytes(changed) == without  # timings never leak into a default log
 
 
-def test_write_is_atomic(result: RunResult, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_write_is_atomic(
+    result: RunResult, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     dest = tmp_path / "run.mcap"
     dest.write_bytes(b"previous content")
     calls = {"n": 0}
@@ -240,7 +258,7 @@ def test_every_flipped_byte_is_detected(logfile: Path, tmp_path: Path) -> None:
     """A flip anywhere (header, chunks, indexes, summary, footer) is caught by magic or a CRC."""
     data = logfile.read_bytes()
     rng = np.random.default_rng(3)
-    offsets = set(range(0, 64)) | set(range(len(data) - 200, len(data)))
+    offsets = set(range(64)) | set(range(len(data) - 200, len(data)))
     offsets |= {int(o) for o in rng.integers(0, len(data), 300)}
     bad = tmp_path / "flip.mcap"
     for off in sorted(offsets):
@@ -250,7 +268,8 @@ def test_every_flipped_byte_is_detected(logfile: Path, tmp_path: Path) -> None:
         with pytest.raises(RunLogError) as info:
             open_run(bad)
         msg = str(info.value)
-        assert "\n" not in msg and msg.startswith(f"{bad}: "), (off, msg)
+        assert "\n" not in msg, (off, msg)
+        assert msg.startswith(f"{bad}: "), (off, msg)
         assert any(word in msg for word in ("corrupted", "not an MCAP", "CRC")), (off, msg)
 
 
@@ -272,7 +291,9 @@ def test_empty_text_missing_and_foreign_files(tmp_path: Path) -> None:
     _one_line_error(foreign, "not a pose-uncertainty run log")
 
 
-def test_partial_log_is_recovered_with_a_warning(result: RunResult, logfile: Path, tmp_path: Path) -> None:
+def test_partial_log_is_recovered_with_a_warning(
+    result: RunResult, logfile: Path, tmp_path: Path
+) -> None:
     data = logfile.read_bytes()
     part = tmp_path / ".run.mcap.abc.part"
     part.write_bytes(data[: len(data) // 3])
@@ -280,7 +301,8 @@ def test_partial_log_is_recovered_with_a_warning(result: RunResult, logfile: Pat
     assert "recover" in msg
     with pytest.warns(PartialLogWarning, match="partial log"):
         log = open_run(part, recover=True)
-    assert log.partial and log.problems
+    assert log.partial
+    assert log.problems
     k = log.times.size
     assert 0 < k < result.times.size
     # what is recovered is exactly the beginning of the run
@@ -315,7 +337,8 @@ def test_state_at(result: RunResult, logfile: Path) -> None:
     assert (s["alpha"], s["a_major"], s["a_minor"]) == tuple(float(v) for v in e)
     assert log.state_at(0.0)["step"] == 0
     end = log.state_at(float(result.times[-1]))
-    assert end["step"] == result.n_steps and exact(end["cloud"], result.end_poses)
+    assert end["step"] == result.n_steps
+    assert exact(end["cloud"], result.end_poses)
     with pytest.raises(ValueError, match="within the run"):
         log.state_at(float(result.times[-1]) + 1.0)
 
@@ -341,22 +364,29 @@ def test_computed_maps_round_trip(tmp_path: Path) -> None:
     cfg = RunConfig.from_dict(MAP_CONFIG)
     assert cfg.maps[0].params["alphas"] == [0.05] * 6  # the thesis's constants filled in
     res = execute(cfg)
-    assert res.n_steps == 1 and [m.name for m in res.maps] == ["vel", "odo"]
+    assert res.n_steps == 1
+    assert [m.name for m in res.maps] == ["vel", "odo"]
     # the map is centred on the closed-form end of the arc (R = 1 m turned by 1 rad)
     center = res.maps[0].center
-    np.testing.assert_allclose(center, [math.sin(1.0), 1.0 - math.cos(1.0), 1.0], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(
+        center, [math.sin(1.0), 1.0 - math.cos(1.0), 1.0], rtol=0, atol=1e-15
+    )
     # the map builder called directly with the trajectory's control, (V, ω) = (1, 1) up to
     # rounding, on that grid gives the same array, bit for bit
     traj = trajectories.build(**cfg.trajectory)
     np.testing.assert_allclose(traj.controls[0], [1.0, 1.0], rtol=0, atol=1e-15)
     grid = maps.MapGrid.centered(center, resolution=0.02, theta_resolution=0.2)
-    direct = maps.single_step_map("velocity", traj.start, traj.controls[0], 1.0, [0.05] * 6, grid=grid)
+    direct = maps.single_step_map(
+        "velocity", traj.start, traj.controls[0], 1.0, [0.05] * 6, grid=grid
+    )
     assert exact(res.maps[0].values, direct.values)
     log = open_run(write_run(tmp_path / "maps.mcap", res))
     assert runlog.compare_results(log, res) == []
     for a, b in zip(log.maps, res.maps, strict=True):
-        assert exact(a.values, b.values) and exact(a.center, b.center)
-        assert a.info == b.info and a.params == b.params
+        assert exact(a.values, b.values)
+        assert exact(a.center, b.center)
+        assert a.info == b.info
+        assert a.params == b.params
         pm = a.to_probability_map()
         assert exact(pm.most_probable_xy(), b.to_probability_map().most_probable_xy())
     # the odometry map's peak is off the noiseless end point, the velocity map's is on it (claim 10)
@@ -370,10 +400,13 @@ def test_multi_step_map_round_trip(tmp_path: Path) -> None:
             "name": "multi",
             "trajectory": {"name": "arc", "radius": 0.5, "angle": 1.0, "speed": 1.0, "dt": 0.1},
             "monte_carlo": {"n_particles": 200},
-            "maps": [{"name": "odo", "model": "odometry", "resolution": 0.02, "theta_resolution": 0.2}],
+            "maps": [
+                {"name": "odo", "model": "odometry", "resolution": 0.02, "theta_resolution": 0.2}
+            ],
         }
     )
-    assert cfg.maps[0].params["size"] is None and "max_cells" in cfg.maps[0].params
+    assert cfg.maps[0].params["size"] is None
+    assert "max_cells" in cfg.maps[0].params
     res = execute(cfg)
     assert res.n_steps == 5
     mp = res.maps[0]
@@ -402,7 +435,9 @@ def test_config_round_trip_and_validation() -> None:
     assert cfg.to_dict()["trajectory"]["profile"] == "constant"  # builder defaults filled in
     with pytest.raises(ValueError, match=r"unknown config key\(s\) 'monte_carlo.particles'"):
         RunConfig.from_dict({**CONFIG, "monte_carlo": {"particles": 3}})
-    with pytest.raises(ValueError, match=r"'trajectory.radius_m'.*allowed for trajectory 's_curve'"):
+    with pytest.raises(
+        ValueError, match=r"'trajectory.radius_m'.*allowed for trajectory 's_curve'"
+    ):
         RunConfig.from_dict({**CONFIG, "trajectory": {"name": "s_curve", "radius_m": 1}})
     with pytest.raises(ValueError, match=r"'pr' must be a probability in \(0, 1\), got 1.5"):
         RunConfig.from_dict({**CONFIG, "pr": 1.5})
@@ -426,7 +461,9 @@ def test_metrics_agree_with_independent_routes(result: RunResult) -> None:
     inside = float(np.mean(np.einsum("ni,ij,nj->n", d, np.linalg.inv(S), d) <= k))
     assert result.metrics["mc_coverage"] == inside
     mean = result.end_poses.mean(axis=0)
-    assert result.metrics["mc_mean_offset"] == pytest.approx(math.dist(mean[:2], end[:2]), rel=1e-12)
+    assert result.metrics["mc_mean_offset"] == pytest.approx(
+        math.dist(mean[:2], end[:2]), rel=1e-12
+    )
     e = covariance.ellipse(S, result.config.pr)
     assert result.metrics["ellipse_major"] == float(e.a_major)
     # semi-axes² = k · eigenvalues of Σ_xy (second route to the same ellipse)
@@ -453,7 +490,8 @@ def test_figures_from_log_are_identical_to_figures_from_result(
 def test_figure_axes_have_units_and_equal_aspect(result: RunResult) -> None:
     for name, fig in figures.figure_set(result).items():
         ax = fig.axes[0]
-        assert ax.get_xlabel() == "x [m]" and ax.get_ylabel() == "y [m]", name
+        assert ax.get_xlabel() == "x [m]", name
+        assert ax.get_ylabel() == "y [m]", name
         assert ax.get_aspect() == 1.0, name
     fig = figures.map_figure(result, result.maps[0])
     lo, hi = fig.axes[0].get_xlim()

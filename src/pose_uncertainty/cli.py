@@ -58,7 +58,9 @@ def load_config_file(path: str | Path) -> dict[str, Any]:
             data = yaml.safe_load(text)
     except Exception as exc:  # noqa: BLE001 - any parser error is a bad file
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise CommandError(f"{p}: not valid {'JSON' if p.suffix.lower() == '.json' else 'YAML'} ({first})") from None
+        raise CommandError(
+            f"{p}: not valid {'JSON' if p.suffix.lower() == '.json' else 'YAML'} ({first})"
+        ) from None
     if not isinstance(data, dict):
         raise CommandError(f"{p}: the config must be a mapping, got {type(data).__name__}")
     return data
@@ -68,7 +70,9 @@ def load_config_file(path: str | Path) -> dict[str, Any]:
 
 
 def _add_run(sub: Any) -> None:
-    p = sub.add_parser("run", help="execute one run and write its MCAP log", description="Execute one run.")
+    p = sub.add_parser(
+        "run", help="execute one run and write its MCAP log", description="Execute one run."
+    )
     p.add_argument("config", help="run configuration, YAML or JSON")
     p.add_argument("-o", "--output", required=True, help="output log, *.mcap (written atomically)")
     p.add_argument(
@@ -111,7 +115,9 @@ def _add_replay(sub: Any) -> None:
         description="Read a run log (validating its CRCs) and print a summary.",
     )
     p.add_argument("log", help="run log, *.mcap")
-    p.add_argument("--figures", metavar="DIR", help="re-render the run's figures from the log alone into DIR")
+    p.add_argument(
+        "--figures", metavar="DIR", help="re-render the run's figures from the log alone into DIR"
+    )
     p.add_argument(
         "--format",
         dest="formats",
@@ -124,7 +130,9 @@ def _add_replay(sub: Any) -> None:
         action="store_true",
         help="recompute the run from the logged config and seed; exit 1 on any difference",
     )
-    p.add_argument("--at", type=float, metavar="TIME", help="print the state at simulated time TIME [s]")
+    p.add_argument(
+        "--at", type=float, metavar="TIME", help="print the state at simulated time TIME [s]"
+    )
     p.add_argument(
         "--recover",
         action="store_true",
@@ -147,7 +155,9 @@ def _print_state(state: dict[str, Any], pr: float) -> None:
     cloud = state.get("cloud")
     if cloud is not None:
         mean = cloud.mean(axis=0)
-        print(f"  Monte Carlo cloud: {cloud.shape[0]} poses, mean {np.array2string(mean, separator=', ')}")
+        print(
+            f"  Monte Carlo cloud: {cloud.shape[0]} poses, mean {np.array2string(mean, separator=', ')}"
+        )
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
@@ -180,7 +190,9 @@ def cmd_replay(args: argparse.Namespace) -> int:
         for d in diffs:
             print(("MISMATCH " if d in mismatches else "") + d)
         if mismatches:
-            print(f"verify: FAILED, {len(mismatches)} difference(s) between the log and a recomputation")
+            print(
+                f"verify: FAILED, {len(mismatches)} difference(s) between the log and a recomputation"
+            )
             return EXIT_MISMATCH
         print("verify: OK, the recomputed run is identical to the log")
     return EXIT_OK

@@ -20,6 +20,7 @@ from __future__ import annotations
 import os
 from collections.abc import Iterable
 from pathlib import Path
+from typing import Any
 
 import matplotlib as mpl
 import numpy as np
@@ -44,7 +45,7 @@ __all__ = [
 FORMATS: tuple[str, ...] = ("png", "svg", "pdf")
 _DPI = 150
 _CREATOR = f"pose-uncertainty {__version__}"
-_RC = {
+_RC: dict[str, Any] = {
     "svg.hashsalt": "pose-uncertainty",
     "svg.fonttype": "path",
     "pdf.fonttype": 42,
@@ -91,15 +92,25 @@ def trajectory_figure(run: RunResult) -> Figure:
     steps = run.ellipse_steps()
     for j, i in enumerate(steps[:-1]):
         pts = _polyline(run.covs[i, :2, :2], run.poses[i, :2], cfg.pr)
-        ax.plot(pts[:, 0], pts[:, 1], color=_BLUE, lw=0.9, label="ellipses along the path" if j == 0 else None)
+        ax.plot(
+            pts[:, 0],
+            pts[:, 1],
+            color=_BLUE,
+            lw=0.9,
+            label="ellipses along the path" if j == 0 else None,
+        )
     n = run.n_steps
     pts = _polyline(run.covs[n, :2, :2], run.poses[n, :2], cfg.pr)
-    ax.plot(pts[:, 0], pts[:, 1], color=_RED, lw=1.4, label=f"final ellipse (t = {run.times[n]:.3g} s)")
+    ax.plot(
+        pts[:, 0], pts[:, 1], color=_RED, lw=1.4, label=f"final ellipse (t = {run.times[n]:.3g} s)"
+    )
     ax.plot(*run.poses[0, :2], marker="o", color=_BLACK, ms=4, ls="none")
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
-    ax.set_title(f"{cfg.name}: {cfg.trajectory['name']}, Pr = {_pct(cfg.pr)}, k_r = {cfg.k_r:g} m, k_l = {cfg.k_l:g} m")
+    ax.set_title(
+        f"{cfg.name}: {cfg.trajectory['name']}, Pr = {_pct(cfg.pr)}, k_r = {cfg.k_r:g} m, k_l = {cfg.k_l:g} m"
+    )
     ax.grid(True, lw=0.3, alpha=0.5)
     ax.legend(loc="best", fontsize="small")
     return fig
@@ -121,15 +132,30 @@ def cloud_figure(run: RunResult) -> Figure | None:
     fig = _new_figure()
     ax = fig.add_subplot()
     ax.scatter(
-        cloud[:, 0], cloud[:, 1], s=1.0, color="0.35", alpha=0.35, linewidths=0,
-        rasterized=True, label=f"Monte Carlo end poses (n = {cloud.shape[0]})",
+        cloud[:, 0],
+        cloud[:, 1],
+        s=1.0,
+        color="0.35",
+        alpha=0.35,
+        linewidths=0,
+        rasterized=True,
+        label=f"Monte Carlo end poses (n = {cloud.shape[0]})",
     )
     pts = _polyline(cov[:2, :2], end[:2], cfg.pr)
-    ax.plot(pts[:, 0], pts[:, 1], color=_RED, lw=1.4, label=f"covariance ellipse, Pr = {_pct(cfg.pr)}")
+    ax.plot(
+        pts[:, 0], pts[:, 1], color=_RED, lw=1.4, label=f"covariance ellipse, Pr = {_pct(cfg.pr)}"
+    )
     if cloud.shape[0] > 2:
         mc_cov = np.cov(cloud[:, :2].T)
         mpts = _polyline(mc_cov, cloud[:, :2].mean(axis=0), cfg.pr)
-        ax.plot(mpts[:, 0], mpts[:, 1], color=_BLUE, lw=1.0, ls="--", label="ellipse of the sample covariance")
+        ax.plot(
+            mpts[:, 0],
+            mpts[:, 1],
+            color=_BLUE,
+            lw=1.0,
+            ls="--",
+            label="ellipse of the sample covariance",
+        )
     ax.plot(*end[:2], marker="+", color=_RED, ms=10, ls="none", label="noiseless end pose")
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x [m]")
@@ -184,8 +210,13 @@ def map_figure(run: RunResult, mp: MapRecord) -> Figure:
     fig = _new_figure((6.4, 5.6))
     ax = fig.add_subplot()
     img = ax.imshow(
-        marg.T, origin="lower", extent=extent, cmap="Greys", vmin=0.0,
-        vmax=float(marg.max()) if marg.max() > 0 else 1.0, interpolation="nearest",
+        marg.T,
+        origin="lower",
+        extent=extent,
+        cmap="Greys",
+        vmin=0.0,
+        vmax=float(marg.max()) if marg.max() > 0 else 1.0,
+        interpolation="nearest",
     )
     ax.plot(*mid, marker="+", color=_RED, ms=10, ls="none", label="noiseless end point (exact arc)")
     ax.set_xlim(mid[0] - side / 2, mid[0] + side / 2)
@@ -193,7 +224,9 @@ def map_figure(run: RunResult, mp: MapRecord) -> Figure:
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
-    ax.set_title(f"{run.config.name}: map {mp.name!r} ({mp.model} model), lost mass {mp.lost_mass:.2g}")
+    ax.set_title(
+        f"{run.config.name}: map {mp.name!r} ({mp.model} model), lost mass {mp.lost_mass:.2g}"
+    )
     ax.legend(loc="upper right", fontsize="small")
     cm = f"{100 * dx:.3g} cm"
     fig.colorbar(img, ax=ax, label=f"probability per {cm} × {cm} cell (θ summed)", shrink=0.85)
@@ -220,12 +253,13 @@ def save_figure(fig: Figure, path: str | os.PathLike[str]) -> Path:
     fmt = p.suffix.lstrip(".").lower()
     if fmt not in FORMATS:
         raise ValueError(f"figure format must be one of {FORMATS}, got {fmt!r} ({p})")
-    metadata: dict[str, str | None] = {
+    by_format: dict[str, dict[str, str | None]] = {
         "png": {"Software": _CREATOR},
         "svg": {"Creator": _CREATOR, "Date": None},
         "pdf": {"Creator": _CREATOR, "Producer": _CREATOR, "CreationDate": None, "ModDate": None},
-    }[fmt]
-    with mpl.rc_context(_RC):
+    }
+    metadata = by_format[fmt]
+    with mpl.rc_context(_RC):  # type: ignore[arg-type]
         fig.savefig(p, format=fmt, dpi=_DPI, metadata=metadata)
     return p
 
@@ -242,7 +276,9 @@ def render_figures(
     formats : iterable of {"png", "svg", "pdf"}
     """
     if run.times.size == 0:
-        raise ValueError("the run has no steps (e.g. a partial log recovered nothing): no figures to draw")
+        raise ValueError(
+            "the run has no steps (e.g. a partial log recovered nothing): no figures to draw"
+        )
     fmts = list(formats)
     for fmt in fmts:
         if fmt not in FORMATS:
@@ -250,10 +286,8 @@ def render_figures(
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
     paths: list[Path] = []
-    with mpl.rc_context(_RC):
+    with mpl.rc_context(_RC):  # type: ignore[arg-type]
         for stem, fig in figure_set(run).items():
             for fmt in fmts:
                 paths.append(save_figure(fig, out / f"{stem}.{fmt}"))
     return paths
-
-

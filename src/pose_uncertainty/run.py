@@ -50,10 +50,10 @@ __all__ = [
     "MonteCarloConfig",
     "RunConfig",
     "RunResult",
-    "execute",
-    "map_kind",
     "environment_lock_sha256",
+    "execute",
     "git_commit",
+    "map_kind",
     "provenance",
 ]
 
@@ -394,7 +394,7 @@ class RunConfig:
                 raise _fail("cov0", "a finite 3x3 matrix", cov0_raw)
             if not np.array_equal(arr, arr.T) or np.linalg.eigvalsh(arr).min() < -1e-15:
                 raise _fail("cov0", "symmetric positive semi-definite", cov0_raw)
-            cov0 = tuple(tuple(float(v) for v in row) for row in arr)
+            cov0 = tuple((float(r[0]), float(r[1]), float(r[2])) for r in arr)
         pr = _float("pr", data.get("pr", DEFAULT_PR))
         if not 0.0 < pr < 1.0:
             raise _fail("pr", "a probability in (0, 1)", data.get("pr"))
@@ -403,7 +403,11 @@ class RunConfig:
         mc = MonteCarloConfig.from_dict(data.get("monte_carlo", {}))
         late = [c for c in mc.checkpoints if c > n_steps]
         if late:
-            raise _fail("monte_carlo.checkpoints", f"step indices in 1..{n_steps} (the trajectory's N)", late)
+            raise _fail(
+                "monte_carlo.checkpoints",
+                f"step indices in 1..{n_steps} (the trajectory's N)",
+                late,
+            )
         maps_raw = data.get("maps", ())
         if not isinstance(maps_raw, list | tuple):
             raise _fail("maps", "a list of map mappings", maps_raw)
@@ -531,7 +535,14 @@ class MapRecord:
         from . import maps
 
         return maps.ProbabilityMap(
-            self.x, self.y, self.theta, self.values, self.lost_mass, self.model, None, dict(self.info)
+            self.x,
+            self.y,
+            self.theta,
+            self.values,
+            self.lost_mass,
+            self.model,
+            None,
+            dict(self.info),
         )
 
     @classmethod
@@ -636,7 +647,12 @@ def git_commit() -> tuple[str, bool] | None:
     here = Path(__file__).resolve().parent
     try:
         head = subprocess.run(
-            ["git", "rev-parse", "HEAD"], cwd=here, capture_output=True, text=True, timeout=10
+            ["git", "rev-parse", "HEAD"],
+            cwd=here,
+            capture_output=True,
+            text=True,
+            timeout=10,
+            check=False,
         )
         if head.returncode != 0:
             return None
@@ -646,6 +662,7 @@ def git_commit() -> tuple[str, bool] | None:
             capture_output=True,
             text=True,
             timeout=10,
+            check=False,
         )
     except (OSError, subprocess.SubprocessError):
         return None
@@ -709,18 +726,19 @@ def execute(config: RunConfig) -> RunResult:
     mc = config.monte_carlo
     if mc.n_particles > 0:
         t0 = time.perf_counter()
-        common = dict(regime=mc.regime, method=mc.method)
         if not mc.checkpoints:
             # the sampler's fast path: end poses only, shape (n, 3)
             out = sampling.sample_end_poses(
-                traj, config.k_r, config.k_l, mc.n_particles, rng, **common
-            )
+                traj, config.k_r, config.k_l, mc.n_particles, rng,
+                regime=mc.regime, method=mc.method,
+            )  # fmt: skip
             end_poses = np.ascontiguousarray(out, dtype=np.float64)
         else:
             steps = [*mc.checkpoints, traj.n_steps]
             out = sampling.sample_end_poses(
-                traj, config.k_r, config.k_l, mc.n_particles, rng, checkpoints=steps, **common
-            )  # (n, C, 3): the clouds at the checkpoints, then at the end
+                traj, config.k_r, config.k_l, mc.n_particles, rng,
+                regime=mc.regime, method=mc.method, checkpoints=steps,
+            )  # (n, C, 3): the clouds at the checkpoints, then at the end  # fmt: skip
             end_poses = np.ascontiguousarray(out[:, -1, :], dtype=np.float64)
             checkpoints = {
                 step: np.ascontiguousarray(out[:, j, :], dtype=np.float64)
@@ -816,7 +834,9 @@ def _metrics(
     put("ellipse_minor", a_minor, "m")
     put("ellipse_angle", alpha, "rad")
     if end_poses is not None and end_poses.shape[0] > 0:
-        inside = stats.fraction_inside_ellipse(end_poses[:, :2], end[:2], cov_end[:2, :2], config.pr)
+        inside = stats.fraction_inside_ellipse(
+            end_poses[:, :2], end[:2], cov_end[:2, :2], config.pr
+        )
         put("mc_coverage", inside, "1 (fraction of particles inside the Pr-ellipse)")
         put("mc_coverage_minus_pr", inside - config.pr, "1")
         mean = end_poses.mean(axis=0)
@@ -825,13 +845,18 @@ def _metrics(
             cov_mc = np.cov(end_poses[:, :2].T)
             norm = np.linalg.norm(cov_end[:2, :2])
             if norm > 0:
-                put("mc_cov_xy_rel_error", np.linalg.norm(cov_mc - cov_end[:2, :2]) / norm, "1")
+                rel = float(np.linalg.norm(cov_mc - cov_end[:2, :2]) / norm)
+                put("mc_cov_xy_rel_error", rel, "1")
     # maps are centred on the noiseless exact-arc end pose (the trajectory's)
     end_exact = traj.poses[-1]
     for mp in maps:
         marg = mp.marginal_xy()
         i, j = np.unravel_index(int(np.argmax(marg)), marg.shape)
-        put(f"map_{mp.name}_peak_offset", math.hypot(mp.x[i] - end_exact[0], mp.y[j] - end_exact[1]), "m")
+        put(
+            f"map_{mp.name}_peak_offset",
+            math.hypot(mp.x[i] - end_exact[0], mp.y[j] - end_exact[1]),
+            "m",
+        )
         total = float(marg.sum())
         if total > 0:
             mx = float(marg.sum(axis=1) @ mp.x) / total

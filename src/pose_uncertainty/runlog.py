@@ -53,7 +53,6 @@ import io
 import json
 import math
 import os
-import struct
 import tempfile
 import warnings
 import zlib
@@ -64,7 +63,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from foxglove_schemas_protobuf.Color_pb2 import Color
 from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
 from foxglove_schemas_protobuf.Grid_pb2 import Grid
 from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
@@ -76,7 +74,7 @@ from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 from google.protobuf import timestamp_pb2 as _timestamp_pb2  # registers the dependency
 from google.protobuf.message import DecodeError
-from mcap.records import Channel, Chunk, DataEnd, Footer, Header, Message, Metadata, Schema
+from mcap.records import Channel, DataEnd, Footer, Header, Message, Metadata, Schema
 from mcap.stream_reader import CRCValidationError, StreamReader
 from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
@@ -89,10 +87,10 @@ from .run import MapRecord, RunConfig, RunResult
 __all__ = [
     "FORMAT",
     "FORMAT_VERSION",
+    "TOPICS",
     "PartialLogWarning",
     "RunLog",
     "RunLogError",
-    "TOPICS",
     "compare_results",
     "format_summary",
     "log_bytes",
@@ -221,7 +219,9 @@ def _our_schemas() -> dict[str, Any]:
     except KeyError:
         pool.Add(fdp)
     return {
-        name: message_factory.GetMessageClass(pool.FindMessageTypeByName(f"pose_uncertainty.{name}"))
+        name: message_factory.GetMessageClass(
+            pool.FindMessageTypeByName(f"pose_uncertainty.{name}")
+        )
         for name in ("PoseCovariance2D", "Float64Array", "ProbabilityMap3D", "Metric", "Metrics")
     }
 
@@ -254,7 +254,7 @@ _CLASSES: dict[str, Any] = {
 
 def _ns(t: float) -> int:
     """Simulated time [s] → integer nanoseconds (≥ 0)."""
-    return max(0, int(round(float(t) * 1e9)))
+    return max(0, round(float(t) * 1e9))
 
 
 def _stamp(msg: Any, t_ns: int) -> None:
@@ -301,7 +301,9 @@ def _grid(mp: MapRecord, t_ns: int) -> Any:
     dy = float(mp.y[1] - mp.y[0]) if ny > 1 else 0.01
     peak = float(marg.max()) if marg.size and marg.max() > 0 else 1.0
     rel = np.clip(marg / peak, 0.0, 1.0)
-    cell = np.dtype([("mass", "<f8"), ("red", "u1"), ("green", "u1"), ("blue", "u1"), ("alpha", "u1")])
+    cell = np.dtype(
+        [("mass", "<f8"), ("red", "u1"), ("green", "u1"), ("blue", "u1"), ("alpha", "u1")]
+    )
     rows = np.zeros((ny, nx), dtype=cell)  # row-major (y-major) order
     grey = np.round(255.0 * (1.0 - rel)).astype(np.uint8).T
     rows["mass"] = marg.T
@@ -313,7 +315,13 @@ def _grid(mp: MapRecord, t_ns: int) -> Any:
         row_stride=cell.itemsize * nx,
         cell_stride=cell.itemsize,
         fields=_fields(
-            [("mass", 0, _F64), ("red", 8, _U8), ("green", 9, _U8), ("blue", 10, _U8), ("alpha", 11, _U8)]
+            [
+                ("mass", 0, _F64),
+                ("red", 8, _U8),
+                ("green", 9, _U8),
+                ("blue", 10, _U8),
+                ("alpha", 11, _U8),
+            ]
         ),
         data=rows.tobytes(),
     )
@@ -423,7 +431,10 @@ def _write_stream(stream: Any, result: RunResult, include_timings: bool) -> None
             f"result arrays must have shapes times (N+1,), poses (N+1, 3), covs (N+1, 3, 3), "
             f"got {times.shape}, {poses.shape}, {covs.shape}"
         )
-    clouds = {"end_poses": result.end_poses, **{f"checkpoints[{k}]": v for k, v in result.checkpoints.items()}}
+    clouds = {
+        "end_poses": result.end_poses,
+        **{f"checkpoints[{k}]": v for k, v in result.checkpoints.items()},
+    }
     for name, cloud in clouds.items():
         if cloud is not None and (cloud.ndim != 2 or cloud.shape[1] != 3):
             raise ValueError(f"{name} must have shape (n, 3), got shape {cloud.shape}")
@@ -435,7 +446,9 @@ def _write_stream(stream: Any, result: RunResult, include_timings: bool) -> None
     t_ns = [_ns(t) for t in times]
     t_end = t_ns[-1]
     # closed polylines (first vertex repeated): drop the repeat for a LINE_LOOP
-    ell = covariance.ellipse_polyline(covs[:, :2, :2], cfg.pr, poses[:, :2], _ELLIPSE_POINTS)[:, :-1]
+    ell = covariance.ellipse_polyline(covs[:, :2, :2], cfg.pr, poses[:, :2], _ELLIPSE_POINTS)[
+        :, :-1
+    ]
     marks = set(result.ellipse_steps())
     checkpoints = result.checkpoints
 
@@ -466,7 +479,12 @@ def _write_stream(stream: Any, result: RunResult, include_timings: bool) -> None
         log.put(T_POSE, pose, ti)
 
         pc = PoseCovariance2D(
-            frame_id=WORLD, step=i, time=float(times[i]), x=x, y=y, theta=th,
+            frame_id=WORLD,
+            step=i,
+            time=float(times[i]),
+            x=x,
+            y=y,
+            theta=th,
             covariance=flat_covs[i].tolist(),
         )
         _stamp(pc, ti)
@@ -508,7 +526,9 @@ def log_bytes(result: RunResult, *, include_timings: bool = False) -> bytes:
     return buf.getvalue()
 
 
-def write_run(path: str | os.PathLike[str], result: RunResult, *, include_timings: bool = False) -> Path:
+def write_run(
+    path: str | os.PathLike[str], result: RunResult, *, include_timings: bool = False
+) -> Path:
     """Write a run log atomically.
 
     The log is written to a hidden temporary file beside ``path``
@@ -584,10 +604,14 @@ class RunLog(RunResult):
             raise ValueError(f"time must be finite, got {t!r}")
         t0, t1 = float(self.times[0]), float(self.times[-1])
         if not t0 <= t <= t1 + 1e-12:
-            raise ValueError(f"time must be within the run (allowed: [{t0:g}, {t1:g}] s), got {t!r}")
+            raise ValueError(
+                f"time must be within the run (allowed: [{t0:g}, {t1:g}] s), got {t!r}"
+            )
         i = int(np.searchsorted(self.times, t + 1e-12, side="right") - 1)
         cov = self.covs[i]
-        alpha, a_major, a_minor = (float(v) for v in covariance.ellipse(cov[:2, :2], self.config.pr))
+        alpha, a_major, a_minor = (
+            float(v) for v in covariance.ellipse(cov[:2, :2], self.config.pr)
+        )
         cloud = self.checkpoints.get(i)
         if cloud is None and i == self.n_steps:
             cloud = self.end_poses
@@ -617,18 +641,27 @@ def _scan(data: bytes) -> tuple[list[Any], str | None]:
     reader = StreamReader(stream, validate_crcs=True, record_size_limit=len(data))
     records: list[Any] = []
     try:
-        for rec in reader.records:
-            records.append(rec)
+        for rec in reader.records:  # one by one: keep what precedes a failure
+            records.append(rec)  # noqa: PERF402
     except CRCValidationError as exc:
         what = type(exc.record).__name__
-        return records, f"corrupted: CRC mismatch in {what} record (stored {exc.expected:#010x}, computed {exc.actual:#010x})"
+        return (
+            records,
+            f"corrupted: CRC mismatch in {what} record (stored {exc.expected:#010x}, computed {exc.actual:#010x})",
+        )
     except Exception as exc:  # noqa: BLE001 - any parse failure of foreign bytes is a damaged file
         pos = stream.tell()
         tail = data[-len(MAGIC) :]
-        if len(tail) == len(MAGIC) and 0 < sum(a != b for a, b in zip(tail, MAGIC, strict=True)) <= 2:
+        if (
+            len(tail) == len(MAGIC)
+            and 0 < sum(a != b for a, b in zip(tail, MAGIC, strict=True)) <= 2
+        ):
             return records, "corrupted: damaged MCAP magic at the end of the file"
         if not data.endswith(MAGIC):
-            return records, f"truncated: the file ends at byte {len(data)} inside an MCAP record (no footer)"
+            return (
+                records,
+                f"truncated: the file ends at byte {len(data)} inside an MCAP record (no footer)",
+            )
         if pos >= len(data):
             detail = "a record runs past the end of the file"
         else:
@@ -705,14 +738,18 @@ def open_run(path: str | os.PathLike[str], *, recover: bool = False) -> RunLog:
     records, problem = _scan(data)
     if problem is not None and not recover:
         n_msgs = sum(isinstance(r, Message) for r in records)
-        hint = f"; {n_msgs} messages before it can be recovered (replay --recover)" if n_msgs else ""
+        hint = (
+            f"; {n_msgs} messages before it can be recovered (replay --recover)" if n_msgs else ""
+        )
         raise RunLogError(f"{p}: {problem}{hint}")
     try:
         log = _assemble(p, records, partial=problem is not None, problem=problem)
     except RunLogError:
         raise
     except Exception as exc:  # noqa: BLE001 - a CRC-valid file with content we cannot decode
-        raise RunLogError(f"{p}: not a valid pose-uncertainty run log ({type(exc).__name__}: {exc})") from None
+        raise RunLogError(
+            f"{p}: not a valid pose-uncertainty run log ({type(exc).__name__}: {exc})"
+        ) from None
     if problem is not None:
         counts = ", ".join(f"{t} {c}" for t, (_, c) in sorted(log.topics.items()))
         warnings.warn(
@@ -727,7 +764,9 @@ def _assemble(p: Path, records: list[Any], *, partial: bool, problem: str | None
     header = next((r for r in records if isinstance(r, Header)), None)
     if header is None:
         raise RunLogError(f"{p}: {problem or 'corrupted: no MCAP header'}; nothing recoverable")
-    meta_rec = next((r for r in records if isinstance(r, Metadata) and r.name == METADATA_NAME), None)
+    meta_rec = next(
+        (r for r in records if isinstance(r, Metadata) and r.name == METADATA_NAME), None
+    )
     if not header.library.startswith("pose-uncertainty/") or meta_rec is None:
         if partial and header.library.startswith("pose-uncertainty/"):
             raise RunLogError(f"{p}: {problem}; the run metadata is missing, nothing recoverable")
@@ -766,25 +805,35 @@ def _assemble(p: Path, records: list[Any], *, partial: bool, problem: str | None
     def decode(topic: str, expected: str) -> list[Any]:
         msgs = by_topic.get(topic, [])
         if msgs and topic_schema.get(topic) != expected:
-            raise RunLogError(f"{p}: topic {topic} has schema {topic_schema.get(topic)!r}, expected {expected!r}")
+            raise RunLogError(
+                f"{p}: topic {topic} has schema {topic_schema.get(topic)!r}, expected {expected!r}"
+            )
         cls = _CLASSES[expected]
         try:
             return [cls.FromString(m.data) for m in msgs]
         except DecodeError as exc:
-            raise RunLogError(f"{p}: a message on {topic} is not a valid {expected} ({exc})") from None
+            raise RunLogError(
+                f"{p}: a message on {topic} is not a valid {expected} ({exc})"
+            ) from None
 
     covmsgs = sorted(decode(T_COV, TOPICS[T_COV]), key=lambda m: m.step)
     steps = [m.step for m in covmsgs]
     n_expected = int(meta.get("n_steps", "-1")) + 1
     if steps != list(range(len(steps))) or (not partial and len(steps) != n_expected):
-        raise RunLogError(f"{p}: {T_COV} holds steps {steps[:3]}…(count {len(steps)}), expected 0..{n_expected - 1}")
+        raise RunLogError(
+            f"{p}: {T_COV} holds steps {steps[:3]}…(count {len(steps)}), expected 0..{n_expected - 1}"
+        )
     times = np.array([m.time for m in covmsgs], dtype=np.float64)
     poses = np.array([[m.x, m.y, m.theta] for m in covmsgs], dtype=np.float64).reshape(-1, 3)
     covs = np.array([list(m.covariance) for m in covmsgs], dtype=np.float64).reshape(-1, 3, 3)
 
     def cloud(msg: Any) -> NDArray[np.float64]:
         layout = [(f.name, f.offset, f.type) for f in msg.fields]
-        if msg.point_stride != 24 or layout != [("x", 0, _F64), ("y", 8, _F64), ("theta", 16, _F64)]:
+        if msg.point_stride != 24 or layout != [
+            ("x", 0, _F64),
+            ("y", 8, _F64),
+            ("theta", 16, _F64),
+        ]:
             raise RunLogError(f"{p}: point cloud layout {layout} is not (x, y, theta) float64")
         return np.frombuffer(msg.data, dtype="<f8").reshape(-1, 3).astype(np.float64)
 
@@ -819,7 +868,9 @@ def _assemble(p: Path, records: list[Any], *, partial: bool, problem: str | None
                 lost_mass=float(v.lost_mass),
                 params=json.loads(v.params_json) if v.params_json else {},
                 info=json.loads(v.info_json) if v.info_json else {},
-                center=np.array(v.center, dtype=np.float64) if len(v.center) == 3 else np.full(3, np.nan),
+                center=np.array(v.center, dtype=np.float64)
+                if len(v.center) == 3
+                else np.full(3, np.nan),
             )
         )
 
@@ -834,7 +885,13 @@ def _assemble(p: Path, records: list[Any], *, partial: bool, problem: str | None
 
     metrics, units = metric_dicts(T_METRICS)
     timings, _ = metric_dicts(T_TIMINGS)
-    prov_keys = ("package_version", "environment_lock_sha256", "git_commit", "git_dirty", "numpy_version")
+    prov_keys = (
+        "package_version",
+        "environment_lock_sha256",
+        "git_commit",
+        "git_dirty",
+        "numpy_version",
+    )
     provenance = {k: meta[k] for k in prov_keys if k in meta}
     return RunLog(
         config=config,
@@ -887,8 +944,16 @@ def format_summary(log: RunLog) -> str:
     lines = [f"run log   {log.path}"]
     if log.partial:
         lines.append(f"PARTIAL   {'; '.join(log.problems)}")
-    lines.append(f"written by {log.library}; format {log.metadata.get('format')} v{log.metadata.get('format_version')}")
-    for key in ("package_version", "environment_lock_sha256", "git_commit", "git_dirty", "numpy_version"):
+    lines.append(
+        f"written by {log.library}; format {log.metadata.get('format')} v{log.metadata.get('format_version')}"
+    )
+    for key in (
+        "package_version",
+        "environment_lock_sha256",
+        "git_commit",
+        "git_dirty",
+        "numpy_version",
+    ):
         if key in log.provenance:
             lines.append(f"  {key}: {log.provenance[key]}")
     lines.append("config")
@@ -904,7 +969,9 @@ def format_summary(log: RunLog) -> str:
         lines.append("  covariance [m^2, m*rad, rad^2] =")
         lines.extend("    " + ln for ln in _fmt_array(log.covs[i]).splitlines())
     if log.end_poses is not None:
-        lines.append(f"monte carlo: {log.end_poses.shape[0]} end poses; checkpoints at steps {sorted(log.checkpoints)}")
+        lines.append(
+            f"monte carlo: {log.end_poses.shape[0]} end poses; checkpoints at steps {sorted(log.checkpoints)}"
+        )
     for mp in log.maps:
         lines.append(
             f"map {mp.name}: model {mp.model}, grid {mp.values.shape} (x, y, theta), lost mass {mp.lost_mass:.3g}"
@@ -912,7 +979,9 @@ def format_summary(log: RunLog) -> str:
     if log.metrics:
         lines.append("metrics")
         for key in sorted(log.metrics):
-            lines.append(f"  {key} = {log.metrics[key]:.9g} {log.metric_units.get(key, '')}".rstrip())
+            lines.append(
+                f"  {key} = {log.metrics[key]:.9g} {log.metric_units.get(key, '')}".rstrip()
+            )
     if log.timings:
         lines.append("timings (wall clock, not reproducible)")
         for key in sorted(log.timings):
@@ -949,7 +1018,9 @@ def compare_results(logged: RunResult, fresh: RunResult) -> list[str]:
         if d:
             out.append(d)
     if sorted(logged.checkpoints) != sorted(fresh.checkpoints):
-        out.append(f"checkpoints: steps {sorted(logged.checkpoints)} != {sorted(fresh.checkpoints)}")
+        out.append(
+            f"checkpoints: steps {sorted(logged.checkpoints)} != {sorted(fresh.checkpoints)}"
+        )
     else:
         for step in sorted(logged.checkpoints):
             d = _diff(f"checkpoint[{step}]", logged.checkpoints[step], fresh.checkpoints[step])
@@ -969,13 +1040,13 @@ def compare_results(logged: RunResult, fresh: RunResult) -> list[str]:
         out.append(f"metrics: keys {sorted(logged.metrics)} != {sorted(fresh.metrics)}")
     else:
         for key in sorted(logged.metrics):
-            a, b = logged.metrics[key], fresh.metrics[key]
-            if not (a == b or (math.isnan(a) and math.isnan(b))):
-                out.append(f"metric {key}: logged {a!r} != recomputed {b!r}")
+            va, vb = logged.metrics[key], fresh.metrics[key]
+            if not (va == vb or (math.isnan(va) and math.isnan(vb))):
+                out.append(f"metric {key}: logged {va!r} != recomputed {vb!r}")
     for key in sorted(set(logged.provenance) | set(fresh.provenance)):
-        a, b = logged.provenance.get(key), fresh.provenance.get(key)
-        if a != b:
-            out.append(f"note: {key} logged {a!r}, now {b!r}")
+        pa, pb = logged.provenance.get(key), fresh.provenance.get(key)
+        if pa != pb:
+            out.append(f"note: {key} logged {pa!r}, now {pb!r}")
     return out
 
 
@@ -997,11 +1068,15 @@ def verify_run(log: RunLog) -> list[str]:
     if log.timings:
         out.append("note: the log holds timings, so its bytes were not compared (data only)")
     elif log.library != LIBRARY:
-        out.append(f"note: written by {log.library}, this is {LIBRARY}: bytes not compared (data only)")
+        out.append(
+            f"note: written by {log.library}, this is {LIBRARY}: bytes not compared (data only)"
+        )
     elif not mismatches:
         fresh_prov = RunResult(**{**_fields_of(fresh), "provenance": dict(log.provenance)})
         if log_bytes(fresh_prov) != log.path.read_bytes():
-            out.append("file bytes differ from a fresh log of the same data (a display topic was altered)")
+            out.append(
+                "file bytes differ from a fresh log of the same data (a display topic was altered)"
+            )
     return out
 
 
