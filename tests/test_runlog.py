@@ -233,6 +233,53 @@ def test_write_is_atomic(
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run.mcap"]  # no temporary left behind
 
 
+KILL_SCRIPT = """
+import os, signal, sys
+from pose_uncertainty import runlog
+from pose_uncertainty.run import RunConfig, execute
+
+result = execute(RunConfig.from_dict({config!r}))
+real_put, count = runlog._Log.put, [0]
+
+def put(self, topic, msg, t_ns):
+    count[0] += 1
+    if count[0] == 2500:  # well into the per-step messages: die without any clean-up
+        self.w._Writer__stream.flush()
+        os.kill(os.getpid(), signal.SIGKILL)
+    real_put(self, topic, msg, t_ns)
+
+runlog._Log.put = put
+runlog.write_run(sys.argv[1], result)
+"""
+
+
+KILL_CONFIG = {
+    "name": "killed",
+    "trajectory": {"name": "straight", "length": 2.0, "speed": 1.0, "dt": 0.002},  # 1000 steps
+    "monte_carlo": {"n_particles": 100},
+}
+
+
+def test_killed_writer_leaves_only_a_recoverable_part_file(tmp_path: Path) -> None:
+    """SIGKILL after 2500 messages (step ≈ 625 of 1000): no log, a .part with whole chunks."""
+    import subprocess
+    import sys
+
+    result = execute(RunConfig.from_dict(KILL_CONFIG))
+    dest = tmp_path / "killed.mcap"
+    script = KILL_SCRIPT.format(config=KILL_CONFIG)
+    proc = subprocess.run([sys.executable, "-c", script, str(dest)], check=False, timeout=120)
+    assert proc.returncode == -9  # SIGKILL
+    assert not dest.exists()
+    (part,) = tmp_path.glob(".killed.mcap.*.part")
+    _one_line_error(part, "truncated")
+    with pytest.warns(PartialLogWarning):
+        log = open_run(part, recover=True)
+    k = log.times.size
+    assert 0 < k < result.times.size
+    assert exact(log.covs, result.covs[:k])
+
+
 # --- damaged files -------------------------------------------------------------------------
 
 

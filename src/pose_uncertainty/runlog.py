@@ -532,8 +532,11 @@ def write_run(
     """Write a run log atomically.
 
     The log is written to a hidden temporary file beside ``path``
-    (``.<name>.<random>.part``), flushed and fsynced, then renamed over ``path``;
-    an interrupted write never leaves a file at ``path`` that looks complete.
+    (``.<name>.<random>.part``), flushed and fsynced, then renamed over ``path``
+    (the parent directory is created if missing). An interrupted write never
+    leaves a file at ``path``: on an exception the temporary file is removed; a
+    killed process leaves only the ``.part`` file, which :func:`open_run`
+    rejects as truncated and ``open_run(..., recover=True)`` can read.
 
     Parameters
     ----------
@@ -549,7 +552,8 @@ def write_run(
     Path — ``path``
     """
     dest = Path(path)
-    parent = dest.parent if str(dest.parent) else Path(".")
+    parent = dest.parent
+    parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".part", dir=parent)
     try:
         with os.fdopen(fd, "wb") as fh:
@@ -564,6 +568,16 @@ def write_run(
         except FileNotFoundError:
             pass
         raise
+    try:  # make the rename itself durable
+        dir_fd = os.open(parent, os.O_RDONLY)
+    except OSError:
+        return dest
+    try:
+        os.fsync(dir_fd)
+    except OSError:
+        pass
+    finally:
+        os.close(dir_fd)
     return dest
 
 
