@@ -59,13 +59,17 @@ formula, ``"odometry"`` the sampler's. The pose density of the sampler is
 ``p / |δ̂trans|`` (Jacobian of ``(δrot1, δtrans, δrot2) → (x', y', θ')``), with
 variances from the odometry; ``corrected=True`` selects exactly that.
 
-Grid floors
------------
-With ``cell=(h, h_θ)`` every variance is raised to a floor tied to the grid:
-``σ_i² ≥ c² / Σ_j (J_ij/h_j)²`` where ``J_i`` is the pose displacement per unit
-of control ``i`` at the hypothesis and ``c = cell_floor`` (in cells). A
-zero-variance (degenerate) term then spreads over about one cell instead of
-falling between cell centres. Without ``cell`` only :data:`MIN_VARIANCE` applies.
+Cell averaging
+--------------
+With ``cell=(h, h_θ)`` the density is averaged over one grid cell: each noise
+factor is replaced by its mean over the interval of control values that one
+cell spans along that factor's gradient (:func:`~pose_uncertainty.noise.prob_cell`),
+width ``w_i = √(Σ_j (∂ĉ_i/∂p_j)² h_j²)``. Velocity: ``|∇V̂| = (1/(Δt s))·√(1+(s′/s)²)``
+(``s = sinc(ω̂Δt/2)``), ``|∇ω̂| = 2/(Δt r)``, ``γ̂``: ``√((2/(Δt r))² + (1/Δt)²·(h_θ/h)²)``;
+odometry: ``1/r``, ``1``, ``√(1/r² + (h_θ/h)²)`` (``r`` = distance from the start).
+A term narrower than a cell (zero variance included) is then integrated over
+the cell instead of being sampled at its centre, which would alias a thin ridge.
+Without ``cell`` the density is the point value (variances ≥ :data:`MIN_VARIANCE`).
 """
 
 from __future__ import annotations
@@ -76,7 +80,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .kinematics import wrap_angle
-from .noise import check_noise, check_scaling, prob, sample, scaled_variance
+from .noise import check_noise, check_scaling, prob, prob_cell, sample, scaled_variance
 from .validation import (
     check_choice,
     check_finite,
@@ -87,7 +91,6 @@ from .validation import (
 )
 
 __all__ = [
-    "DEFAULT_CELL_FLOOR",
     "MIN_SPEED",
     "TRANS_EPS",
     "VARIANCE_SOURCES",
@@ -95,7 +98,7 @@ __all__ = [
     "noiseless_velocity_poses",
     "odometry_deltas",
     "odometry_density",
-    "odometry_floors",
+    "odometry_cell_widths",
     "odometry_forward",
     "odometry_variances",
     "sample_odometry",
@@ -103,7 +106,7 @@ __all__ = [
     "sample_velocity",
     "sample_velocity_path",
     "velocity_density",
-    "velocity_floors",
+    "velocity_cell_widths",
     "velocity_forward",
     "velocity_inverse",
     "velocity_jacobian_det",
@@ -115,8 +118,6 @@ __all__ = [
 TRANS_EPS: float = 1e-9
 #: |V̂| [m/s] floor in the corrected velocity density at exactly zero displacement.
 MIN_SPEED: float = 1e-9
-#: Default grid floor in cells: the standard deviation of a uniform over one cell, 1/√12.
-DEFAULT_CELL_FLOOR: float = 1.0 / math.sqrt(12.0)
 VARIANCE_SOURCES: tuple[str, ...] = ("hypothesis", "odometry")
 
 Array = NDArray[np.float64]
@@ -166,17 +167,11 @@ def _dsinc(u: Array) -> Array:
     return np.where(small, -u / 3.0, (safe * np.cos(safe) - np.sin(safe)) / (safe * safe))
 
 
-def _floor_from_sensitivity(sq_cells_per_unit: Array, cell_floor: float) -> Array:
-    """``c² / Σ_j (J_ij/h_j)²`` — the control variance that moves the pose by ``c`` cells."""
-    return cell_floor**2 / np.maximum(sq_cells_per_unit, 1e-300)
-
-
-def _check_cell(cell: tuple[float, float] | None, cell_floor: float) -> tuple[float, float] | None:
+def _check_cell(cell: tuple[float, float] | None) -> tuple[float, float] | None:
     if cell is None:
         return None
     h = float(check_positive("resolution", cell[0]))
     ht = float(check_positive("theta_resolution", cell[1]))
-    check_nonnegative("cell_floor", cell_floor)
     return h, ht
 
 
@@ -267,28 +262,26 @@ def velocity_jacobian_det(V_hat: ArrayLike, omega_hat: ArrayLike, dt: float) -> 
     return np.abs(V_) * dt**4 * s * s / 2.0
 
 
-def velocity_floors(
-    V_hat: ArrayLike,
-    omega_hat: ArrayLike,
-    dt: float,
-    cell: tuple[float, float],
-    cell_floor: float = DEFAULT_CELL_FLOOR,
+def velocity_cell_widths(
+    V_hat: ArrayLike, omega_hat: ArrayLike, r: ArrayLike, dt: float, cell: tuple[float, float]
 ) -> tuple[Array, Array, Array]:
-    """Grid-tied variance floors of ``(V̂, ω̂, γ̂)`` at the given controls.
+    """Control-space widths ``(w_V, w_ω, w_γ)`` of one grid cell at the given hypotheses.
 
-    ``σ² ≥ c²/Σ_j(J_ij/h_j)²`` with the Jacobian columns of :func:`velocity_forward`:
-    ``J_V = Δt·s·(cos, sin, 0)``, ``J_ω = (V̂Δt²·(s′, s/2)-rotated, Δt)``, ``J_γ = (0, 0, Δt)``
-    where ``s = sinc(ω̂Δt/2)``.
+    Parameters
+    ----------
+    V_hat, omega_hat : array_like — preimage controls [m/s, rad/s]
+    r : array_like — distance of the hypothesis from the start [m]
+    dt : float [s]
+    cell : (h, h_θ) [m, rad]
     """
     h, ht = cell
-    V_ = np.asarray(V_hat, dtype=np.float64)
     u = np.asarray(omega_hat, dtype=np.float64) * dt / 2.0
-    s, ds = _sinc(u), _dsinc(u) / 2.0  # ds: d sinc(φ/2) / dφ
-    fV = _floor_from_sensitivity((dt * s / h) ** 2, cell_floor)
-    pos_w = V_**2 * dt**4 * (ds**2 + s**2 / 4.0) / h**2
-    fw = _floor_from_sensitivity(pos_w + (dt / ht) ** 2, cell_floor)
-    fg = _floor_from_sensitivity(np.full_like(fV, (dt / ht) ** 2), cell_floor)
-    return fV, fw, fg
+    s, ds = _sinc(u), _dsinc(u)
+    wV = h / (dt * s) * np.sqrt(1.0 + (ds / s) ** 2)
+    rr = np.maximum(np.asarray(r, dtype=np.float64), 1e-9 * h)
+    ww = 2.0 * h / (dt * rr)
+    wg = np.sqrt(ww**2 + (ht / dt) ** 2)
+    return wV + 0.0 * np.asarray(V_hat), ww, wg
 
 
 def velocity_separable(
@@ -301,11 +294,10 @@ def velocity_separable(
     scaling: str = "squared",
     corrected: bool = False,
     cell: tuple[float, float] | None = None,
-    cell_floor: float = DEFAULT_CELL_FLOOR,
-) -> tuple[Array, Array, Array]:
+) -> tuple[Array, Array, Array, Array]:
     """The velocity density split into its position part and its heading part.
 
-    ``p(x', y', θ') = p_xy(x', y') · prob((wrap(θ'−θ−φ̂))/Δt, σ_γ²)`` where ``φ̂ = ω̂Δt``
+    ``p(x', y', θ') = p_xy(x', y') · prob_cell(wrap(θ'−θ−φ̂)/Δt, σ_γ², w_γ)`` where ``φ̂ = ω̂Δt``
     depends on the position only. Maps use this to evaluate ``(V̂, ω̂)`` once per
     ``(x, y)`` cell instead of once per ``(x, y, θ)`` cell.
 
@@ -313,7 +305,7 @@ def velocity_separable(
     ----------
     xy : array_like, shape (..., 2)
         Hypothesis positions [m].
-    control, x_prev, dt, alphas, noise, scaling, corrected, cell, cell_floor
+    control, x_prev, dt, alphas, noise, scaling, corrected, cell
         As :func:`velocity_density` (``x_prev`` shape (3,)).
 
     Returns
@@ -323,7 +315,9 @@ def velocity_separable(
     phi_hat : ndarray, shape (...)
         ``ω̂Δt`` [rad].
     var_gamma : ndarray, shape (...)
-        Variance of ``γ̂`` (floored if ``cell``).
+        Variance of ``γ̂``.
+    width_gamma : ndarray, shape (...)
+        Cell width in ``γ̂`` (0 without ``cell``).
     """
     check_noise(noise)
     check_scaling(scaling)
@@ -331,21 +325,22 @@ def velocity_separable(
     if u.shape != (2,):
         raise ValueError(f"control must have shape (2,) (allowed: (V, omega)), got shape {u.shape}")
     step = float(check_positive("dt", dt))
-    cell_ = _check_cell(cell, cell_floor)
+    cell_ = _check_cell(cell)
     pos = check_finite("xy", check_last_axis("xy", xy, 2))
     xp = _pose("x_prev", x_prev)
     hyp = np.concatenate([pos, np.broadcast_to(xp[..., 2:3], pos.shape[:-1] + (1,))], axis=-1)
     var = velocity_variances(u, alphas, scaling)
     V_hat, w_hat, _ = velocity_inverse(hyp, xp, step)
-    v1, v2 = np.full(V_hat.shape, var[0]), np.full(V_hat.shape, var[1])
-    v3 = np.full(V_hat.shape, var[2])
-    if cell_ is not None:
-        f1, f2, f3 = velocity_floors(V_hat, w_hat, step, cell_, cell_floor)
-        v1, v2, v3 = np.maximum(v1, f1), np.maximum(v2, f2), np.maximum(v3, f3)
-    p = prob(u[0] - V_hat, v1, noise) * prob(u[1] - w_hat, v2, noise)
+    if cell_ is None:
+        p = prob(u[0] - V_hat, var[0], noise) * prob(u[1] - w_hat, var[1], noise)
+        wg = np.zeros(V_hat.shape)
+    else:
+        r = np.hypot(pos[..., 0] - xp[0], pos[..., 1] - xp[1])
+        wV, ww, wg = velocity_cell_widths(V_hat, w_hat, r, step, cell_)
+        p = prob_cell(u[0] - V_hat, var[0], wV, noise) * prob_cell(u[1] - w_hat, var[1], ww, noise)
     if corrected:
         p = p / velocity_jacobian_det(np.maximum(np.abs(V_hat), MIN_SPEED), w_hat, step)
-    return p, w_hat * step, v3
+    return p, w_hat * step, np.full(V_hat.shape, var[2]), wg
 
 
 def velocity_density(
@@ -358,7 +353,6 @@ def velocity_density(
     scaling: str = "squared",
     corrected: bool = False,
     cell: tuple[float, float] | None = None,
-    cell_floor: float = DEFAULT_CELL_FLOOR,
 ) -> Array:
     """Velocity-model density ``p(x_t | u, x_{t−1})``, vectorised over hypotheses.
 
@@ -378,8 +372,8 @@ def velocity_density(
         False: Thrun's value (density of the control noise at the preimage).
         True: pose-space density [1/(m²·rad)], divided by :func:`velocity_jacobian_det`.
     cell : (h, h_θ), optional
-        Grid cell size [m, rad]; if given, variances are floored to about ``cell_floor`` cells.
-    cell_floor : float, >= 0
+        Grid cell size [m, rad]; if given, the density is averaged over one cell
+        (see "Cell averaging" in the module docs).
 
     Returns
     -------
@@ -390,11 +384,11 @@ def velocity_density(
     xp = _pose("x_prev", x_prev)
     if xp.shape != (3,):
         raise ValueError(f"x_prev must have shape (3,), got shape {xp.shape}")
-    p_xy, phi, v3 = velocity_separable(
-        xt[..., :2], control, xp, dt, alphas, noise, scaling, corrected, cell, cell_floor
+    p_xy, phi, v3, wg = velocity_separable(
+        xt[..., :2], control, xp, dt, alphas, noise, scaling, corrected, cell
     )
     g_hat = wrap_angle(xt[..., 2] - xp[2] - phi) / dt
-    return p_xy * prob(g_hat, v3, noise)
+    return p_xy * prob_cell(g_hat, v3, wg, noise)
 
 
 def _starts(start: ArrayLike, n: int) -> Array:
@@ -561,20 +555,12 @@ def odometry_variances(
     return v1, v2, v3
 
 
-def odometry_floors(
-    trans_hat: ArrayLike, cell: tuple[float, float], cell_floor: float = DEFAULT_CELL_FLOOR
-) -> tuple[Array, Array, Array]:
-    """Grid-tied variance floors of ``(δrot1, δtrans, δrot2)``.
-
-    Jacobian columns: ``δrot1 → (−r sin, r cos, 1)``, ``δtrans → (cos, sin, 0)``,
-    ``δrot2 → (0, 0, 1)``; floor ``c²/Σ_j(J_ij/h_j)²``.
-    """
+def odometry_cell_widths(trans_hat: ArrayLike, cell: tuple[float, float]) -> tuple[Array, Array, Array]:
+    """Control-space widths ``(w_rot1, w_trans, w_rot2)`` of one grid cell at distance ``|δ̂trans|``."""
     h, ht = cell
-    r = np.asarray(trans_hat, dtype=np.float64)
-    f1 = _floor_from_sensitivity((r / h) ** 2 + 1.0 / ht**2, cell_floor)
-    f2 = np.full_like(f1, cell_floor**2 * h**2)
-    f3 = np.full_like(f1, cell_floor**2 * ht**2)
-    return f1, f2, f3
+    r = np.maximum(np.abs(np.asarray(trans_hat, dtype=np.float64)), 1e-9 * h)
+    w1 = h / r
+    return w1, np.full_like(w1, h), np.sqrt(w1**2 + ht**2)
 
 
 def odometry_density(
@@ -588,7 +574,6 @@ def odometry_density(
     corrected: bool = False,
     variance_from: str | None = None,
     cell: tuple[float, float] | None = None,
-    cell_floor: float = DEFAULT_CELL_FLOOR,
 ) -> Array:
     """Odometry-model density ``p(x_t | u, x_{t−1})``, vectorised over hypotheses.
 
@@ -608,7 +593,7 @@ def odometry_density(
     variance_from : {"hypothesis", "odometry"}, optional
         Where the variances are evaluated. Default: "odometry" if ``corrected``
         (the sampler's) else "hypothesis" (the book's printed formula).
-    cell, cell_floor : see :func:`velocity_density`
+    cell : see :func:`velocity_density`
 
     Returns
     -------
@@ -619,7 +604,7 @@ def odometry_density(
     check_scaling(scaling)
     source = variance_from or ("odometry" if corrected else "hypothesis")
     check_choice("variance_from", source, VARIANCE_SOURCES)
-    cell_ = _check_cell(cell, cell_floor)
+    cell_ = _check_cell(cell)
     op, on = _pose("odom_prev", odom_prev), _pose("odom_next", odom_next)
     r1, tr, r2 = odometry_deltas(op, on)
     h1, ht, h2 = odometry_deltas(x_prev, x_t, ref_rot1=r1)
@@ -627,13 +612,11 @@ def odometry_density(
         v1, v2, v3 = odometry_variances(r1, tr, r2, alphas, scaling)
     else:
         v1, v2, v3 = odometry_variances(h1, ht, h2, alphas, scaling)
-    if cell_ is not None:
-        f1, f2, f3 = odometry_floors(ht, cell_, cell_floor)
-        v1, v2, v3 = np.maximum(v1, f1), np.maximum(v2, f2), np.maximum(v3, f3)
+    w1, w2, w3 = (0.0, 0.0, 0.0) if cell_ is None else odometry_cell_widths(ht, cell_)
     p = (
-        prob(wrap_angle(r1 - h1), v1, noise)
-        * prob(tr - ht, v2, noise)
-        * prob(wrap_angle(r2 - h2), v3, noise)
+        prob_cell(wrap_angle(r1 - h1), v1, w1, noise)
+        * prob_cell(tr - ht, v2, w2, noise)
+        * prob_cell(wrap_angle(r2 - h2), v3, w3, noise)
     )
     if corrected:
         p = p / np.maximum(np.abs(ht), MIN_SPEED)

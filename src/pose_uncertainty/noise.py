@@ -38,6 +38,7 @@ __all__ = [
     "check_scaling",
     "noise_reach",
     "prob",
+    "prob_cell",
     "prob_normal",
     "prob_triangular",
     "sample",
@@ -221,3 +222,33 @@ def cdf(a: ArrayLike, var: ArrayLike, noise: str = "normal") -> NDArray[np.float
     c = _SQRT6 * np.sqrt(v)  # half-width of the support
     t = np.clip(x / c, -1.0, 1.0)
     return np.where(t <= 0.0, 0.5 * (1.0 + t) ** 2, 1.0 - 0.5 * (1.0 - t) ** 2)
+
+
+def prob_cell(
+    a: ArrayLike, var: ArrayLike, width: ArrayLike, noise: str = "normal"
+) -> NDArray[np.float64]:
+    """Average of the noise density over ``[a − width/2, a + width/2]``.
+
+    ``(F(a + w/2) − F(a − w/2)) / w`` with the CDF ``F`` of :func:`cdf` — the density
+    averaged over one grid cell seen in the units of this noise term. Exact cell
+    integration in that direction: it stays correct when the noise is narrower
+    than a cell, including zero variance (then it is ``1/w`` inside the cell, 0
+    outside). Where ``w`` is negligible (< 10⁻³ standard deviations) it is
+    :func:`prob`.
+
+    Parameters
+    ----------
+    a : array_like
+    var : array_like, >= 0
+    width : array_like, >= 0
+    noise : {"normal", "triangular"}
+    """
+    x = as_float_array("a", a)
+    v = _variance(var)
+    w = check_nonnegative("width", width)
+    wide = w > 1e-3 * np.sqrt(v)
+    ws = np.where(wide, w, 1.0)
+    box = np.maximum((cdf(x + ws / 2.0, v, noise) - cdf(x - ws / 2.0, v, noise)) / ws, 0.0)
+    if np.all(wide):
+        return box
+    return np.where(wide, box, prob(x, v, noise))
