@@ -9,6 +9,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from pose_uncertainty import calibration as cb
+from pose_uncertainty import cli
 from pose_uncertainty import motion_models as mm
 from pose_uncertainty import sampling as sp
 from pose_uncertainty import trajectories as tr
@@ -166,11 +167,8 @@ def test_motion_csv_optional_group_must_be_complete(tmp_path):
 
 
 def _run_cli(argv, capsys):
-    parser = argparse.ArgumentParser(prog="pose-uncertainty")
-    sub = parser.add_subparsers(dest="command", required=True)
-    cb.add_calibrate_parser(sub)
-    args = parser.parse_args(argv)
-    assert args.func(args) == 0
+    # through the real entry point, so the command's registration is tested too
+    assert cli.main(argv) == 0
     return capsys.readouterr().out
 
 

@@ -123,3 +123,30 @@ def test_stats_helpers(rng):
     assert_allclose(C, np.cov(x.T))
     with pytest.raises(ValueError, match="n >= 2"):
         stats.mean_cov(x[:1])
+
+
+def test_initial_covariance_matches_propagation(rng):
+    # start poses drawn from N(start, Σ_0): the end cloud equals A Σ_0 Aᵀ + noise (Method A)
+    t = tr.arc(radius=0.5, angle=1.0, dt=0.01, start=(0.3, -0.1, 0.4))
+    S0 = np.array([[4e-6, 1e-6, 0.0], [1e-6, 2e-6, 5e-7], [0.0, 5e-7, 1e-6]])
+    res = cv.propagate(t, 1e-6, 2e-6, cov0=S0)
+    end = sp.sample_end_poses(t, 1e-6, 2e-6, N_MC, rng, cov0=S0)
+    _, C = stats.mean_cov(end)
+    assert np.all(np.abs(C - res.covs[-1]) <= _cov_tolerance(res.covs[-1], N_MC))
+
+
+def test_initial_covariance_fast_path_equals_general():
+    t = tr.s_curve(dt=0.02)
+    S0 = np.diag([1e-4, 2e-4, 3e-4])
+    a = sp.sample_end_poses(t, 5e-4, 5e-4, 2000, np.random.default_rng(4), cov0=S0)
+    b = sp.sample_end_poses(
+        t, 5e-4, 5e-4, 2000, np.random.default_rng(4), cov0=S0, checkpoints=[t.n_steps]
+    )
+    assert_allclose(a, b[:, 0], rtol=0, atol=1e-12)
+
+
+def test_bad_initial_covariance(rng):
+    with pytest.raises(ValueError, match="cov0 must be positive semi-definite"):
+        sp.sample_end_poses(tr.straight(1.0), 1e-4, 1e-4, 10, rng, cov0=np.diag([1.0, -1.0, 1.0]))
+    with pytest.raises(ValueError, match="cov0 must be a symmetric 3x3"):
+        sp.sample_end_poses(tr.straight(1.0), 1e-4, 1e-4, 10, rng, cov0=np.eye(2))

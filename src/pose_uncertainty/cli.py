@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from . import __version__
+from .calibration import add_calibrate_parser as _add_calibrate
 
 __all__ = ["COMMANDS", "build_parser", "load_config_file", "main"]
 
@@ -201,7 +202,11 @@ def cmd_replay(args: argparse.Namespace) -> int:
 # --- wiring ---------------------------------------------------------------------------------
 
 #: Sub-command name → function adding its parser (which sets ``func``).
-COMMANDS: dict[str, Callable[[Any], None]] = {"run": _add_run, "replay": _add_replay}
+COMMANDS: dict[str, Callable[[Any], None]] = {
+    "run": _add_run,
+    "replay": _add_replay,
+    "calibrate": _add_calibrate,
+}
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -33,7 +33,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .kinematics import METHODS, _translation
 from .trajectories import Trajectory
-from .validation import check_choice, check_nonnegative, check_positive_int
+from .validation import check_choice, check_finite, check_nonnegative, check_positive_int
 
 __all__ = ["REGIMES", "integrate_end", "sample_end_poses"]
 
@@ -57,7 +57,7 @@ def integrate_end(
     ----------
     ds_r, ds_l : ndarray, shape (n, N) — per-particle, per-step wheel travels [m]
     track : float [m]
-    start : array_like, shape (3,)
+    start : array_like, shape (3,) or (n, 3) — one start pose, or one per particle
     method : {"exact", "euler", "euler_end", "midpoint"}
     checkpoints : sequence of int in [0, N], optional — step indices to return;
         default only the end (index N)
@@ -66,33 +66,42 @@ def integrate_end(
     -------
     ndarray, shape (n, C, 3) — poses at the checkpoints (C = 1 for the end only)
     """
-    p0 = np.asarray(start, dtype=np.float64)
+    p0 = np.asarray(start, dtype=np.float64)[..., None, :]  # (1, 3) or (n, 1, 3)
+    p0 = p0 if p0.ndim == 3 else p0[None]
+    x0, y0, th0 = p0[..., 0], p0[..., 1], p0[..., 2]  # each (1 or n, 1)
     ds = (ds_r + ds_l) * 0.5
     dth = (ds_r - ds_l) / track
     theta = np.cumsum(dth, axis=-1)
     theta_before = np.empty_like(theta)
     theta_before[..., 0] = 0.0
     theta_before[..., 1:] = theta[..., :-1]
-    theta_before += p0[2]
+    theta_before += th0
     dx, dy = _translation(theta_before, ds, dth, method)
-    n_steps = ds.shape[-1]
     if checkpoints is None:
         return np.stack(
-            [p0[0] + dx.sum(axis=-1), p0[1] + dy.sum(axis=-1), p0[2] + theta[..., -1]], axis=-1
+            [
+                x0[:, 0] + dx.sum(axis=-1),
+                y0[:, 0] + dy.sum(axis=-1),
+                th0[:, 0] + theta[..., -1],
+            ],
+            axis=-1,
         )[:, None, :]
     idx = np.asarray(checkpoints, dtype=np.intp)
     cx = np.concatenate([np.zeros((*ds.shape[:-1], 1)), np.cumsum(dx, axis=-1)], axis=-1)
     cy = np.concatenate([np.zeros((*ds.shape[:-1], 1)), np.cumsum(dy, axis=-1)], axis=-1)
     ct = np.concatenate([np.zeros((*ds.shape[:-1], 1)), theta], axis=-1)
-    del n_steps
-    return np.stack([p0[0] + cx[:, idx], p0[1] + cy[:, idx], p0[2] + ct[:, idx]], axis=-1)
+    return np.stack([x0 + cx[:, idx], y0 + cy[:, idx], th0 + ct[:, idx]], axis=-1)
 
 
 _HEADING_OFFSET = {"exact": 0.5, "midpoint": 0.5, "euler": 0.0, "euler_end": 1.0}
 
 
 def _end_poses_perturbed(
-    trajectory: Trajectory, noise_r: NDArray[np.float64], noise_l: NDArray[np.float64], method: str
+    trajectory: Trajectory,
+    noise_r: NDArray[np.float64],
+    noise_l: NDArray[np.float64],
+    method: str,
+    start_offset: NDArray[np.float64] | None = None,
 ) -> NDArray[np.float64]:
     """End poses from wheel-travel perturbations, as nominal path + small heading perturbation.
 
@@ -103,7 +112,8 @@ def _end_poses_perturbed(
     Then ``x = x₀ + Σ Δs'_i (cos φ̄_i cos δ_i − sin φ̄_i sin δ_i)`` (likewise y):
     the trigonometry of the particles is on the small δ only and the sums are
     matrix–vector products. Same arithmetic as :func:`integrate_end` up to
-    rounding; returns shape (m, 3).
+    rounding. ``start_offset`` (m, 3), optional, moves each particle's start
+    pose; its heading offset joins δ. Returns shape (m, 3).
     """
     c = _HEADING_OFFSET[method]
     b = trajectory.track
@@ -123,6 +133,9 @@ def _end_poses_perturbed(
         e *= 1.0 - c
         delta -= e  # Σ_{j<i} e_j + c e_i
         e /= 1.0 - c
+    if start_offset is not None:
+        delta += start_offset[:, 2:3]
+        heading_noise_end += start_offset[:, 2]
     if method == "exact":
         # Δs' · sin(Δθ'/2)/(Δθ'/2), Δθ' = Δθ̄ + e
         e += dth_nom
@@ -135,6 +148,9 @@ def _end_poses_perturbed(
     x = e @ cos_nom - delta @ sin_nom
     y = e @ sin_nom + delta @ cos_nom
     x0, y0, th0 = trajectory.start
+    if start_offset is not None:
+        x += start_offset[:, 0]
+        y += start_offset[:, 1]
     th_end = th0 + dth_nom.sum() + heading_noise_end
     return np.stack([x0 + x, y0 + y, th_end], axis=-1)
 
@@ -153,6 +169,7 @@ def sample_end_poses(
     regime: str = "per_step",
     method: str = "midpoint",
     checkpoints: Sequence[int] | None = None,
+    cov0: ArrayLike | None = None,
     workers: int | None = None,
 ) -> NDArray[np.float64]:
     """Noisy executions of a trajectory: the Monte Carlo ground truth of Method A's model.
@@ -168,6 +185,9 @@ def sample_end_poses(
     method : {"exact", "euler", "euler_end", "midpoint"} — integration of each step
     checkpoints : sequence of int in [0, N], optional — step indices at which
         to keep the cloud as well
+    cov0 : array_like, shape (3, 3), optional — covariance of the start pose
+        [m², m·rad, rad²]; each particle's start is drawn from
+        N(trajectory.start, cov0) (default: every particle starts exactly there)
     workers : int, optional — threads (default: the number of cores, at most 8).
         The output does not depend on it.
 
@@ -189,6 +209,17 @@ def sample_end_poses(
         cps = [int(c) for c in checkpoints]
         if not cps or min(cps) < 0 or max(cps) > N:
             raise ValueError(f"checkpoints must be step indices in [0, {N}], got {list(checkpoints)}")
+    start_sqrt = None
+    if cov0 is not None:
+        S0 = check_finite("cov0", cov0)
+        if S0.shape != (3, 3) or not np.allclose(S0, S0.T):
+            raise ValueError(f"cov0 must be a symmetric 3x3 matrix, got shape {S0.shape}")
+        w, V = np.linalg.eigh(S0)
+        if w.min() < -1e-12 * max(1.0, float(np.abs(S0).max())):
+            raise ValueError(
+                f"cov0 must be positive semi-definite (allowed: eigenvalues >= 0), got {w.tolist()}"
+            )
+        start_sqrt = V * np.sqrt(np.maximum(w, 0.0))  # A with A Aᵀ = Σ_0 (singular allowed)
     ds_r, ds_l = trajectory.ds_r, trajectory.ds_l
     chunk = max(1, _CHUNK_ELEMENTS // N)
     n_out = 1 if checkpoints is None else len(checkpoints)
@@ -223,11 +254,13 @@ def sample_end_poses(
         else:
             noise_r = (eps_std_r * z[0]) * ds_r  # Δs_r' − Δs_r = ε_r Δs_r
             noise_l = (eps_std_l * z[1]) * ds_l
+        offset = None if start_sqrt is None else g.standard_normal((m, 3)) @ start_sqrt.T
         if checkpoints is None:
-            out[lo : lo + m, 0] = _end_poses_perturbed(trajectory, noise_r, noise_l, method)
+            out[lo : lo + m, 0] = _end_poses_perturbed(trajectory, noise_r, noise_l, method, offset)
         else:
+            starts_ = start if offset is None else start + offset
             out[lo : lo + m] = integrate_end(
-                ds_r + noise_r, ds_l + noise_l, trajectory.track, start, method, checkpoints
+                ds_r + noise_r, ds_l + noise_l, trajectory.track, starts_, method, checkpoints
             )
 
     if n_workers == 1 or len(starts) == 1:
