@@ -15,6 +15,7 @@ import math
 import os
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -22,7 +23,19 @@ from matplotlib.figure import Figure
 from . import figures
 from .runlog import open_run
 
-__all__ = ["cloud_polar_figure", "growth_figure", "render_run_figure", "render_set_figure"]
+__all__ = [
+    "MAP_SAMPLES",
+    "cloud_polar_figure",
+    "growth_figure",
+    "map_cloud_figure",
+    "map_sampler_cloud",
+    "render_run_figure",
+    "render_run_figures",
+    "render_set_figure",
+]
+
+#: Number of motion-model samples drawn to check a single-step map (Monte Carlo truth of Method B).
+MAP_SAMPLES: int = 20000
 
 
 def render_run_figure(log: str | os.PathLike[str], kind: str, out: str | os.PathLike[str]) -> Path:
@@ -31,20 +44,40 @@ def render_run_figure(log: str | os.PathLike[str], kind: str, out: str | os.Path
     Parameters
     ----------
     log : path — run log (``*.mcap``)
-    kind : {"trajectory", "cloud", "map_<name>"}
+    kind : {"trajectory", "cloud", "map_<name>", "mapcloud_<name>"}
     out : path — ``*.png`` / ``*.svg`` / ``*.pdf``
 
     Raises
     ------
     ValueError if the kind is unknown or the run lacks what the figure draws.
     """
+    return render_run_figures(log, [kind], [out])[0]
+
+
+def render_run_figures(
+    log: str | os.PathLike[str], kinds: Sequence[str], outs: Sequence[str | os.PathLike[str]]
+) -> list[Path]:
+    """Draw several figures of one run log (read once); see :func:`render_run_figure` for the kinds."""
+    if len(kinds) != len(outs):
+        raise ValueError(f"kinds and outs must have equal length, got {len(kinds)} and {len(outs)}")
     run = open_run(log)
+    return [_render(run, log, kind, out) for kind, out in zip(kinds, outs, strict=True)]
+
+
+def _render(run: Any, log: str | os.PathLike[str], kind: str, out: str | os.PathLike[str]) -> Path:
+    fig: Figure | None
     if kind == "trajectory":
         fig = figures.trajectory_figure(run)
     elif kind == "cloud":
         fig = figures.cloud_figure(run)
         if fig is None:
             raise ValueError(f"{log}: kind 'cloud' needs Monte Carlo end poses (monte_carlo.n_particles > 0)")
+    elif kind.startswith("mapcloud_"):
+        name = kind[len("mapcloud_"):]
+        maps = {m.name: m for m in run.maps}
+        if name not in maps:
+            raise ValueError(f"{log}: map {name!r} not in the run (allowed: {', '.join(maps) or 'none'})")
+        fig = map_cloud_figure(run, maps[name])
     elif kind.startswith("map_"):
         name = kind[4:]
         maps = {m.name: m for m in run.maps}
@@ -52,9 +85,93 @@ def render_run_figure(log: str | os.PathLike[str], kind: str, out: str | os.Path
             raise ValueError(f"{log}: map {name!r} not in the run (allowed: {', '.join(maps) or 'none'})")
         fig = figures.map_figure(run, maps[name])
     else:
-        raise ValueError(f"figure kind must be 'trajectory', 'cloud' or 'map_<name>', got {kind!r}")
+        raise ValueError(
+            f"figure kind must be 'trajectory', 'cloud', 'map_<name>' or 'mapcloud_<name>', got {kind!r}"
+        )
     Path(out).parent.mkdir(parents=True, exist_ok=True)
     return figures.save_figure(fig, out)
+
+
+def map_sampler_cloud(run: Any, mp: Any, n: int = MAP_SAMPLES) -> np.ndarray | None:
+    """End poses drawn from the motion model's own sampler for a single-step map (its Monte Carlo truth).
+
+    The generator is seeded from the run's seed (``default_rng([seed, 1])``), so the
+    cloud is the same every time. Returns None for a multi-step run.
+
+    Parameters
+    ----------
+    run : RunResult — a one-step trajectory's run
+    mp : MapRecord — one of ``run.maps``
+    n : int — number of samples
+
+    Returns
+    -------
+    ndarray, shape (n, 3), or None
+    """
+    from . import motion_models as mm
+
+    if run.n_steps != 1:
+        return None
+    p = mp.params
+    dt = float(run.times[1] - run.times[0])
+    start = run.poses[0]
+    # the control (V, ω) of the single step, from the exact noiseless arc it drives
+    traj = run.config.trajectory
+    from . import trajectories
+
+    tp = {k: v for k, v in traj.items() if k != "name"}
+    control = trajectories.build(traj["name"], **tp).controls[0]
+    rng = np.random.default_rng([run.config.seed, 1])
+    noise = p.get("noise", "normal")
+    scaling = p.get("scaling", "squared")
+    if mp.model == "velocity":
+        return mm.sample_velocity(start, control, dt, p["alphas"], n, rng, noise=noise, scaling=scaling)
+    od = mm.noiseless_velocity_poses(start, control[None, :], dt)
+    return mm.sample_odometry(start, od[0], od[1], p["alphas"], n, rng, noise=noise, scaling=scaling)
+
+
+def _hdr_levels(mass: np.ndarray, prs: Sequence[float]) -> list[float]:
+    """Cell-mass thresholds of the highest-density regions holding each ``pr`` of ``mass``."""
+    order = np.sort(mass.ravel())[::-1]
+    cum = np.cumsum(order) / max(order.sum(), 1e-300)
+    return [float(order[min(int(np.searchsorted(cum, pr)), order.size - 1)]) for pr in prs]
+
+
+def map_cloud_figure(run: Any, mp: Any, n: int = MAP_SAMPLES) -> Figure:
+    """The motion model's sampled end poses over the map's 39 / 86 / 98.89 % contours.
+
+    Parameters
+    ----------
+    run : RunResult (single step)
+    mp : MapRecord
+    n : int — number of samples drawn by :func:`map_sampler_cloud`
+    """
+    marg = mp.marginal_xy()
+    end = run.poses[-1]
+    fig = figures._new_figure((6.0, 6.0))
+    ax = fig.add_subplot()
+    cloud = map_sampler_cloud(run, mp, n)
+    if cloud is not None:
+        ax.scatter(cloud[:, 0], cloud[:, 1], s=1.0, color="0.35", alpha=0.3, linewidths=0, rasterized=True,
+                   label=f"sampler end poses (n = {cloud.shape[0]})")
+    prs = (1.0 - math.exp(-0.5), 1.0 - math.exp(-2.0), 1.0 - math.exp(-4.5))
+    levels = _hdr_levels(marg, prs)
+    colors = ("tab:blue", "tab:purple", "red")
+    for lvl, pr, col in sorted(zip(levels, prs, colors, strict=True)):
+        if marg.max() > lvl > 0:
+            ax.contour(mp.x, mp.y, marg.T, levels=[lvl], colors=[col], linewidths=1.0)
+            ax.plot([], [], color=col, lw=1.0, label=f"map region {100 * pr:.2f} %")
+    ax.plot(*end[:2], marker="+", color="red", ms=10, ls="none", label="noiseless end point")
+    ax.plot(*run.poses[0, :2], marker="o", color="k", ms=3, ls="none", label="start")
+    ax.set_xlim(float(mp.x[0]), float(mp.x[-1]))
+    ax.set_ylim(float(mp.y[0]), float(mp.y[-1]))
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(f"{run.config.name}: {mp.model} model, map contours vs its sampler", fontsize="medium")
+    ax.grid(True, lw=0.3, alpha=0.5)
+    ax.legend(loc="upper right", fontsize="x-small")
+    return fig
 
 
 def _frame(theta: float) -> np.ndarray:
@@ -116,8 +233,8 @@ def growth_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") -> Fi
     if L.size >= 2:
         ref = np.array([L.min(), L.max()])
         y0 = np.array([r["A: σ along"] for r in rows])[0]
-        for slope, ls in ((0.5, (0, (2, 2))), (1.5, (0, (6, 2)))):
-            ax.loglog(ref, y0 * (ref / ref[0]) ** slope, color="k", lw=0.6, ls=ls, label=f"slope {slope:g}")
+        for slope, dash in ((0.5, (0, (2, 2))), (1.5, (0, (6, 2)))):
+            ax.loglog(ref, y0 * (ref / ref[0]) ** slope, color="k", lw=0.6, ls=dash, label=f"slope {slope:g}")
     ax.set_xlabel("path length L [m]")
     ax.set_ylabel("uncertainty [m] (σ_θ in rad)")
     ax.set_title(title or "growth of the uncertainty with distance")

@@ -58,15 +58,17 @@ def _flat(prefix: str, value: Any, out: dict[str, Any]) -> None:
         out[prefix] = json.dumps(value) if isinstance(value, list | tuple) else value
 
 
-def _map_measures(mp: Any, end: np.ndarray, pr: float) -> dict[str, float]:
-    """Peak, spread along/across the end heading, Pr-region area and lost mass of one map."""
-    marg = mp.marginal_xy()  # (nx, ny) [1/m²]
+def _map_measures(run: Any, mp: Any, end: np.ndarray, pr: float) -> dict[str, float]:
+    """Peak, spread along/across the end heading, Pr-region area, lost mass and agreement with the sampler."""
+    from . import maps as maps_mod
+    from .pipeline_figures import map_sampler_cloud
+
+    w = mp.marginal_xy()  # (nx, ny) probability mass per cell [1]
     dx = float(mp.x[1] - mp.x[0]) if mp.x.size > 1 else float("nan")
     dy = float(mp.y[1] - mp.y[0]) if mp.y.size > 1 else float("nan")
-    w = marg * dx * dy
     total = float(w.sum())
     out: dict[str, float] = {"lost_mass": float(mp.lost_mass), "mass_on_grid": total}
-    i, j = np.unravel_index(int(np.argmax(marg)), marg.shape)
+    i, j = np.unravel_index(int(np.argmax(w)), w.shape)
     px, py = float(mp.x[i]), float(mp.y[j])
     out["peak_x"], out["peak_y"] = px, py
     out["peak_offset"] = math.hypot(px - end[0], py - end[1])
@@ -87,6 +89,17 @@ def _map_measures(mp: Any, end: np.ndarray, pr: float) -> dict[str, float]:
         order = np.sort(p.ravel())[::-1]
         k = int(np.searchsorted(np.cumsum(order), pr) + 1)
         out["region_area"] = min(k, order.size) * dx * dy
+        cloud = map_sampler_cloud(run, mp)
+        if cloud is not None:
+            # the (x, y) cells of the map (histogram_xy uses only the x/y part of the grid)
+            grid = maps_mod.MapGrid(float(mp.x[0]), float(mp.y[0]), mp.x.size, mp.y.size, dx,
+                                    mp.theta.size, float(mp.theta[0]))
+            hist = maps_mod.histogram_xy(cloud, grid)
+            out["sampler_n"] = cloud.shape[0]
+            out["sampler_inside"] = float(hist.sum())
+            if hist.sum() > 0:
+                out["hellinger_sampler"] = maps_mod.hellinger(w, hist)
+                out["hellinger_floor"] = maps_mod.hellinger_noise_floor(w, cloud.shape[0])
     return out
 
 
@@ -170,7 +183,7 @@ def run_measures(log: str | os.PathLike[str], timings: str | os.PathLike[str] | 
             row["MC_bend"] = float(np.corrcoef(d[:, 0], a2)[0, 1])
             row["MC_bend_crit"] = 2.0 / math.sqrt(n)
     for mp in run.maps:
-        for k, v in _map_measures(mp, end, cfg.pr).items():
+        for k, v in _map_measures(run, mp, end, cfg.pr).items():
             row[f"map_{mp.name}_{k}"] = v
         row[f"map_{mp.name}_model"] = mp.model
     if timings is not None and Path(timings).is_file():
@@ -354,7 +367,7 @@ def build_report(
         lock_sha256=environment_lock_sha256() or "unknown",
         git_commit=(git[0] + (" (dirty)" if git[1] else "")) if git else "unknown",
         config_text=config_text,
-        generated=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        generated=_dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
         levels=COVERAGE_LEVELS,
         guide=method_guide(rows),
     )

@@ -45,6 +45,7 @@ __all__ = [
     "format_schema_error",
     "label_value",
     "load_schema",
+    "n_steps",
     "run_label",
     "simulate",
     "validate_config",
@@ -292,8 +293,9 @@ def label_value(value: Any) -> str:
             return str(int(v))
         if math.isclose(v, round(v, 5), rel_tol=0, abs_tol=1e-12) and 1e-3 <= abs(v) < 1e6:
             text = f"{round(v, 5):g}"
-        else:
-            text = f"{v:.3g}"
+        else:  # mantissa with at most 3 significant digits, two-digit exponent: 1e-04, 4.17e-04
+            mant, _, exp = f"{v:.2e}".partition("e")
+            text = mant.rstrip("0").rstrip(".") + "e" + exp
         return text.replace("+", "")
     if isinstance(value, str):
         return _SAFE.sub("-", value).strip("-") or "x"
@@ -370,13 +372,13 @@ def expand_set(name: str, spec: Mapping[str, Any], defaults: Mapping[str, Any] |
     for combo in itertools.product(*axes) if axes else [()]:
         cfg = copy.deepcopy(base)
         swept: dict[str, Any] = {}
-        labels: list[str] = []
+        parts: list[str] = []
         for values, lab in combo:
             for k, v in values.items():
                 _set_dotted(cfg, k, v)
                 swept[k] = copy.deepcopy(v)
-            labels.extend(lab)
-        run_id = "_".join(x for x in labels if x) or "run"
+            parts.extend(lab)
+        run_id = "_".join(x for x in parts if x) or "run"
         run_id = _SAFE.sub("-", run_id)
         cfg["name"] = run_id
         try:
@@ -408,6 +410,14 @@ def expand_all(config: Mapping[str, Any]) -> dict[str, list[Run]]:
         name: expand_set(name, spec, defaults)
         for name, spec in (config.get("experiment_sets", {}) or {}).items()
     }
+
+
+def n_steps(config: Mapping[str, Any]) -> int:
+    """Number of steps of a run configuration's trajectory (builds the trajectory)."""
+    from . import trajectories
+
+    tp = {k: v for k, v in config["trajectory"].items() if k != "name"}
+    return trajectories.build(config["trajectory"]["name"], **tp).n_steps
 
 
 # --- running -----------------------------------------------------------------------------

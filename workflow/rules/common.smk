@@ -1,7 +1,8 @@
 # Config validation (JSON Schema 2020-12, before any rule reads the config) and input functions.
 import json
-import sys
+from importlib import resources as _resources
 
+from pose_uncertainty import __version__ as PACKAGE_VERSION
 from pose_uncertainty import sweep as _sweep
 
 # A config file given on the command line (--configfile config/quick.yaml) REPLACES
@@ -20,6 +21,9 @@ except _sweep.ConfigError as _exc:
     raise WorkflowError(f"invalid config: {_exc}") from None
 config.clear()
 config.update(_validated)  # in place: every default filled in
+
+# the report template ships with the package: a change to it rebuilds the report
+REPORT_TEMPLATE = str(_resources.files("pose_uncertainty") / "templates" / "comparison.html.j2")
 
 RUNS = _sweep.expand_all(config)  # {set: [Run, ...]}
 RUN_BY_ID = {(s, r.id): r for s, runs in RUNS.items() for r in runs}
@@ -53,6 +57,8 @@ def run_figures(set_name, run):
         figs["cloud"] = f"{base}/cloud.png"
     for m in run.config["maps"]:
         figs[f"map_{m['name']}"] = f"{base}/map_{m['name']}.png"
+        # the map's contours with its model's own sampler (single-step runs) over them
+        figs[f"mapcloud_{m['name']}"] = f"{base}/mapcloud_{m['name']}.png"
     return figs
 
 
@@ -84,6 +90,8 @@ def all_benchmarks(wildcards=None):
         for r in RUNS[s]:
             out.append(f"data/benchmarks/simulate_run/{s}/{r.id}.tsv")
             for kind in run_figures(s, r):
+                if kind.startswith("mapcloud_"):
+                    continue  # drawn by render_map_figure with its map
                 if kind.startswith("map_"):
                     out.append(f"data/benchmarks/render_map_figure/{s}/{r.id}/{kind[4:]}.tsv")
                 else:

@@ -13,13 +13,13 @@ rule render_trajectory_figure:
             labels={"run": "{run}", "figure": "trajectory and ellipses"},
         ),
     params:
-        kind="trajectory",
+        kinds=["trajectory"],
     log:
         "logs/render_trajectory_figure/{set}/{run}.log",
     benchmark:
         "data/benchmarks/render_trajectory_figure/{set}/{run}.tsv"
     script:
-        "../scripts/render_run_figure.py"
+        "../scripts/render_run_figures.py"
 
 
 rule render_cloud_figure:
@@ -34,34 +34,41 @@ rule render_cloud_figure:
             labels={"run": "{run}", "figure": "Monte Carlo cloud"},
         ),
     params:
-        kind="cloud",
+        kinds=["cloud"],
     log:
         "logs/render_cloud_figure/{set}/{run}.log",
     benchmark:
         "data/benchmarks/render_cloud_figure/{set}/{run}.tsv"
     script:
-        "../scripts/render_run_figure.py"
+        "../scripts/render_run_figures.py"
 
 
 rule render_map_figure:
     input:
         log=rules.simulate_run.output.log,
     output:
-        report(
+        map=report(
             "reports/figures/{set}/{run}/map_{map}.png",
             caption="../report/map.rst",
             category="{set}",
             subcategory="{run}",
             labels={"run": "{run}", "figure": "probability map {map}"},
         ),
+        cloud=report(
+            "reports/figures/{set}/{run}/mapcloud_{map}.png",
+            caption="../report/map_cloud.rst",
+            category="{set}",
+            subcategory="{run}",
+            labels={"run": "{run}", "figure": "map {map} vs its sampler"},
+        ),
     params:
-        kind=lambda w: f"map_{w.map}",
+        kinds=lambda w: [f"map_{w.map}", f"mapcloud_{w.map}"],
     log:
         "logs/render_map_figure/{set}/{run}/{map}.log",
     benchmark:
         "data/benchmarks/render_map_figure/{set}/{run}/{map}.tsv"
     script:
-        "../scripts/render_run_figure.py"
+        "../scripts/render_run_figures.py"
 
 
 rule render_growth_figure:
@@ -106,3 +113,4 @@ rule render_cloud_polar_figure:
         "data/benchmarks/render_cloud_polar_figure/{set}.tsv"
     script:
         "../scripts/render_set_figure.py"
+

@@ -22,7 +22,7 @@ rule build_report:
         claims=rules.evaluate_claims.output[0],
         figures=all_figures,
         benchmarks=all_benchmarks,
-        template=workflow.source_path("../../src/pose_uncertainty/templates/comparison.html.j2"),
+        template=REPORT_TEMPLATE,
     output:
         "reports/comparison.html",
     params:

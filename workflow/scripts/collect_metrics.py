@@ -1,14 +1,9 @@
 """Adapter: one CSV of per-run measures for a set (pose_uncertainty.report.collect_table)."""
 
-import sys
+from contextlib import redirect_stderr
 
-sys.stderr = open(snakemake.log[0], "w", encoding="utf-8")  # noqa: F821
+from pose_uncertainty.report import collect_table
 
-from pose_uncertainty.report import collect_table  # noqa: E402
-
-collect_table(
-    snakemake.wildcards.set,  # noqa: F821
-    list(snakemake.input.logs),  # noqa: F821
-    list(snakemake.input.timings),  # noqa: F821
-    snakemake.output[0],  # noqa: F821
-)
+sm = snakemake  # noqa: F821 - injected by Snakemake
+with open(sm.log[0], "w", encoding="utf-8") as log, redirect_stderr(log):
+    collect_table(sm.wildcards.set, list(sm.input.logs), list(sm.input.timings), sm.output[0])

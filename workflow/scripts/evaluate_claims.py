@@ -1,12 +1,9 @@
 """Adapter: evaluate the claims of SPEC §5 (pose_uncertainty.claims.write_claims)."""
 
-import sys
+from contextlib import redirect_stderr
 
-sys.stderr = open(snakemake.log[0], "w", encoding="utf-8")  # noqa: F821
+from pose_uncertainty.claims import write_claims
 
-from pose_uncertainty.claims import write_claims  # noqa: E402
-
-write_claims(
-    dict(zip(snakemake.params.sets, snakemake.input.tables, strict=True)),  # noqa: F821
-    snakemake.output[0],  # noqa: F821
-)
+sm = snakemake  # noqa: F821 - injected by Snakemake
+with open(sm.log[0], "w", encoding="utf-8") as log, redirect_stderr(log):
+    write_claims(dict(zip(sm.params.sets, sm.input.tables, strict=True)), sm.output[0])

@@ -1,13 +1,9 @@
-"""Adapter: simulate one run (pose_uncertainty.sweep.simulate)."""
+"""Adapter: simulate one run (pose_uncertainty.sweep.simulate); stderr goes to the rule's log."""
 
-import sys
+from contextlib import redirect_stderr
 
-sys.stderr = open(snakemake.log[0], "w", encoding="utf-8")  # noqa: F821
+from pose_uncertainty.sweep import simulate
 
-from pose_uncertainty.sweep import simulate  # noqa: E402
-
-simulate(
-    snakemake.params.config,  # noqa: F821
-    snakemake.output.log,  # noqa: F821
-    snakemake.output.timings,  # noqa: F821
-)
+sm = snakemake  # noqa: F821 - injected by Snakemake
+with open(sm.log[0], "w", encoding="utf-8") as log, redirect_stderr(log):
+    simulate(sm.params.config, sm.output.log, sm.output.timings)

@@ -1,0 +1,337 @@
+"""The Snakemake pipeline: config validation, sweep expansion, the quick config end to end.
+
+The end-to-end tests run ``snakemake`` on a copy of the workflow (Snakefile,
+workflow/, config/) in a temporary directory with ``config/quick.yaml``; the run
+is shared by every test of the session through :func:`quick_pipeline` (the
+browser test opens the same report).
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+import re
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+
+from pose_uncertainty import sweep
+from pose_uncertainty.claims import VERDICTS, evaluate_claims, power_vs_exponential
+from pose_uncertainty.report import read_table
+
+REPO = Path(__file__).resolve().parents[1]
+SNAKEMAKE = Path(sys.executable).with_name("snakemake")
+SCHEMA = sweep.load_schema(REPO / "workflow/schemas/config.schema.yaml")
+
+
+def _config(name: str = "config.yaml") -> dict:
+    return yaml.safe_load((REPO / "config" / name).read_text(encoding="utf-8"))
+
+
+def copy_workflow(dest: Path) -> Path:
+    """Copy what the pipeline needs (Snakefile, workflow/, config/, environment.lock) into ``dest``."""
+    dest.mkdir(parents=True, exist_ok=True)
+    shutil.copy2(REPO / "Snakefile", dest / "Snakefile")
+    shutil.copy2(REPO / "environment.lock", dest / "environment.lock")
+    for d in ("workflow", "config"):
+        shutil.copytree(REPO / d, dest / d, dirs_exist_ok=True)
+    return dest
+
+
+def snakemake(workdir: Path, *args: str, timeout: float = 600) -> subprocess.CompletedProcess[str]:
+    """Run the venv's snakemake in ``workdir`` with the default profile and 2 cores."""
+    cmd = [str(SNAKEMAKE), "--profile", "workflow/profiles/default", "--cores", "2", *args]
+    return subprocess.run(cmd, cwd=workdir, capture_output=True, text=True, timeout=timeout, check=False)
+
+
+def quick_pipeline(base: Path) -> Path:
+    """The quick config run end to end once per session in ``base/quick``; returns the work dir.
+
+    Writes ``base/quick/run.json`` with the wall-clock time of the first run.
+    """
+    work = base / "quick"
+    stamp = work / "run.json"
+    if stamp.is_file():
+        return work
+    copy_workflow(work)
+    t0 = time.perf_counter()
+    proc = snakemake(work, "--configfile", "config/quick.yaml")
+    elapsed = time.perf_counter() - t0
+    assert proc.returncode == 0, f"quick pipeline failed:\n{proc.stdout[-4000:]}\n{proc.stderr[-4000:]}"
+    stamp.write_text(json.dumps({"seconds": elapsed}), encoding="utf-8")
+    return work
+
+
+@pytest.fixture(scope="session")
+def quick(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return quick_pipeline(tmp_path_factory.getbasetemp())
+
+
+# --- config validation and sweep expansion (fast) ------------------------------------------
+
+
+@pytest.mark.parametrize("name", ["config.yaml", "quick.yaml"])
+def test_shipped_configs_validate(name: str) -> None:
+    full = sweep.validate_config(_config(name), SCHEMA)
+    sets = sweep.expand_all(full)
+    assert sets, "no experiment sets"
+    for set_name, runs in sets.items():
+        ids = [r.id for r in runs]
+        assert len(ids) == len(set(ids)), f"{set_name}: duplicate run ids"
+        for r in runs:
+            assert re.fullmatch(r"[A-Za-z0-9_.-]+", r.id), r.id
+            assert r.config["name"] == r.id
+
+
+def test_default_config_holds_every_experiment_of_spec_4() -> None:
+    sets = sweep.expand_all(sweep.validate_config(_config(), SCHEMA))
+    expected = {
+        "A1_shape": 6, "A2_profile": 6, "A3_parameters": 12, "A4_distribution": 2,
+        "B1_trajectory": 3, "B2_distance": 6, "B3_speed": 6, "B4_alpha": 10, "S001_seed001": 32,
+    }
+    for name, n in expected.items():
+        assert len(sets[name]) == n, name
+    assert {"L_straight", "L_circle"} <= set(sets)
+
+
+def _keys_without(schema: dict) -> list[str]:
+    """Config keys (schema properties) lacking a description or a default.
+
+    The keys of a sweep axis are exempt from ``default``: an axis lists the values a
+    key takes; a key that is not swept keeps the value of ``base``.
+    """
+    bad: list[str] = []
+
+    def walk(node: dict, path: str, axis: bool) -> None:
+        for key, sub in node.get("properties", {}).items():
+            here = f"{path}.{key}" if path else key
+            target = sub
+            if "$ref" in sub:
+                target = SCHEMA["$defs"][sub["$ref"].rsplit("/", 1)[-1]]
+            if "description" not in sub and "description" not in target:
+                bad.append(here)
+            if not axis and "default" not in sub:
+                bad.append(here)
+            if "$ref" not in sub:
+                walk(sub, here, axis)
+                if isinstance(sub.get("items"), dict):
+                    walk(sub["items"], here + "[]", axis or key == "sweep")
+
+    walk(schema, "", False)
+    for name, node in schema["$defs"].items():
+        walk(node, f"$defs.{name}", False)
+    return bad
+
+
+def test_every_schema_key_has_description_and_default() -> None:
+    assert _keys_without(SCHEMA) == []
+
+
+def test_sweep_product_of_axes_zip_within() -> None:
+    spec = {
+        "base": {"trajectory": {"name": "straight", "length": 1.0}},
+        "sweep": [
+            {"k_r": [1e-4, 2e-4], "k_l": [3e-4, 4e-4]},
+            {"trajectory.track": [0.1, 0.2, 0.5]},
+        ],
+    }
+    runs = sweep.expand_set("S", spec)
+    assert len(runs) == 2 * 3
+    pairs = {(r.config["k_r"], r.config["k_l"], r.config["trajectory"]["track"]) for r in runs}
+    assert pairs == {(a, b, t) for a, b in ((1e-4, 3e-4), (2e-4, 4e-4)) for t in (0.1, 0.2, 0.5)}
+    assert [r.id for r in runs][:3] == ["kr1e-04_kl3e-04_b0.1", "kr1e-04_kl3e-04_b0.2", "kr1e-04_kl3e-04_b0.5"]
+    # the base keys not swept are kept, the builder's defaults are filled in
+    assert all(r.config["trajectory"]["length"] == 1.0 for r in runs)
+    assert all("dt" in r.config["trajectory"] for r in runs)
+
+
+def test_run_ids_are_stable_and_depend_only_on_swept_values() -> None:
+    spec = {"base": {"trajectory": {"name": "straight"}}, "sweep": [{"trajectory.length": [1.0, 2.5]}]}
+    a = [r.id for r in sweep.expand_set("S", spec)]
+    spec2 = copy.deepcopy(spec)
+    spec2["base"]["k_r"] = 9e-4  # a base change keeps the ids (Snakemake reruns on the params)
+    b = [r.id for r in sweep.expand_set("S", spec2)]
+    assert a == b == ["L1", "L2.5"]
+    assert sweep.expand_set("S", spec)[0].config != sweep.expand_set("S", spec2)[0].config
+
+
+def test_sweep_merges_identical_runs_and_rejects_id_clashes() -> None:
+    spec = {"base": {"trajectory": {"name": "straight"}},
+            "sweep": [{"labels": ["a", "a"], "k_r": [1e-4, 1e-4]}]}
+    assert len(sweep.expand_set("S", spec)) == 1
+    spec["sweep"][0]["k_r"] = [1e-4, 2e-4]
+    with pytest.raises(sweep.ConfigError, match=r"experiment_sets\.S\.sweep.*two different runs the id 'a'"):
+        sweep.expand_set("S", spec)
+
+
+def test_unequal_axis_lengths_are_rejected() -> None:
+    spec = {"base": {"trajectory": {"name": "straight"}}, "sweep": [{"k_r": [1e-4, 2e-4], "k_l": [1e-4]}]}
+    with pytest.raises(sweep.ConfigError, match=r"experiment_sets\.S\.sweep\[0\].*unequal length"):
+        sweep.expand_set("S", spec)
+
+
+@pytest.mark.parametrize(
+    ("mutate", "pattern"),
+    [
+        (lambda c: c["experiment_sets"]["A1_shape"]["base"]["trajectory"].update(profile="wobbly"),
+         r"experiment_sets\.A1_shape\.base\.trajectory\.profile.*\"wobbly\".*allowed: one of \"constant\", \"ramp\""),
+        (lambda c: c.update(seeed=3), r"config key 'seeed' is not allowed.*allowed: only the keys"),
+        (lambda c: c["defaults"].update(k_r=-1.0), r"defaults\.k_r.*-1\.0.*allowed: >= 0"),
+        (lambda c: c["experiment_sets"]["L_straight"]["sweep"][0].update({"trajectory.length": "far"}),
+         r"experiment_sets\.L_straight\.sweep\[0\]\.trajectory\.length.*\"far\".*allowed: type array"),
+        (lambda c: c["experiment_sets"]["A1_shape"]["base"].update(monte_carlo={"regime": "sometimes"}),
+         r"monte_carlo\.regime.*\"sometimes\".*allowed: one of \"per_step\", \"per_run\""),
+    ],
+)
+def test_bad_config_names_key_value_and_allowed(mutate, pattern: str) -> None:
+    cfg = _config("quick.yaml")
+    mutate(cfg)
+    with pytest.raises(sweep.ConfigError, match=pattern):
+        sweep.validate_config(cfg, SCHEMA)
+
+
+def test_run_level_errors_name_the_set_and_run() -> None:
+    cfg = _config("quick.yaml")
+    cfg["experiment_sets"]["A1_shape"]["base"]["trajectory"]["wheelbase"] = 0.3  # not a builder parameter
+    with pytest.raises(sweep.ConfigError, match=r"experiment_sets\.A1_shape, run 'straight'.*'trajectory\.wheelbase'"):
+        sweep.validate_config(cfg, SCHEMA)
+
+
+def test_power_vs_exponential_recovers_a_power_law() -> None:
+    x = [1.0, 2.0, 4.0, 8.0, 16.0]
+    fit = power_vs_exponential(x, [3.0 * v**1.5 for v in x])
+    assert fit["power_exponent"] == pytest.approx(1.5, abs=1e-12)
+    assert fit["power_rmse"] < 1e-12 < fit["exp_rmse"]
+    fit = power_vs_exponential(x, [2.0 * math.exp(0.3 * v) for v in x])
+    assert fit["exp_rate"] == pytest.approx(0.3, abs=1e-12)
+    assert fit["exp_rmse"] < 1e-12 < fit["power_rmse"]
+
+
+def test_claims_without_data_are_not_measured() -> None:
+    claims = evaluate_claims({})
+    assert [c.number for c in claims] == list(range(1, 13))
+    assert {c.verdict for c in claims} == {"not measured"}
+    assert all("needs" in c.reason for c in claims)
+
+
+# --- the pipeline end to end (quick config) -------------------------------------------------
+
+
+def test_bad_config_fails_before_any_rule_runs(tmp_path: Path) -> None:
+    work = copy_workflow(tmp_path / "bad")
+    cfg = yaml.safe_load((work / "config/quick.yaml").read_text(encoding="utf-8"))
+    cfg["experiment_sets"]["A1_shape"]["base"]["trajectory"]["profile"] = "wobbly"
+    (work / "config/bad.yaml").write_text(yaml.safe_dump(cfg), encoding="utf-8")
+    proc = snakemake(work, "--configfile", "config/bad.yaml", timeout=120)
+    out = proc.stdout + proc.stderr
+    assert proc.returncode != 0
+    assert "experiment_sets.A1_shape.base.trajectory.profile" in out
+    assert '"wobbly"' in out
+    assert '"constant", "ramp"' in out
+    assert not (work / "data").exists(), "a rule ran although the config is invalid"
+
+
+def test_quick_pipeline_end_to_end(quick: Path) -> None:
+    from pose_uncertainty import figures
+    from pose_uncertainty.runlog import open_run
+
+    cfg = sweep.validate_config(_config("quick.yaml"), SCHEMA)
+    sets = sweep.expand_all(cfg)
+    html = (quick / "reports/comparison.html").read_text(encoding="utf-8")
+    assert html.startswith("<!DOCTYPE html>")
+    for name, runs in sets.items():
+        rows = read_table(quick / f"reports/tables/{name}.csv")
+        assert [r["run"] for r in rows] == [r.id for r in runs]
+        for run in runs:
+            log = open_run(quick / run.path)
+            assert log.config.to_dict() == run.config  # the logged config is the swept one
+            assert (quick / f"reports/figures/{name}/{run.id}/trajectory.png").is_file()
+            assert f'id="run-{name}-{run.id}"' in html
+    # a pipeline figure has the bytes the replay functions give from the log alone
+    run = sets["A1_shape"][0]
+    fig = figures.trajectory_figure(open_run(quick / run.path))
+    again = quick / "replayed.png"
+    figures.save_figure(fig, again)
+    assert again.read_bytes() == (quick / f"reports/figures/A1_shape/{run.id}/trajectory.png").read_bytes()
+    claims = json.loads((quick / "reports/claims.json").read_text(encoding="utf-8"))
+    assert [c["number"] for c in claims] == list(range(1, 13))
+    assert all(c["verdict"] in VERDICTS for c in claims)
+    measured = {c["number"] for c in claims if c["verdict"] != "not measured"}
+    assert {1, 2, 3, 6, 7, 10, 12} <= measured, claims
+    for c in claims:
+        if c["figure"]:
+            f = c["figure"]
+            assert f'id="fig-{f["set"]}-{f["run"] or "set"}-{f["kind"]}"' in html, c
+    # no network: no http(s) resource references, every image inlined
+    assert not re.search(r'(src|href)="(https?:)?//', html)
+    sources = re.findall(r'<img src="([^"]{0,22})', html)
+    assert sources
+    assert all(s.startswith("data:image/png;base64,") for s in sources)
+
+
+def test_no_change_rerun_does_nothing(quick: Path) -> None:
+    before = {p: p.stat().st_mtime_ns for p in (quick / "reports").rglob("*") if p.is_file()}
+    before |= {p: p.stat().st_mtime_ns for p in (quick / "data/runs").rglob("*") if p.is_file()}
+    t0 = time.perf_counter()
+    proc = snakemake(quick, "--configfile", "config/quick.yaml", timeout=120)
+    elapsed = time.perf_counter() - t0
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "Nothing to be done" in proc.stdout + proc.stderr
+    after = {p: p.stat().st_mtime_ns for p in before}
+    assert after == before
+    (quick / "rerun.json").write_text(json.dumps({"seconds": elapsed}), encoding="utf-8")
+
+
+def _planned_jobs(proc: subprocess.CompletedProcess[str]) -> dict[str, int]:
+    text = proc.stdout + proc.stderr
+    stats = text[text.index("Job stats:"):] if "Job stats:" in text else ""
+    return {m.group(1): int(m.group(2)) for m in re.finditer(r"^(\w+)\s+(\d+)$", stats, re.MULTILINE)}
+
+
+def test_changing_one_parameter_reruns_only_what_it_affects(quick: Path) -> None:
+    cfg = yaml.safe_load((quick / "config/quick.yaml").read_text(encoding="utf-8"))
+    cfg["experiment_sets"]["L_straight"]["base"]["k_r"] = 4.0e-4  # one set, one parameter
+    (quick / "config/changed.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False), encoding="utf-8")
+    proc = snakemake(quick, "--configfile", "config/changed.yaml", "--dry-run", timeout=120)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    jobs = _planned_jobs(proc)
+    n = len(cfg["experiment_sets"]["L_straight"]["sweep"][0]["trajectory.length"])
+    assert jobs.get("simulate_run") == n, jobs
+    assert jobs.get("render_trajectory_figure") == n, jobs
+    assert jobs.get("collect_metrics") == 1, jobs
+    assert jobs.get("render_growth_figure") == 1, jobs
+    assert "render_cloud_polar_figure" not in jobs, jobs
+
+
+def test_pipeline_logs_are_byte_reproducible(quick: Path, tmp_path: Path) -> None:
+    run = sweep.expand_all(sweep.validate_config(_config("quick.yaml"), SCHEMA))["A1_shape"][1]
+    again = tmp_path / "again.mcap"
+    sweep.simulate(run.config, again)
+    assert again.read_bytes() == (quick / run.path).read_bytes()
+
+
+def test_report_shows_per_rule_times_and_reproducibility(quick: Path) -> None:
+    html = (quick / "reports/comparison.html").read_text(encoding="utf-8")
+    for rule in ("simulate_run", "render_trajectory_figure", "collect_metrics", "evaluate_claims"):
+        assert f"<td>{rule}</td>" in html
+    assert "environment.lock sha256" in html
+    import hashlib
+
+    assert hashlib.sha256((REPO / "environment.lock").read_bytes()).hexdigest() in html
+    assert "pose-uncertainty replay data/runs/A1_shape/" in html
+
+
+def test_snakemake_report_archive(quick: Path) -> None:
+    proc = snakemake(quick, "--configfile", "config/quick.yaml", "--report", "reports/provenance.zip", timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    import zipfile
+
+    with zipfile.ZipFile(quick / "reports/provenance.zip") as z:
+        names = z.namelist()
+    assert any(n.endswith("trajectory.png") for n in names)
