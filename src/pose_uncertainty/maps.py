@@ -17,18 +17,22 @@ after motion from a known start. Two constructions:
   destination slice). Mass that leaves the grid is measured exactly
   (``lost_mass``), and by default the grid grows to hold the spread.
 
-Discretisation rules (both maps)
---------------------------------
-* Cells are evaluated at their centres; every variance is raised to the
-  grid floor of :mod:`pose_uncertainty.motion_models` (``cell_floor`` cells), so a
-  degenerate (zero-variance) term spreads over about one cell. A control with
-  *all* variances exactly zero is a deterministic move and is deposited
-  trilinearly (mean-preserving) instead.
-* The corrected densities have an integrable ``1/r`` singularity at the start
-  pose (every turn rate reaches it with zero speed). The cell holding the start
-  is therefore integrated exactly: in control space, a 1-D quadrature over
-  ``ω̂`` (velocity) or ``δ̂rot1`` (odometry) of the CDF of ``V̂`` (``δ̂trans``)
-  between the cell walls.
+Discretisation
+--------------
+* Single step: with ``corrected=True`` every cell holds the density *averaged
+  over the cell* (each noise factor averaged over the control interval one cell
+  spans, see :mod:`pose_uncertainty.motion_models`), so structure thinner than a
+  cell (rotation in place, zero variances) is integrated, not aliased. The
+  corrected densities have an integrable ``1/r`` singularity at the start pose
+  (every turn rate reaches it with zero speed), so the cells within
+  :data:`EXACT_RADIUS` of the start are integrated exactly: in control space, a
+  1-D quadrature over ``ω̂`` (velocity) or ``δ̂rot1`` (odometry) of the CDF of
+  ``V̂`` (``δ̂trans``) between the points where the ray of motion crosses the cell.
+  With ``corrected=False`` (Thrun's density, the thesis) cells hold point values.
+  A control with *all* variances zero is a deterministic move, deposited
+  trilinearly.
+* Multi step: the transition kernel is the push-forward of the control noise by
+  quadrature (see :func:`multi_step_map`); source mass sits at cell centres.
 * Headings cover the full circle ``[−π, π)`` in ``n_θ`` cells.
 """
 
@@ -68,7 +72,7 @@ from .validation import (
 
 __all__ = [
     "MODELS",
-    "MULTI_STEP_CELL_FLOOR",
+    "EXACT_RADIUS",
     "MapGrid",
     "ProbabilityMap",
     "hellinger",
@@ -80,9 +84,8 @@ __all__ = [
 ]
 
 MODELS: tuple[str, ...] = ("velocity", "odometry")
-#: Grid floor (cells) of the multi-step kernels: a kernel at least half a cell wide keeps
-#: the mean of a sub-cell step (point sampling of a narrower one is biased to cell centres).
-MULTI_STEP_CELL_FLOOR: float = 0.5
+#: Corrected single-step maps integrate the cells within this many cells of the start exactly.
+EXACT_RADIUS: int = 2
 
 Array = NDArray[np.float64]
 
@@ -411,15 +414,22 @@ def histogram(samples: ArrayLike, grid: MapGrid) -> Array:
     return flat.reshape(grid.shape) / s.shape[0]
 
 
-def _ray_to_walls(beta: Array, s: Array, lo: Array, hi: Array) -> Array:
-    """Distance from point ``s`` (inside the box [lo, hi]) along direction ``beta`` to the box wall."""
-    c, sn = np.cos(beta), np.sin(beta)
-    with np.errstate(divide="ignore"):
-        tx = np.where(c > 0, (hi[0] - s[0]) / np.where(c > 0, c, 1.0), np.inf)
-        tx = np.where(c < 0, (lo[0] - s[0]) / np.where(c < 0, c, -1.0), tx)
-        ty = np.where(sn > 0, (hi[1] - s[1]) / np.where(sn > 0, sn, 1.0), np.inf)
-        ty = np.where(sn < 0, (lo[1] - s[1]) / np.where(sn < 0, sn, -1.0), ty)
-    return np.minimum(tx, ty)
+def _ray_box(beta: Array, s: Array, lo: Array, hi: Array) -> tuple[Array, Array]:
+    """Distances ``t0 ≤ t1`` (≥ 0) at which the ray from ``s`` along ``beta`` is inside the box.
+
+    Slab method; an empty intersection gives ``t0 = t1 = 0``.
+    """
+    t0 = np.zeros_like(beta)
+    t1 = np.full_like(beta, np.inf)
+    for axis, d in ((0, np.cos(beta)), (1, np.sin(beta))):
+        flat = np.abs(d) < 1e-300
+        safe = np.where(flat, 1.0, d)
+        ta, tb = (lo[axis] - s[axis]) / safe, (hi[axis] - s[axis]) / safe
+        inside = (lo[axis] <= s[axis]) & (s[axis] <= hi[axis])
+        t0 = np.maximum(t0, np.where(flat, np.where(inside, 0.0, np.inf), np.minimum(ta, tb)))
+        t1 = np.minimum(t1, np.where(flat, np.where(inside, np.inf, -np.inf), np.maximum(ta, tb)))
+    empty = ~(t1 > t0)
+    return np.where(empty, 0.0, t0), np.where(empty, 0.0, t1)
 
 
 # ============================================================================= per-step models
@@ -474,7 +484,7 @@ class _Step:
             self.corrected, self.variance_from, cell,
         )  # fmt: skip
 
-    def singular_cell(
+    def exact_cell(
         self,
         s: Array,
         lo: Array,
@@ -482,14 +492,16 @@ class _Step:
         start_theta: float,
         theta_dst: Array,
         cell: tuple[float, float],
-        n_nodes: int = 4001,
+        n_nodes: int = 2001,
     ) -> Array:
-        """Exact ``∫_cell p(x, y, θ') dx dy`` for the cell [lo, hi] holding the start ``s``.
+        """Exact ``∫_cell p(x, y, θ') dx dy`` of the sampler's density over the cell [lo, hi].
 
         Returns shape (M,) [1/rad]. 1-D quadrature (midpoint, ``n_nodes``) over
         ``ω̂`` (velocity) or ``δ̂rot1`` (odometry) of the CDF of ``V̂`` (``δ̂trans``)
-        between the cell walls along the ray of motion; the heading-only factor is
-        averaged over the heading cell.
+        between the points where the ray of motion from the start ``s`` (forwards
+        and backwards) enters and leaves the cell; the heading-only factor is
+        averaged over the heading cell. Used near the start, where the corrected
+        density has its ``1/r`` singularity.
         """
         var = self.variances()
         sd = np.sqrt(var)
@@ -509,10 +521,15 @@ class _Step:
             phi = w * dt
             sinc = np.sinc(phi / (2 * math.pi))
             beta = start_theta + phi / 2
-            r_fwd = _ray_to_walls(beta, s, lo, hi)
-            r_back = _ray_to_walls(beta + math.pi, s, lo, hi)
-            pv = cdf(r_fwd / (dt * sinc) - self.u[0], var[0], self.noise) - cdf(
-                -r_back / (dt * sinc) - self.u[0], var[0], self.noise
+            f0, f1 = _ray_box(beta, s, lo, hi)
+            b0, b1 = _ray_box(beta + math.pi, s, lo, hi)
+            scale = dt * sinc
+            V = self.u[0]
+            pv = (
+                cdf(f1 / scale - V, var[0], self.noise)
+                - cdf(f0 / scale - V, var[0], self.noise)
+                + cdf(-b0 / scale - V, var[0], self.noise)
+                - cdf(-b1 / scale - V, var[0], self.noise)
             )
             pw = prob(self.u[1] - w, var[1], self.noise) if sd[1] > 0 else np.ones(1)
             g = wrap_angle(theta_dst[None, :] - start_theta - phi[:, None]) / dt
@@ -528,9 +545,15 @@ class _Step:
         else:
             v1, v2, v3 = (np.full(r2.shape, var[i]) for i in range(3))
         beta = start_theta + r1
-        r_fwd = _ray_to_walls(beta, s, lo, hi)[:, None]
-        r_back = _ray_to_walls(beta + math.pi, s, lo, hi)[:, None]
-        pt = cdf(tru + r_back, v2, self.noise) - cdf(tru - r_fwd, v2, self.noise)
+        f0, f1 = (t[:, None] for t in _ray_box(beta, s, lo, hi))
+        b0, b1 = (t[:, None] for t in _ray_box(beta + math.pi, s, lo, hi))
+        # δ'trans = δtrans − noise ∈ [a, b]  ⇔  noise ∈ [δtrans − b, δtrans − a]
+        pt = (
+            cdf(tru - f0, v2, self.noise)
+            - cdf(tru - f1, v2, self.noise)
+            + cdf(tru + b1, v2, self.noise)
+            - cdf(tru + b0, v2, self.noise)
+        )
         if sd[0] > 0:
             p1 = prob(wrap_angle(r1u - r1)[:, None], v1, self.noise)
         else:
@@ -675,15 +698,17 @@ def single_step_map(
     dens = stp.density(xy, g.theta, x0, cell if averaged else None)
     values = dens * g.cell_volume
     if corrected and g.contains(x0):
+        # cells within EXACT_RADIUS cells of the start: exact integration (1/r singularity)
         h = g.resolution
         ix = int(np.floor((x0[0] - g.x0) / h + 0.5))
         iy = int(np.floor((x0[1] - g.y0) / h + 0.5))
-        lo = np.array([g.x[ix] - h / 2, g.y[iy] - h / 2])
-        hi = lo + h
-        values[ix, iy, :] = (
-            stp.singular_cell(x0[:2], lo, hi, float(x0[2]), g.theta, cell)
-            * g.theta_resolution
-        )
+        for jx in range(max(0, ix - EXACT_RADIUS), min(g.nx, ix + EXACT_RADIUS + 1)):
+            for jy in range(max(0, iy - EXACT_RADIUS), min(g.ny, iy + EXACT_RADIUS + 1)):
+                lo = np.array([g.x[jx] - h / 2, g.y[jy] - h / 2])
+                values[jx, jy, :] = (
+                    stp.exact_cell(x0[:2], lo, lo + h, float(x0[2]), g.theta, cell)
+                    * g.theta_resolution
+                )
     raw = float(values.sum())
     info["raw_sum"] = raw
     if corrected:
@@ -1045,6 +1070,7 @@ def multi_step_map(
     lost_per_step: list[float] = []
     growths = 0
     roundoff = 0.0
+    negligible = 0.0
     thetas = g.theta
 
     for stp in steps:
@@ -1066,8 +1092,16 @@ def multi_step_map(
         m_lo_g, gk = kern.head_lo, kern.head_kernel
 
         # grow the grid to hold support + kernel reach
+        # heading slices holding less than 1e-14 are not propagated: their mass is
+        # counted as lost (reported as ``negligible_slices`` in ``info``)
         mass_k = belief.sum(axis=(0, 1))
-        active = np.flatnonzero(mass_k > 1e-300)
+        tiny = mass_k < 1e-14
+        if np.any(tiny & (mass_k != 0.0)):
+            dropped = float(mass_k[tiny].sum())
+            negligible += dropped
+            lost_total += dropped
+            belief[:, :, tiny] = 0.0
+        active = np.flatnonzero(~tiny)
         if grow and active.size:
             thr = 1e-14 * float(belief.max())
             sx = np.flatnonzero((belief[:, :, active] > thr).any(axis=(1, 2)))
@@ -1111,6 +1145,7 @@ def multi_step_map(
         fold = mp > nt
         M = nt if fold else mp
         acc = np.zeros((nt, Px, Py // 2 + 1), dtype=np.complex128)
+        hit = np.zeros(nt, dtype=bool)
         fx_all, fy_all = _rotated_cells(kern, thetas, h)
         mass_before = float(belief.sum())
         for k in active:
@@ -1144,14 +1179,23 @@ def multi_step_map(
                 dest = (k + np.arange(nt)) % nt
             else:
                 kernel, dest = win3, (k + m_lo_p + np.arange(M)) % nt
-            kpad = np.zeros((M, Px, Py))
+            # 2-D FFT of the window placed at its offset, in two passes so that the
+            # rows outside the window are never transformed
             ox_, oy_ = int(ax[k]) - sx0, int(ay[k]) - sy0
-            kpad[:, ox_ : ox_ + wx, oy_ : oy_ + wy] = np.moveaxis(kernel, 2, 0)
-            khat = sfft.rfft2(kpad, workers=workers)
+            rows = np.zeros((M, wx, Py))
+            rows[:, :, oy_ : oy_ + wy] = np.moveaxis(kernel, 2, 0)
+            khat_y = sfft.rfft(rows, axis=2, workers=workers)
+            cols = np.zeros((M, Px, Py // 2 + 1), dtype=np.complex128)
+            cols[:, ox_ : ox_ + wx, :] = khat_y
+            khat = sfft.fft(cols, axis=1, workers=workers, overwrite_x=True)
             bhat = sfft.rfft2(belief[:, :, k], s=(Px, Py), workers=workers)
-            acc[dest] += khat * bhat[None]
-        out = sfft.irfft2(acc, s=(Px, Py), workers=workers)
-        new = np.moveaxis(out[:, -sx0 : -sx0 + nx, -sy0 : -sy0 + ny], 0, 2)
+            khat *= bhat[None]
+            acc[dest] += khat
+            hit[dest] = True
+        touched = np.flatnonzero(hit)
+        out = sfft.irfft2(acc[touched], s=(Px, Py), workers=workers)
+        new = np.zeros((nx, ny, nt))
+        new[:, :, touched] = np.moveaxis(out[:, -sx0 : -sx0 + nx, -sy0 : -sy0 + ny], 0, 2)
         # heading-only noise: circular convolution along θ with the CIC-deposited γΔt / δrot2
         g_circ = np.zeros(nt)
         np.add.at(g_circ, (m_lo_g + np.arange(gk.size)) % nt, gk)
@@ -1172,9 +1216,10 @@ def multi_step_map(
         "lost_per_step": lost_per_step,
         "grid_growths": growths,
         "roundoff": roundoff,
+        "negligible_slices": negligible,
         "n_steps": n_steps,
         "noise": noise,
         "scaling": scaling,
         "method": "histogram filter, quadrature kernels, FFT per source heading",
     }
-    return ProbabilityMap(g.x, g.y, g.theta, belief, float(lost_total), model, g, info)
+    return ProbabilityMap(g.x, g.y, g.theta, belief, max(0.0, float(lost_total)), model, g, info)

@@ -65,8 +65,9 @@ With ``cell=(h, h_θ)`` the density is averaged over one grid cell: each noise
 factor is replaced by its mean over the interval of control values that one
 cell spans along that factor's gradient (:func:`~pose_uncertainty.noise.prob_cell`),
 width ``w_i = √(Σ_j (∂ĉ_i/∂p_j)² h_j²)``. Velocity: ``|∇V̂| = (1/(Δt s))·√(1+(s′/s)²)``
-(``s = sinc(ω̂Δt/2)``), ``|∇ω̂| = 2/(Δt r)``, ``γ̂``: ``√((2/(Δt r))² + (1/Δt)²·(h_θ/h)²)``;
-odometry: ``1/r``, ``1``, ``√(1/r² + (h_θ/h)²)`` (``r`` = distance from the start).
+(``s = sinc(ω̂Δt/2)``), ``|∇ω̂| = 2/(Δt r)``, so ``w_V = h|∇V̂|``, ``w_ω = 2h/(Δt r)``,
+``w_γ = √(w_ω² + (h_θ/Δt)²)``; odometry: ``w_rot1 = h/r``, ``w_trans = h``,
+``w_rot2 = √(w_rot1² + h_θ²)`` (``r`` = distance from the start).
 A term narrower than a cell (zero variance included) is then integrated over
 the cell instead of being sampled at its centre, which would alias a thin ridge.
 Without ``cell`` the density is the point value (variances ≥ :data:`MIN_VARIANCE`).
