@@ -792,7 +792,9 @@ def _heading_kernel(mean: float, std: float, noise: str, ht: float) -> tuple[int
     return i0 - L, np.convolve(split, box)
 
 
-def _quadrature_kernel(stp: _Step, h: float, ht: float, n_max: int = 1500) -> _Kernel:
+def _quadrature_kernel(
+    stp: _Step, h: float, ht: float, n_max: int = 1500, compensate: bool = True
+) -> _Kernel:
     """Build the quadrature of one step's control noise, spaced ≤ half a cell in pose space."""
     sd = np.sqrt(stp.variances())
     if stp.model == "velocity":
@@ -826,7 +828,7 @@ def _quadrature_kernel(stp: _Step, h: float, ht: float, n_max: int = 1500) -> _K
     phi = pose[:, 2] / ht
     phi_std = math.sqrt(max(float(weight @ (phi - float(weight @ phi)) ** 2), 0.0))
     n_box = (1 if phi_std >= 0.5 else 0) + (1 if head_std > 0 else 0)
-    want = n_box * ht * ht / 12.0
+    want = n_box * ht * ht / 12.0 if compensate else 0.0
     comp = min(want, head_std**2)
     head_lo, head_kernel = _heading_kernel(
         head_mean, math.sqrt(head_std**2 - comp), stp.noise, ht
@@ -939,6 +941,7 @@ def multi_step_map(
     theta_resolution: float = math.radians(2.0),
     max_cells: int = 20_000_000,
     n_nodes_max: int = 1500,
+    diffusion_compensation: bool = True,
     workers: int = -1,
 ) -> ProbabilityMap:
     """Histogram-filter prediction of the pose distribution along a whole trajectory.
@@ -987,6 +990,11 @@ def multi_step_map(
         Cap on ``nx·ny·nθ`` of the growing grid.
     n_nodes_max : int
         Cap on the quadrature nodes per control axis.
+    diffusion_compensation : bool
+        Take the heading variance that each step's integration over heading cells
+        adds (``h_θ²/12`` per integration, Sheppard) off the heading-only noise, so
+        that it does not accumulate over the steps (default). Off: every step's
+        kernel is the exact cell integral of that step's density.
     workers : int
         FFT threads (``scipy.fft``); results do not depend on it.
 
@@ -1074,7 +1082,7 @@ def multi_step_map(
     thetas = g.theta
 
     for stp in steps:
-        kern = _quadrature_kernel(stp, h, ht, n_nodes_max)
+        kern = _quadrature_kernel(stp, h, ht, n_nodes_max, diffusion_compensation)
         # kernel windows per source heading (cells), from the control box perimeter (+1 for CIC)
         px, py = _rotated_cells(kern, thetas, h, kern.perimeter)
         ax = np.floor(px.min(axis=1)).astype(np.int64) - 2
