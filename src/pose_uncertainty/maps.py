@@ -759,10 +759,21 @@ class _Kernel:
     weight: Array
     step_a: Array  # (Q, 3) pose change between neighbouring nodes along the first control axis
     step_b: Array  # (Q, 3) … along the second control axis
-    diffusion_uncompensated: float  # heading variance [rad²] added per step and not compensated
+    heading_variance_mismatch: float  # discrete − continuous heading variance per step [rad²]
+    head_parts: list[tuple[Array, Array]]  # heading cells (offsets from head_m_lo) of the nodes
+    head_m_lo: int
+    head_mp: int
     head_lo: int
     head_kernel: Array
     perimeter: Array  # indices of nodes on the boundary of the control box
+
+
+def _discrete_var(mass: Array) -> float:
+    """Variance [cells²] of masses on consecutive integer offsets."""
+    m = mass / mass.sum()
+    k = np.arange(m.size)
+    mu = float(m @ k)
+    return float(m @ (k - mu) ** 2)
 
 
 def _heading_kernel(mean: float, std: float, noise: str, ht: float) -> tuple[int, Array]:
@@ -820,23 +831,51 @@ def _quadrature_kernel(
         pose = odometry_forward(np.zeros(3), A.ravel(), B.ravel(), 0.0)
         weight = np.outer(r1_w, tr_w).ravel()
         head_mean, head_std = r2, float(sd[2])
-    # Diffusion compensation: every exact cell integration of a spread-out heading
-    # distribution adds h_θ²/12 of variance (Sheppard) that the next step inherits.
-    # A step integrates over heading cells once for the position nodes' heading
-    # (when they spread over ≥ ½ cell) and once for the heading-only noise; that
-    # much variance is taken off the heading-only noise (as far as it has it).
-    phi = pose[:, 2] / ht
-    phi_std = math.sqrt(max(float(weight @ (phi - float(weight @ phi)) ** 2), 0.0))
-    n_box = (1 if phi_std >= 0.5 else 0) + (1 if head_std > 0 else 0)
-    want = n_box * ht * ht / 12.0 if compensate else 0.0
-    comp = min(want, head_std**2)
-    head_lo, head_kernel = _heading_kernel(
-        head_mean, math.sqrt(head_std**2 - comp), stp.noise, ht
-    )
     na, nb = A.shape
     grid_pose = pose.reshape(na, nb, 3)
     step_a = np.gradient(grid_pose, axis=0) if na > 1 else np.zeros_like(grid_pose)
     step_b = np.gradient(grid_pose, axis=1) if nb > 1 else np.zeros_like(grid_pose)
+    # heading cells of the position nodes (same rule as the x, y axes)
+    fth = pose[:, 2] / ht
+    wth = np.minimum((np.abs(step_a[..., 2]) + np.abs(step_b[..., 2])).ravel() / ht, 1.0)
+    t_parts = _axis_parts(fth, wth, weight)
+    m_lo_p = min(int(p_[0].min()) for p_ in t_parts)
+    mp = max(int(p_[0].max()) for p_ in t_parts) - m_lo_p + 1
+    t_parts = [(i_ - m_lo_p, w_) for i_, w_ in t_parts]
+    # Moment matching of the heading (diffusion compensation). Each step's cell
+    # integration/linear split changes the heading variance of the discrete kernel
+    # (Sheppard's +h_θ²/12 for a spread-out kernel, +frac(1−frac)·h_θ² for a split
+    # mean, −σ² for a noise narrower than a cell that is rounded away), and the next
+    # step inherits the change, so it accumulates over the steps. The width of the
+    # heading-only noise is therefore chosen so that the discrete kernel's heading
+    # variance equals the continuous one, σ_φ² + σ_head², whenever it can be.
+    phi_mass = np.zeros(mp)
+    for i_, w_ in t_parts:
+        phi_mass += np.bincount(i_, weight * w_, minlength=mp)
+    var_phi_disc = _discrete_var(phi_mass)
+    mu = float(weight @ fth)
+    var_phi_true = float(weight @ (fth - mu) ** 2 + weight @ (wth**2) / 12.0)
+    target = var_phi_true + (head_std / ht) ** 2 - var_phi_disc  # bins²
+
+    def head_var(sd_bins: float) -> float:
+        return _discrete_var(_heading_kernel(head_mean, sd_bins * ht, stp.noise, ht)[1])
+
+    if compensate and head_std > 0.0:
+        lo_, hi_ = 0.0, math.sqrt(max(target, 0.0)) + 1.0
+        if head_var(lo_) >= target:
+            sd = 0.0
+        else:
+            while head_var(hi_) < target:
+                hi_ *= 2.0
+            for _ in range(50):
+                mid = 0.5 * (lo_ + hi_)
+                lo_, hi_ = (mid, hi_) if head_var(mid) < target else (lo_, mid)
+            sd = 0.5 * (lo_ + hi_)
+        head_sd = sd * ht
+    else:
+        head_sd = head_std
+    head_lo, head_kernel = _heading_kernel(head_mean, head_sd, stp.noise, ht)
+    mismatch = (var_phi_disc + _discrete_var(head_kernel) - var_phi_true - (head_std / ht) ** 2) * ht**2
     ia, ib = np.meshgrid(np.arange(na), np.arange(nb), indexing="ij")
     edge = ((ia == 0) | (ia == na - 1) | (ib == 0) | (ib == nb - 1)).ravel()
     return _Kernel(
@@ -845,7 +884,10 @@ def _quadrature_kernel(
         weight=weight,
         step_a=step_a.reshape(-1, 3),
         step_b=step_b.reshape(-1, 3),
-        diffusion_uncompensated=want - comp,
+        heading_variance_mismatch=mismatch,
+        head_parts=t_parts,
+        head_m_lo=m_lo_p,
+        head_mp=mp,
         head_lo=head_lo,
         head_kernel=head_kernel,
         perimeter=np.flatnonzero(edge),
@@ -991,10 +1033,12 @@ def multi_step_map(
     n_nodes_max : int
         Cap on the quadrature nodes per control axis.
     diffusion_compensation : bool
-        Take the heading variance that each step's integration over heading cells
-        adds (``h_θ²/12`` per integration, Sheppard) off the heading-only noise, so
-        that it does not accumulate over the steps (default). Off: every step's
-        kernel is the exact cell integral of that step's density.
+        Moment-match the heading: choose the width of the heading-only noise so that
+        each step's discrete kernel has the heading variance of the continuous one
+        (the cell integration otherwise adds ``h_θ²/12``, Sheppard, per step, and a
+        split mean ``frac(1−frac)·h_θ²``, and they accumulate). Default on; the
+        remainder that cannot be matched is ``info["heading_variance_mismatch_total"]``.
+        Off: every step's kernel is the cell integral of that step's density.
     workers : int
         FFT threads (``scipy.fft``); results do not depend on it.
 
@@ -1077,6 +1121,7 @@ def multi_step_map(
     max_side = max(1, int(math.isqrt(max_cells // nt)))
     lost_per_step: list[float] = []
     growths = 0
+    mismatch: list[float] = []
     roundoff = 0.0
     negligible = 0.0
     thetas = g.theta
@@ -1091,12 +1136,8 @@ def multi_step_map(
         wy = int((np.floor(py.max(axis=1)).astype(np.int64) + 4 - ay).max()) + 1
         # heading offsets carried by the position nodes (CIC); the heading-only noise
         # (γΔt or δrot2) is applied afterwards as a circular convolution along θ
-        fth = kern.dtheta / ht
-        wth = (np.abs(kern.step_a[:, 2]) + np.abs(kern.step_b[:, 2])) / ht
-        t_parts = _axis_parts(fth, wth, kern.weight)
-        m_lo_p = min(int(p_[0].min()) for p_ in t_parts)
-        mp = max(int(p_[0].max()) for p_ in t_parts) - m_lo_p + 1
-        t_parts = [(i_ - m_lo_p, w_) for i_, w_ in t_parts]
+        t_parts, m_lo_p, mp = kern.head_parts, kern.head_m_lo, kern.head_mp
+        mismatch.append(kern.heading_variance_mismatch)
         m_lo_g, gk = kern.head_lo, kern.head_kernel
 
         # grow the grid to hold support + kernel reach
@@ -1225,6 +1266,7 @@ def multi_step_map(
         "grid_growths": growths,
         "roundoff": roundoff,
         "negligible_slices": negligible,
+        "heading_variance_mismatch_total": float(np.sum(mismatch)),
         "n_steps": n_steps,
         "noise": noise,
         "scaling": scaling,
