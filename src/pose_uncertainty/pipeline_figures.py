@@ -92,42 +92,43 @@ def _render(run: Any, log: str | os.PathLike[str], kind: str, out: str | os.Path
     return figures.save_figure(fig, out)
 
 
-def map_sampler_cloud(run: Any, mp: Any, n: int = MAP_SAMPLES) -> np.ndarray | None:
-    """End poses drawn from the motion model's own sampler for a single-step map (its Monte Carlo truth).
+def map_sampler_cloud(run: Any, mp: Any, n: int = MAP_SAMPLES) -> np.ndarray:
+    """End poses drawn from the motion model's own sampler along the run's controls (Method B's Monte Carlo).
 
-    The generator is seeded from the run's seed (``default_rng([seed, 1])``), so the
-    cloud is the same every time. Returns None for a multi-step run.
+    One step: ``sample_velocity`` / ``sample_odometry``; several steps: the model's
+    sampler applied step after step (``sample_velocity_path`` / ``sample_odometry_path``),
+    which is what a multi-step map predicts. The odometry ``u`` is the noiseless
+    velocity motion, as in seed 000. The generator is seeded from the run's seed
+    (``default_rng([seed, 1])``), so the cloud is the same every time.
 
     Parameters
     ----------
-    run : RunResult — a one-step trajectory's run
+    run : RunResult
     mp : MapRecord — one of ``run.maps``
     n : int — number of samples
 
     Returns
     -------
-    ndarray, shape (n, 3), or None
+    ndarray, shape (n, 3)
     """
     from . import motion_models as mm
-
-    if run.n_steps != 1:
-        return None
-    p = mp.params
-    dt = float(run.times[1] - run.times[0])
-    start = run.poses[0]
-    # the control (V, ω) of the single step, from the exact noiseless arc it drives
-    traj = run.config.trajectory
     from . import trajectories
 
-    tp = {k: v for k, v in traj.items() if k != "name"}
-    control = trajectories.build(traj["name"], **tp).controls[0]
+    p = mp.params
+    traj = run.config.trajectory
+    tr = trajectories.build(traj["name"], **{k: v for k, v in traj.items() if k != "name"})
+    start, controls, dt = tr.start, tr.controls, tr.dt
     rng = np.random.default_rng([run.config.seed, 1])
     noise = p.get("noise", "normal")
     scaling = p.get("scaling", "squared")
     if mp.model == "velocity":
-        return mm.sample_velocity(start, control, dt, p["alphas"], n, rng, noise=noise, scaling=scaling)
-    od = mm.noiseless_velocity_poses(start, control[None, :], dt)
-    return mm.sample_odometry(start, od[0], od[1], p["alphas"], n, rng, noise=noise, scaling=scaling)
+        if tr.n_steps == 1:
+            return mm.sample_velocity(start, controls[0], dt, p["alphas"], n, rng, noise=noise, scaling=scaling)
+        return mm.sample_velocity_path(start, controls, dt, p["alphas"], n, rng, noise=noise, scaling=scaling)
+    od = mm.noiseless_velocity_poses(start, controls, dt)
+    if tr.n_steps == 1:
+        return mm.sample_odometry(start, od[0], od[1], p["alphas"], n, rng, noise=noise, scaling=scaling)
+    return mm.sample_odometry_path(start, od, p["alphas"], n, rng, noise=noise, scaling=scaling)
 
 
 def _hdr_levels(mass: np.ndarray, prs: Sequence[float]) -> list[float]:
@@ -142,7 +143,7 @@ def map_cloud_figure(run: Any, mp: Any, n: int = MAP_SAMPLES) -> Figure:
 
     Parameters
     ----------
-    run : RunResult (single step)
+    run : RunResult
     mp : MapRecord
     n : int — number of samples drawn by :func:`map_sampler_cloud`
     """
@@ -151,7 +152,7 @@ def map_cloud_figure(run: Any, mp: Any, n: int = MAP_SAMPLES) -> Figure:
     fig = figures._new_figure((6.0, 6.0))
     ax = fig.add_subplot()
     cloud = map_sampler_cloud(run, mp, n)
-    if cloud is not None:
+    if cloud.shape[0]:
         ax.scatter(cloud[:, 0], cloud[:, 1], s=1.0, color="0.35", alpha=0.3, linewidths=0, rasterized=True,
                    label=f"sampler end poses (n = {cloud.shape[0]})")
     prs = (1.0 - math.exp(-0.5), 1.0 - math.exp(-2.0), 1.0 - math.exp(-4.5))
