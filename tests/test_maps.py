@@ -31,11 +31,16 @@ def test_default_grid_is_the_thesis_map_centred_on_the_end_pose():
     assert_allclose(g.resolution, 0.01)
     assert g.theta_resolution <= math.radians(2.0) + 1e-12
     assert np.min(np.abs(g.theta - 0.3)) < 1e-12  # a heading cell is centred on the end heading
-    assert g.theta.min() >= -math.pi and g.theta.max() < math.pi
-    assert g.contains((1.0, 0.5, 0.0)) and not g.contains((1.6, 0.5, 0.0))
+    assert g.theta.min() >= -math.pi
+    assert g.theta.max() < math.pi
+    assert g.contains((1.0, 0.5, 0.0))
+    assert not g.contains((1.6, 0.5, 0.0))
 
 
-def _gaussian_map(cov, mean=(0.1, -0.2, 0.3), h=0.01, ht=math.radians(2)):
+TWO_DEG = math.radians(2)
+
+
+def _gaussian_map(cov, mean=(0.1, -0.2, 0.3), h=0.01, ht=TWO_DEG):
     g = M.MapGrid.centered(mean, size=1.5, resolution=h, theta_resolution=ht)
     X, Y, T = np.meshgrid(g.x, g.y, g.theta, indexing="ij")
     d = np.stack([X - mean[0], Y - mean[1], (T - mean[2] + np.pi) % (2 * np.pi) - np.pi], -1)
@@ -46,7 +51,7 @@ def _gaussian_map(cov, mean=(0.1, -0.2, 0.3), h=0.01, ht=math.radians(2)):
 
 def test_map_statistics_of_a_known_gaussian():
     cov = np.array([[0.010, 0.003, 0.001], [0.003, 0.005, 0.0], [0.001, 0.0, 0.02]])
-    m, g = _gaussian_map(cov)
+    m, _ = _gaussian_map(cov)
     # the map holds the density sampled at cell centres: its cell-centre moments are those of
     # the Gaussian to exponential accuracy (Poisson summation, σ ≫ cell)
     assert_allclose(m.mean(), [0.1, -0.2, 0.3], atol=1e-9)
@@ -198,7 +203,8 @@ def test_rotation_in_place_multi_step_needs_sub_cell_resolution():
     ctr = np.tile([0.0, 1.0], (10, 1))
     m = M.multi_step_map("velocity", ctr, 0.1, A6, oversample=3)
     assert m.grid.resolution == pytest.approx(0.01)
-    assert np.min(np.abs(m.grid.x)) < 1e-12 and np.min(np.abs(m.grid.y)) < 1e-12  # start = cell centre
+    assert np.min(np.abs(m.grid.x)) < 1e-12  # the start is a cell centre
+    assert np.min(np.abs(m.grid.y)) < 1e-12
     s = _mc_end_poses("velocity", ctr, 0.1, N_PARTICLES, seed=78)
     hist = M.histogram_xy(s, m.grid)
     h = M.hellinger(m.marginal_xy(), hist)

@@ -161,14 +161,16 @@ def test_densities_are_finite_and_nonnegative_everywhere(noise, scaling):
             for corrected in (False, True):
                 for cell in (None, (0.01, math.radians(2))):
                     p = mm.velocity_density(hyp, u, (0, 0, 0), 1.0, alphas, noise, scaling, corrected, cell)
-                    assert np.all(np.isfinite(p)) and np.all(p >= 0)
+                    assert np.all(np.isfinite(p))
+                    assert np.all(p >= 0)
     od = [((0, 0, 0), (1, 0, 0)), ((0, 0, 0), (0, 0, 1)), ((0, 0, 0), (0, 0, 0)), ((0, 0, 0), (-1, 0.1, 0))]
     for op, on in od:
         for alphas in (A4, np.zeros(4)):
             for corrected in (False, True):
                 for cell in (None, (0.01, math.radians(2))):
                     p = mm.odometry_density(hyp, op, on, (0, 0, 0), alphas, noise, scaling, corrected, None, cell)
-                    assert np.all(np.isfinite(p)) and np.all(p >= 0)
+                    assert np.all(np.isfinite(p))
+                    assert np.all(p >= 0)
 
 
 def _integral(density, half, h, ht):
@@ -193,10 +195,10 @@ def test_corrected_densities_integrate_to_one(noise, name):
     end = mm.velocity_forward(start, *u, 0.0, 1.0)
 
     def vel(h):
-        return mm.velocity_density(h + [*end[:2], 0], u, start, 1.0, A6, noise, corrected=True)
+        return mm.velocity_density(h + np.array([*end[:2], 0.0]), u, start, 1.0, A6, noise, corrected=True)
 
     def odo(h):
-        return mm.odometry_density(h + [*end[:2], 0], start, end, start, A4, noise, corrected=True)
+        return mm.odometry_density(h + np.array([*end[:2], 0.0]), start, end, start, A4, noise, corrected=True)
 
     for dens in (vel, odo):
         assert_allclose(_integral(dens, 2.5, 0.04, math.radians(6)), 1.0, atol=1e-3)

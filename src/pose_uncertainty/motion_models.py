@@ -75,8 +75,6 @@ Without ``cell`` the density is the point value (variances ≥ :data:`MIN_VARIAN
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -97,17 +95,17 @@ __all__ = [
     "VARIANCE_SOURCES",
     "check_alphas",
     "noiseless_velocity_poses",
+    "odometry_cell_widths",
     "odometry_deltas",
     "odometry_density",
-    "odometry_cell_widths",
     "odometry_forward",
     "odometry_variances",
     "sample_odometry",
     "sample_odometry_path",
     "sample_velocity",
     "sample_velocity_path",
-    "velocity_density",
     "velocity_cell_widths",
+    "velocity_density",
     "velocity_forward",
     "velocity_inverse",
     "velocity_jacobian_det",
@@ -329,7 +327,7 @@ def velocity_separable(
     cell_ = _check_cell(cell)
     pos = check_finite("xy", check_last_axis("xy", xy, 2))
     xp = _pose("x_prev", x_prev)
-    hyp = np.concatenate([pos, np.broadcast_to(xp[..., 2:3], pos.shape[:-1] + (1,))], axis=-1)
+    hyp = np.concatenate([pos, np.broadcast_to(xp[..., 2:3], (*pos.shape[:-1], 1))], axis=-1)
     var = velocity_variances(u, alphas, scaling)
     V_hat, w_hat, _ = velocity_inverse(hyp, xp, step)
     if cell_ is None:
