@@ -232,10 +232,12 @@ def growth_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") -> Fi
             continue
         ax.loglog(L[ok], vals[ok], color=color, ls=ls, marker=marker, ms=4, lw=1.0, label=key)
     if L.size >= 2:
+        # reference slopes through the first point of the curve they describe, offset below it
         ref = np.array([L.min(), L.max()])
-        y0 = np.array([r["A: σ along"] for r in rows])[0]
-        for slope, dash in ((0.5, (0, (2, 2))), (1.5, (0, (6, 2)))):
-            ax.loglog(ref, y0 * (ref / ref[0]) ** slope, color="k", lw=0.6, ls=dash, label=f"slope {slope:g}")
+        for slope, key, dash in ((0.5, "A: σ along", (0, (2, 2))), (1.5, "A: σ across", (0, (6, 2)))):
+            y0 = 0.5 * float(rows[0][key])
+            ax.loglog(ref, y0 * (ref / ref[0]) ** slope, color="k", lw=0.6, ls=dash,
+                      label=f"slope {slope:g} (∝ L^{slope:g})")
     ax.set_xlabel("path length L [m]")
     ax.set_ylabel("uncertainty [m] (σ_θ in rad)")
     ax.set_title(title or "growth of the uncertainty with distance")
