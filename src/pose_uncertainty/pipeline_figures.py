@@ -149,7 +149,7 @@ def map_cloud_figure(run: Any, mp: Any, n: int = MAP_SAMPLES) -> Figure:
     """
     marg = mp.marginal_xy()
     end = run.poses[-1]
-    fig = figures._new_figure((6.0, 6.0))
+    fig = figures.new_figure((6.0, 6.0))
     ax = fig.add_subplot()
     cloud = map_sampler_cloud(run, mp, n)
     if cloud.shape[0]:
@@ -214,7 +214,7 @@ def growth_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") -> Fi
         rows.append(row)
     rows.sort(key=lambda r: r["L"])
     L = np.array([r["L"] for r in rows])
-    fig = figures._new_figure((6.4, 5.2))
+    fig = figures.new_figure((6.4, 5.2))
     ax = fig.add_subplot()
     styles = {
         "A: σ along": ("tab:blue", "-", "o"),
@@ -260,7 +260,7 @@ def cloud_polar_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") 
     """
     runs = [open_run(p) for p in list(logs)[:8]]
     n = max(len(runs), 1)
-    fig = figures._new_figure((3.0 * n, 6.0))
+    fig = figures.new_figure((3.0 * n, 6.0))
     for j, run in enumerate(runs):
         ax = fig.add_subplot(2, n, j + 1)
         axp = fig.add_subplot(2, n, n + j + 1)
