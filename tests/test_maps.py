@@ -213,16 +213,15 @@ def test_rotation_in_place_multi_step_needs_sub_cell_resolution():
 
 
 def test_multi_step_accepts_a_trajectory_object():
-    class Traj:  # duck-typed stand-in for pose_uncertainty.trajectories.Trajectory
-        controls = np.tile([0.5, 0.5], (4, 1))
-        dt = 0.2
-        start = np.array([0.1, 0.2, 0.3])
+    from pose_uncertainty import trajectories as tr
 
-    a = M.multi_step_map("velocity", Traj(), alphas=A6, resolution=0.02, theta_resolution=math.radians(10))
-    b = M.multi_step_map(
-        "velocity", Traj.controls, 0.2, A6, start=Traj.start, resolution=0.02, theta_resolution=math.radians(10)
-    )
+    t = tr.arc(radius=1.0, angle=0.4, dt=0.1, start=(0.1, 0.2, 0.3))
+    kw = {"resolution": 0.02, "theta_resolution": math.radians(10)}
+    a = M.multi_step_map("velocity", t, alphas=A6, **kw)
+    b = M.multi_step_map("velocity", t.controls, t.dt, A6, start=t.start, **kw)
     assert_allclose(a.values, b.values)
+    # the map follows the noiseless path of the trajectory (exact arcs = velocity model)
+    assert_allclose(a.mean()[:2], t.poses[-1, :2], atol=0.01)
 
 
 # ----------------------------------------------------------------------------- bad input

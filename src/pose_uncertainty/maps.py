@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import scipy.fft as sfft
@@ -246,6 +246,9 @@ class ProbabilityMap:
     model: str
     grid: MapGrid | None = None
     info: dict[str, Any] = field(default_factory=dict)
+
+    #: Units of the axes and of the values.
+    UNITS: ClassVar[dict[str, str]] = {"x": "m", "y": "m", "theta": "rad", "values": "probability"}
 
     @property
     def resolution(self) -> float:
@@ -1004,7 +1007,7 @@ def multi_step_map(
     model: str,
     controls: Any,
     dt: ArrayLike | None = None,
-    alphas: ArrayLike = (0.05,) * 6,
+    alphas: ArrayLike | None = None,
     start: ArrayLike | None = None,
     grid: MapGrid | None = None,
     noise: str = "normal",
@@ -1051,7 +1054,8 @@ def multi_step_map(
         ``.controls``, ``.dt`` and ``.start``) supplies ``controls``, ``dt`` and the start.
         For the odometry model ``controls`` may be None when ``odometry`` is given.
     dt : float or array_like, shape (N,) [s]
-    alphas : array_like, shape (6,) or (4,), >= 0
+    alphas : array_like, shape (6,) velocity or (4,) odometry, >= 0, optional
+        Default: the thesis's 0.05 for every constant.
     start : array_like, shape (3,), optional
         Known start pose (default the trajectory's start, else (0, 0, 0)).
     grid : MapGrid, optional
@@ -1119,7 +1123,8 @@ def multi_step_map(
         raise ValueError(f"start must have shape (3,), got shape {x0.shape}")
     check_noise(noise)
     check_scaling(scaling)
-    a = check_alphas(alphas, 6 if model == "velocity" else 4)
+    n_alpha = 6 if model == "velocity" else 4
+    a = check_alphas(np.full(n_alpha, 0.05) if alphas is None else alphas, n_alpha)
     if controls is not None:
         u = check_finite("controls", check_last_axis("controls", controls, 2))
         if u.ndim != 2 or u.shape[0] < 1:
