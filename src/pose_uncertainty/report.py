@@ -35,6 +35,7 @@ __all__ = [
     "read_benchmarks",
     "read_table",
     "run_measures",
+    "run_studies",
 ]
 
 #: Probabilities at which the Monte Carlo coverage of Method A's ellipse is measured: radius 1, 2, 3.
@@ -281,6 +282,23 @@ def read_benchmarks(paths: Sequence[str | os.PathLike[str]]) -> dict[str, dict[s
     }
 
 
+def run_studies(out: str | os.PathLike[str], quick: bool = False) -> Path:
+    """Run seed 001's studies (:func:`pose_uncertainty.studies.run_all`) and write them as JSON.
+
+    Parameters
+    ----------
+    out : path — JSON file
+    quick : bool — fewer particles (2·10⁴ instead of 10⁵)
+    """
+    from . import studies
+
+    result = studies.run_all(quick)
+    p = Path(out)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    p.write_text(json.dumps(result, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+    return p
+
+
 # --- the report -------------------------------------------------------------------------
 
 
@@ -327,6 +345,7 @@ def build_report(
     *,
     title: str = "Pose uncertainty: three methods compared",
     config_text: str = "",
+    studies_path: str | os.PathLike[str] | None = None,
 ) -> Path:
     """Render ``reports/comparison.html``.
 
@@ -340,6 +359,7 @@ def build_report(
     out : path — the HTML file (self-contained: images inlined, no external resources)
     title : str
     config_text : str — the validated config as YAML (shown verbatim)
+    studies_path : path, optional — JSON written by :func:`run_studies` (seed 001's studies)
     """
     import jinja2
 
@@ -367,6 +387,9 @@ def build_report(
         sets.append({**s, "runs": runs})
     git = git_commit()
     bench = read_benchmarks(benchmarks)
+    studies = None
+    if studies_path is not None and Path(studies_path).is_file():
+        studies = json.loads(Path(studies_path).read_text(encoding="utf-8"))
     template = env.get_template("comparison.html.j2")
     text = template.render(
         title=title,
@@ -381,6 +404,8 @@ def build_report(
         generated=_dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
         levels=COVERAGE_LEVELS,
         guide=method_guide(rows),
+        studies=studies,
+        studies_json=json.dumps(studies, indent=1, sort_keys=True) if studies is not None else "",
     )
     p = Path(out)
     p.parent.mkdir(parents=True, exist_ok=True)

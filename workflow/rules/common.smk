@@ -100,7 +100,14 @@ def all_benchmarks(wildcards=None):
             out.append(f"data/benchmarks/render_{kind}_figure/{s}.tsv")
         out.append(f"data/benchmarks/collect_metrics/{s}.tsv")
     out.append("data/benchmarks/evaluate_claims/all.tsv")
+    if config["studies"]["enabled"]:
+        out.append("data/benchmarks/run_studies/all.tsv")
     return out
+
+
+def studies_output(wildcards=None):
+    """reports/studies.json when config key studies.enabled, else nothing."""
+    return ["reports/studies.json"] if config["studies"]["enabled"] else []
 
 
 def report_manifest():

@@ -16,6 +16,19 @@ rule evaluate_claims:
         "../scripts/evaluate_claims.py"
 
 
+rule run_studies:
+    output:
+        "reports/studies.json",
+    params:
+        quick=lambda w: config["studies"]["quick"],
+    log:
+        "logs/run_studies.log",
+    benchmark:
+        "data/benchmarks/run_studies/all.tsv"
+    script:
+        "../scripts/run_studies.py"
+
+
 rule build_report:
     input:
         tables=all_tables,
@@ -23,6 +36,7 @@ rule build_report:
         figures=all_figures,
         benchmarks=all_benchmarks,
         template=REPORT_TEMPLATE,
+        studies=studies_output,
     output:
         "reports/comparison.html",
     params:

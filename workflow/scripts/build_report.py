@@ -16,4 +16,5 @@ with open(sm.log[0], "w", encoding="utf-8") as log, redirect_stderr(log):
         sm.output[0],
         title=sm.params.title,
         config_text=yaml.safe_dump(sm.params.manifest["config"], sort_keys=False, width=100),
+        studies_path=sm.input.studies[0] if len(sm.input.studies) else None,
     )
