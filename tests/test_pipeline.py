@@ -335,3 +335,25 @@ def test_snakemake_report_archive(quick: Path) -> None:
     with zipfile.ZipFile(quick / "reports/provenance.zip") as z:
         names = z.namelist()
     assert any(n.endswith("trajectory.png") for n in names)
+
+
+def test_table_measures_match_the_straight_line_closed_form(quick: Path) -> None:
+    """Two routes to σ_along, σ_θ on a straight line: the collected table vs the closed form.
+
+    Straight line of length L, equal k, track b: each wheel's travel variance is k L, so
+    σ_along² = Var((s_r+s_l)/2) = k L / 2 and σ_θ² = Var((s_r−s_l)/b) = 2 k L / b². Across:
+    with N midpoint steps of Δs = L/N the heading error δθ_j of step j moves the end by
+    Δs (N − j + ½), so σ_across² = (2 k Δs³ / b²) Σ_{m=0}^{N−1} (m + ½)² = 2 k L³/(3 b²) (1 − 1/(4N²)).
+    """
+    cfg = sweep.validate_config(_config("quick.yaml"), SCHEMA)
+    runs = {r.id: r for r in sweep.expand_all(cfg)["L_straight"]}
+    rows = read_table(quick / "reports/tables/L_straight.csv")
+    assert rows
+    for row in rows:
+        c = runs[row["run"]].config
+        k, b, L = c["k_r"], c["trajectory"]["track"], c["trajectory"]["length"]
+        n = sweep.n_steps(c)
+        assert row["A_sigma_along"] == pytest.approx(math.sqrt(k * L / 2), rel=1e-9)
+        assert row["A_sigma_theta"] == pytest.approx(math.sqrt(2 * k * L) / b, rel=1e-9)
+        across = 2 * k * L**3 / (3 * b**2) * (1 - 1 / (4 * n**2))
+        assert row["A_sigma_across"] == pytest.approx(math.sqrt(across), rel=1e-9)
