@@ -189,13 +189,17 @@ class MapConfig:
         as the thesis), ``noise`` (normal | triangular), ``scaling`` (squared | abs),
         ``resolution`` [m] (cell, default 0.01 m), ``theta_resolution`` [rad]
         (default 2°). A one-step trajectory gives the thesis's single-step map
-        (``pose_uncertainty.maps.single_step_map``: also ``corrected``,
-        ``cell_floor`` [cells], ``variance_from``, ``size`` [m], the side of the
-        grid centred on the noiseless end pose, default 1 m); a longer one the
-        multi-step map along the whole trajectory (``multi_step_map``: also
-        ``max_cells``, ``n_nodes_max``, and ``size`` [m]: None = a grid that grows
-        with the spread, a number = a fixed square grid of that side centred
-        between the start and the noiseless end).
+        (``pose_uncertainty.maps.single_step_map``: also ``corrected`` (the
+        change-of-variables-corrected pose-space density instead of Thrun's
+        control-space one), ``cell_average``, ``variance_from``, ``size`` [m], the
+        side of the grid centred on the noiseless end pose, default 1 m); a longer
+        one the multi-step map along the whole trajectory (``multi_step_map``:
+        also ``oversample`` (compute on cells that many times finer, summed back;
+        for distributions thinner than a cell such as rotation in place, at about
+        15–20× the cost for 3), ``diffusion_compensation``, ``max_cells``,
+        ``n_nodes_max``, and ``size`` [m]: None = a grid that grows with the
+        spread, a number = a fixed square grid of that side centred between the
+        start and the noiseless end).
     """
 
     name: str
@@ -469,7 +473,11 @@ class RunConfig:
                 "noise": "- (normal | triangular)",
                 "scaling": "- (squared | abs)",
                 "corrected": "- (bool)",
-                "cell_floor": "cells",
+                "cell_average": "- (bool | null = automatic)",
+                "oversample": "1 (integer factor)",
+                "diffusion_compensation": "- (bool)",
+                "max_cells": "1",
+                "n_nodes_max": "1",
                 "variance_from": "- (hypothesis | odometry | null)",
                 "size": "m",
                 "resolution": "m",
