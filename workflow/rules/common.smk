@@ -1,5 +1,4 @@
 # Config validation (JSON Schema 2020-12, before any rule reads the config) and input functions.
-import json
 from importlib import resources as _resources
 
 from pose_uncertainty import __version__ as PACKAGE_VERSION
@@ -57,7 +56,7 @@ def run_figures(set_name, run):
         figs["cloud"] = f"{base}/cloud.png"
     for m in run.config["maps"]:
         figs[f"map_{m['name']}"] = f"{base}/map_{m['name']}.png"
-        # the map's contours with its model's own sampler (single-step runs) over them
+        # the map's contours with its model's own sampler (step by step) over them
         figs[f"mapcloud_{m['name']}"] = f"{base}/mapcloud_{m['name']}.png"
     return figs
 
