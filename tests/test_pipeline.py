@@ -275,6 +275,23 @@ def test_quick_pipeline_end_to_end(quick: Path) -> None:
     assert all(s.startswith("data:image/png;base64,") for s in sources)
 
 
+def test_report_has_the_studies_sections(quick: Path) -> None:
+    from pose_uncertainty.pipeline_figures import render_expcoords_figure
+
+    html = (quick / "reports/comparison.html").read_text(encoding="utf-8")
+    for sid in ("studies", "accuracy", "accuracy-distance", "expcoords", "fig-studies-expcoords",
+                "growth-laws", "regimes", "polar-cartesian", "calibration"):
+        assert f'id="{sid}"' in html, sid
+    studies = json.loads((quick / "reports/studies.json").read_text(encoding="utf-8"))
+    for key in ("accuracy_table", "calibration_demo", "accuracy_vs_distance_straight_20m"):
+        assert studies[key], key
+    # the figure has the bytes its function gives when called again (deterministic pipeline figure)
+    again = quick / "expcoords_again.png"
+    render_expcoords_figure(again)
+    assert again.read_bytes() == (quick / "reports/figures/studies/expcoords.png").read_bytes()
+    assert "pose-uncertainty calibrate runs.csv" in html
+
+
 def test_no_change_rerun_does_nothing(quick: Path) -> None:
     before = {p: p.stat().st_mtime_ns for p in (quick / "reports").rglob("*") if p.is_file()}
     before |= {p: p.stat().st_mtime_ns for p in (quick / "data/runs").rglob("*") if p.is_file()}

@@ -152,6 +152,13 @@ def _free_port() -> int:
         return int(s.getsockname()[1])
 
 
+#: Element ids of the studies sections (issue 6) that the quick report must contain.
+STUDY_SECTION_IDS: list[str] = [
+    "studies", "accuracy", "accuracy-distance", "expcoords", "fig-studies-expcoords", "growth-laws",
+    "regimes", "polar-cartesian", "calibration",
+]
+
+
 @pytest.fixture(scope="session")
 def chromium() -> str:
     if not (os.path.isfile(CHROMIUM) and os.access(CHROMIUM, os.X_OK)):
@@ -226,6 +233,11 @@ def test_report_renders_offline_without_console_errors(
         n_claims = cdp.call(
             "Runtime.evaluate", expression="document.querySelectorAll('tr[id^=claim-]').length", returnByValue=True
         )["result"]["value"]
+        study_ids = cdp.call(
+            "Runtime.evaluate",
+            expression="JSON.stringify(" + json.dumps(STUDY_SECTION_IDS) + ".filter(i => document.getElementById(i)))",
+            returnByValue=True,
+        )["result"]["value"]
         # drain what is left
         cdp.call("Runtime.evaluate", expression="1")
     finally:
@@ -265,3 +277,4 @@ def test_report_renders_offline_without_console_errors(
     assert all(w > 0 for _, w in images), f"images that did not decode: {[a for a, w in images if w <= 0]}"
     assert title.startswith("Pose uncertainty")
     assert n_claims == 12
+    assert json.loads(study_ids) == STUDY_SECTION_IDS  # issue 6's sections are in the quick report

@@ -4,7 +4,9 @@
   ``cloud``, ``map_<name>``), drawn by the same functions ``replay --figures`` uses;
 * :func:`growth_figure` — how each uncertainty measure grows with distance (log-log),
   over the runs of a set;
-* :func:`cloud_polar_figure` — seed 001's Cartesian and polar views of the end-pose clouds.
+* :func:`cloud_polar_figure` — seed 001's Cartesian and polar views of the end-pose clouds;
+* :func:`expcoords_figure` — long-path Monte Carlo clouds with Method A's ellipse and the
+  exponential-coordinates Gaussian's region (the banana) drawn over them.
 
 Every figure is saved by :func:`pose_uncertainty.figures.save_figure` (deterministic bytes).
 """
@@ -26,9 +28,11 @@ from .runlog import open_run
 __all__ = [
     "MAP_SAMPLES",
     "cloud_polar_figure",
+    "expcoords_figure",
     "growth_figure",
     "map_cloud_figure",
     "map_sampler_cloud",
+    "render_expcoords_figure",
     "render_run_figure",
     "render_run_figures",
     "render_set_figure",
@@ -289,6 +293,109 @@ def cloud_polar_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") 
     if title:
         fig.suptitle(title)
     return fig
+
+
+def expcoords_figure(
+    cases: Sequence[tuple[str, dict[str, Any]]] = (
+        ("straight 5 m", {"name": "straight", "length": 5.0}),
+        ("circle r = 1 m, 1 lap", {"name": "circle", "radius": 1.0, "laps": 1}),
+    ),
+    k: float = 5e-4,
+    track: float = 0.2,
+    dt: float = 0.01,
+    pr: float = 1.0 - math.exp(-4.5),
+    n: int = 5000,
+    seed: int = 6,
+    n_quad: int = 256,
+) -> Figure:
+    """Monte Carlo end poses of long paths with both Gaussian methods' Pr regions drawn over them.
+
+    One panel per case: ``n`` per-step Monte Carlo end positions (midpoint
+    integration, ``k_r = k_l = k`` [m]), Method A's Pr-ellipse (red) and the
+    boundary of the exponential-coordinates Gaussian's planar Pr highest-density
+    region (blue, :func:`pose_uncertainty.expcoords.pr_region_xy`); equal aspect,
+    metres. The legend gives the share of the cloud inside each region.
+
+    Parameters
+    ----------
+    cases : sequence of (label, trajectory parameters for :func:`trajectories.build`)
+    k : float — wheel-noise constant [m]; track : float [m]; dt : float [s]
+    pr : float in (0, 1) — region probability (default 98.89 %, radius 3)
+    n : int — Monte Carlo runs per case; seed : int
+    n_quad : int — quadrature nodes of the planar density (:func:`expcoords.pdf_xy`); the
+        default 64 leaves ripples on the thin tips of a long banana, 256 does not
+    """
+    from matplotlib.path import Path as MplPath
+
+    from . import covariance as cv
+    from . import expcoords as ec
+    from . import trajectories as tr
+    from .sampling import sample_end_poses
+
+    fig = figures.new_figure((5.2 * len(cases), 5.0))
+    for j, (label, params) in enumerate(cases):
+        p = dict(params)
+        t = tr.build(p.pop("name"), dt=dt, track=track, **p)
+        rng = np.random.default_rng([seed, j])
+        cloud = sample_end_poses(t, k, k, n, rng)
+        A = cv.propagate(t, k, k)
+        E = ec.propagate(t, k, k)
+        end, cov = A.poses[-1], A.covs[-1]
+        ell = cv.ellipse_polyline(cov[:2, :2], pr, end[:2], 400)
+        banana = _banana_outline(E.poses[-1], E.covs[-1], pr, rng, n_quad)
+        d = cloud[:, :2] - end[:2]
+        m2 = np.einsum("ni,ij,nj->n", d, np.linalg.inv(cov[:2, :2]), d)
+        in_ell = float(np.mean(m2 <= cv.pr_to_k(pr)))
+        in_ban = np.zeros(n, dtype=bool)
+        for poly in banana:
+            in_ban ^= MplPath(poly).contains_points(cloud[:, :2])
+        ax = fig.add_subplot(1, len(cases), j + 1)
+        ax.scatter(cloud[:, 0], cloud[:, 1], s=1.0, color="0.3", alpha=0.35, linewidths=0,
+                   rasterized=True, label=f"Monte Carlo, {n} runs")
+        ax.plot(ell[:, 0], ell[:, 1], color="tab:red", lw=1.2,
+                label=f"Method A ellipse {100 * pr:.2f} % (holds {100 * in_ell:.1f} %)")
+        for i, poly in enumerate(banana):
+            ax.plot(poly[:, 0], poly[:, 1], color="tab:blue", lw=1.2,
+                    label=f"exp. coords {100 * pr:.2f} % (holds {100 * float(in_ban.mean()):.1f} %)"
+                    if i == 0 else None)
+        ax.plot(t.poses[:, 0], t.poses[:, 1], color="k", lw=0.6, ls="--", label="noiseless path")
+        ax.plot([end[0]], [end[1]], marker="+", color="k", ms=8)
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        ax.set_title(f"{label}, k = {k:g} m, b = {track:g} m", fontsize="small")
+        ax.grid(True, lw=0.3, alpha=0.5)
+        ax.legend(fontsize="x-small", loc="lower left")
+    return fig
+
+
+def _banana_outline(
+    mean_pose: np.ndarray, cov: np.ndarray, pr: float, rng: np.random.Generator, n_quad: int,
+    n_grid: int = 240, n: int = 50_000,
+) -> list[np.ndarray]:
+    """As :func:`pose_uncertainty.expcoords.pr_region_xy`, with the quadrature order exposed."""
+    import contourpy
+
+    from . import expcoords as ec
+
+    draws = ec.sample(mean_pose, cov, n, rng)
+    dens = ec.pdf_xy(draws[:, :2], mean_pose, cov, n_quad=n_quad)
+    level = float(np.quantile(dens, 1.0 - pr))
+    inside = draws[dens >= level, :2]
+    lo, hi = inside.min(axis=0), inside.max(axis=0)
+    pad = 0.1 * (hi - lo) + 1e-12
+    x = np.linspace(lo[0] - pad[0], hi[0] + pad[0], n_grid)
+    y = np.linspace(lo[1] - pad[1], hi[1] + pad[1], n_grid)
+    Z = ec.marginal_xy_grid(x, y, mean_pose, cov, n_quad=n_quad)
+    gen = contourpy.contour_generator(x, y, Z.T)
+    return [np.asarray(line) for line in gen.lines(level)]
+
+
+def render_expcoords_figure(out: str | os.PathLike[str], **kwargs: Any) -> Path:
+    """Draw :func:`expcoords_figure` (keyword arguments passed on) and save it (deterministic bytes)."""
+    fig = expcoords_figure(**kwargs)
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    return figures.save_figure(fig, out)
 
 
 def render_set_figure(

@@ -36,6 +36,7 @@ __all__ = [
     "read_table",
     "run_measures",
     "run_studies",
+    "study_summary",
 ]
 
 #: Probabilities at which the Monte Carlo coverage of Method A's ellipse is measured: radius 1, 2, 3.
@@ -336,6 +337,61 @@ def _versions() -> dict[str, str]:
     return out
 
 
+def study_summary(studies: Mapping[str, Any] | None) -> dict[str, Any]:
+    """The numbers the lead paragraphs of the studies sections quote (absent keys are skipped).
+
+    Parameters
+    ----------
+    studies : mapping — :func:`pose_uncertainty.studies.run_all`'s result (or None)
+
+    Returns
+    -------
+    dict with (each only when its study is present): ``accuracy`` — Method A's
+    worst 98.89 % coverage and its case, the banana's range of 98.89 % coverages,
+    the straight-5 m row; ``distance`` — first and last rows of the coverage
+    along the 20 m line; ``growth`` — in how many fits (both paths and methods) the
+    power law has the smaller rms log residual, and the median residuals; ``calibration`` — the equal-k
+    row of each model.
+    """
+    out: dict[str, Any] = {}
+    if not studies:
+        return out
+    key = "coverage_xy_98.89"
+    rows = studies.get("accuracy_table") or []
+    if rows:
+        worst = min(rows, key=lambda r: r["cartesian"][key])
+        ban = [r["expcoords"][key] for r in rows if "expcoords" in r]
+        out["accuracy"] = {
+            "worst_a": worst["cartesian"][key], "worst_case": worst["case"],
+            "best_a": max(r["cartesian"][key] for r in rows),
+            "banana_min": min(ban) if ban else None, "banana_max": max(ban) if ban else None,
+            "n_cases": len(rows),
+            "by_case": {r["case"]: r for r in rows},
+        }
+    dist = studies.get("accuracy_vs_distance_straight_20m") or []
+    if dist:
+        out["distance"] = {"first": dist[0], "last": dist[-1]}
+    fits = [
+        f
+        for name in ("growth_laws_straight_20m", "growth_laws_circle_3_laps")
+        for method in (studies.get(name) or {}).values()
+        for f in method.values()
+    ]
+    if fits:
+        out["growth"] = {
+            "n_power_better": sum(f["power_rms_log_residual"] < f["exp_rms_log_residual"] for f in fits),
+            "median_power_residual": float(np.median([f["power_rms_log_residual"] for f in fits])),
+            "median_exp_residual": float(np.median([f["exp_rms_log_residual"] for f in fits])),
+            "n_fits": len(fits),
+        }
+    cal = studies.get("calibration_demo")
+    if cal:
+        out["calibration"] = {
+            r["coords"]: r for r in cal["rows"] if r["equal"]
+        }
+    return out
+
+
 def build_report(
     manifest: Mapping[str, Any],
     tables: Mapping[str, str | os.PathLike[str]],
@@ -346,6 +402,7 @@ def build_report(
     title: str = "Pose uncertainty: three methods compared",
     config_text: str = "",
     studies_path: str | os.PathLike[str] | None = None,
+    studies_figures: Mapping[str, str | os.PathLike[str]] | None = None,
 ) -> Path:
     """Render ``reports/comparison.html``.
 
@@ -360,6 +417,8 @@ def build_report(
     title : str
     config_text : str — the validated config as YAML (shown verbatim)
     studies_path : path, optional — JSON written by :func:`run_studies` (seed 001's studies)
+    studies_figures : mapping, optional — figures of the studies sections by kind
+        (``expcoords``: :func:`pose_uncertainty.pipeline_figures.expcoords_figure`); missing files are skipped
     """
     import jinja2
 
@@ -405,6 +464,8 @@ def build_report(
         levels=COVERAGE_LEVELS,
         guide=method_guide(rows),
         studies=studies,
+        summary=study_summary(studies),
+        studies_figures={k: str(v) for k, v in (studies_figures or {}).items() if Path(v).is_file()},
         studies_json=json.dumps(studies, indent=1, sort_keys=True) if studies is not None else "",
     )
     p = Path(out)

@@ -15,6 +15,8 @@
   and polar ``(r, φ)`` coordinates about the start.
 * :func:`growth_laws` — how σ_along, σ_across, σ_θ and the credible-region
   area grow with distance: log-log power-law fits against exponential fits.
+* :func:`calibration_demo` — ``k`` fitted back from Monte Carlo end poses
+  with both models; :func:`coverage_vs_distance` — coverage along a path.
 * :func:`accuracy_table` — coverage and distances of both Gaussian methods on
   the long paths (straight 1, 5, 20 m; 1 and 3 laps of a circle; larger k).
 
@@ -48,7 +50,9 @@ __all__ = [
     "NUMBER_TYPES",
     "accuracy_table",
     "along_across",
+    "calibration_demo",
     "constant_speed_trajectory",
+    "coverage_vs_distance",
     "error_sources_vs_monte_carlo",
     "exact_constant_arc",
     "fit_growth",
@@ -693,6 +697,69 @@ def accuracy_table(
     return rows
 
 
+# --- 8. calibration and coverage along a path -----------------------------------------------------
+
+
+def calibration_demo(
+    n: int = 20_000, seed: int = 11, k: float = 5e-4, track: float = 0.2, dt: float = 0.02,
+    length: float = 1.0,
+) -> dict[str, Any]:
+    """Fit ``k`` back from Monte Carlo end poses of a straight line, with both models.
+
+    ``n`` per-step Monte Carlo runs of a straight line of ``length`` [m] with
+    true ``k_r = k_l = k`` [m]; :func:`pose_uncertainty.calibration.fit_k` with
+    ``coords`` "expcoords" and "cartesian", each with one constant (``equal``)
+    and with separate ``k_r, k_l``; 95 % profile-likelihood intervals.
+
+    Returns
+    -------
+    dict: ``true_k``, ``n``, ``trajectory`` (its parameters) and ``rows`` — list
+    of {``coords``, ``equal``, ``parameter``, ``estimate``, ``ci_low``,
+    ``ci_high``, ``contains_true``, ``relative_bias``}
+    """
+    from . import calibration as cb
+
+    t = tr.straight(length, dt=dt, track=track)
+    cloud = sp.sample_end_poses(t, k, k, n, np.random.default_rng(seed))
+    rows = []
+    for coords in ("expcoords", "cartesian"):
+        for equal in (True, False):
+            r = cb.fit_k(cloud, t, coords=coords, equal=equal)
+            for name, est, lo, hi in zip(r.names, r.estimate, r.ci_low, r.ci_high, strict=True):
+                rows.append({
+                    "coords": coords, "equal": equal, "parameter": name, "estimate": est,
+                    "ci_low": lo, "ci_high": hi, "level": r.level,
+                    "contains_true": bool(lo <= k <= hi), "relative_bias": est / k - 1.0,
+                })
+    return {"true_k": k, "n": n, "seed": seed,
+            "trajectory": {"name": "straight", "length": length, "dt": dt, "track": track},
+            "rows": rows}
+
+
+def coverage_vs_distance(
+    trajectory: tr.Trajectory, k_r: float, k_l: float, n: int, seed: int, n_checkpoints: int = 5,
+) -> list[dict[str, Any]]:
+    """Coverage of both Gaussian methods at checkpoints along a path (:func:`accuracy.accuracy_vs_distance`).
+
+    Returns
+    -------
+    list of dict: ``distance`` [m], ``n``, ``coverage_se_98.89``, and per method
+    (``cartesian``, ``expcoords``) the (x, y) coverages at 50, 90, 98.89 % and
+    the Hellinger distance, with the Monte Carlo ``hellinger_floor``.
+    """
+    rows = ac.accuracy_vs_distance(
+        trajectory, k_r, k_l, n, np.random.default_rng(seed), n_checkpoints=n_checkpoints
+    )
+    keep = ("coverage_xy_50", "coverage_xy_90", "coverage_xy_98.89", "hellinger")
+    return [
+        {"distance": r["distance"], "n": n,
+         "coverage_se_98.89": r["monte_carlo"]["coverage_se_98.89"],
+         "hellinger_floor": r["monte_carlo"]["hellinger_floor"],
+         **{m: {key: r[m][key] for key in keep} for m in ("cartesian", "expcoords")}}
+        for r in rows
+    ]
+
+
 # --- command line ---------------------------------------------------------------------------------
 
 
@@ -727,6 +794,10 @@ def run_all(quick: bool = False) -> dict[str, Any]:
     out["map_vs_sampler_velocity_arc"] = map_vs_sampler("velocity", (1.0, 1.0), n=n)
     out["map_vs_sampler_odometry_arc"] = map_vs_sampler("odometry", (1.0, 1.0), n=n)
     out["accuracy_table"] = accuracy_table(n=n)
+    out["calibration_demo"] = calibration_demo(n=n)
+    out["accuracy_vs_distance_straight_20m"] = coverage_vs_distance(
+        tr.straight(20.0, dt=0.01, track=0.2), 5e-4, 5e-4, 4000 if quick else 10_000, 12
+    )
     return out
 
 

@@ -101,12 +101,18 @@ def all_benchmarks(wildcards=None):
     out.append("data/benchmarks/evaluate_claims/all.tsv")
     if config["studies"]["enabled"]:
         out.append("data/benchmarks/run_studies/all.tsv")
+        out.append("data/benchmarks/render_expcoords_figure/all.tsv")
     return out
 
 
 def studies_output(wildcards=None):
     """reports/studies.json when config key studies.enabled, else nothing."""
     return ["reports/studies.json"] if config["studies"]["enabled"] else []
+
+
+def studies_figures(wildcards=None):
+    """Figures of the studies section (reports/figures/studies/) when studies.enabled, else none."""
+    return {"expcoords": "reports/figures/studies/expcoords.png"} if config["studies"]["enabled"] else {}
 
 
 def report_manifest():
@@ -138,7 +144,7 @@ def report_manifest():
 
 
 def all_outputs():
-    return ["reports/comparison.html", *all_tables(), *all_figures()]
+    return ["reports/comparison.html", *all_tables(), *all_figures(), *studies_figures().values()]
 
 
 def polar_logs(wildcards):

@@ -114,3 +114,20 @@ rule render_cloud_polar_figure:
     script:
         "../scripts/render_set_figure.py"
 
+
+
+rule render_expcoords_figure:
+    output:
+        report(
+            "reports/figures/studies/expcoords.png",
+            caption="../report/expcoords.rst",
+            category="studies",
+            subcategory="exponential coordinates",
+            labels={"figure": "Method A ellipse vs exp.-coordinates banana"},
+        ),
+    log:
+        "logs/render_expcoords_figure/all.log",
+    benchmark:
+        "data/benchmarks/render_expcoords_figure/all.tsv"
+    script:
+        "../scripts/render_expcoords_figure.py"

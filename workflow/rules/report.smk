@@ -37,12 +37,14 @@ rule build_report:
         benchmarks=all_benchmarks,
         template=REPORT_TEMPLATE,
         studies=studies_output,
+        studies_figures=lambda w: list(studies_figures().values()),
     output:
         "reports/comparison.html",
     params:
         manifest=report_manifest(),
         sets=SETS,
         title=config["report"]["title"],
+        studies_figures=studies_figures(),
     log:
         "logs/build_report.log",
     script:

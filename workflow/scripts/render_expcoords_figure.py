@@ -1,0 +1,9 @@
+"""Adapter: Monte Carlo clouds with the ellipse and the banana (pose_uncertainty.pipeline_figures)."""
+
+from contextlib import redirect_stderr
+
+from pose_uncertainty.pipeline_figures import render_expcoords_figure
+
+sm = snakemake  # noqa: F821 - injected by Snakemake
+with open(sm.log[0], "w", encoding="utf-8") as log, redirect_stderr(log):
+    render_expcoords_figure(sm.output[0])
