@@ -203,6 +203,28 @@ def _check_travels(ds_r: ArrayLike, ds_l: ArrayLike) -> tuple[NDArray, NDArray]:
     return sr, sl
 
 
+def _check_inputs(
+    ds_r: ArrayLike,
+    ds_l: ArrayLike,
+    track: ArrayLike,
+    k_r: ArrayLike,
+    k_l: ArrayLike,
+    cov0: ArrayLike | None,
+    start: ArrayLike,
+) -> tuple[NDArray, NDArray, NDArray, NDArray, NDArray, NDArray, NDArray]:
+    """Validate the arguments shared by both propagation routes."""
+    sr, sl = _check_travels(ds_r, ds_l)
+    return (
+        sr,
+        sl,
+        check_positive("track", track),
+        check_nonnegative("k_r", k_r),
+        check_nonnegative("k_l", k_l),
+        _check_cov0(cov0),
+        check_last_axis("start", start, 3),
+    )
+
+
 def propagate_recursive(
     ds_r: ArrayLike,
     ds_l: ArrayLike,
@@ -221,12 +243,7 @@ def propagate_recursive(
     -------
     poses : ndarray, shape (B..., N+1, 3); covs : ndarray, shape (B..., N+1, 3, 3)
     """
-    sr, sl = _check_travels(ds_r, ds_l)
-    b = check_positive("track", track)
-    kr = check_nonnegative("k_r", k_r)
-    kl = check_nonnegative("k_l", k_l)
-    S0 = _check_cov0(cov0)
-    p0 = check_last_axis("start", start, 3)
+    sr, sl, b, kr, kl, S0, p0 = _check_inputs(ds_r, ds_l, track, k_r, k_l, cov0, start)
     batch = np.broadcast_shapes(sr.shape[:-1], b.shape, kr.shape, kl.shape, S0.shape[:-2], p0.shape[:-1])
     n = sr.shape[-1]
     poses = np.empty((*batch, n + 1, 3))
@@ -315,12 +332,7 @@ def propagate_travels(
     poses : ndarray, shape (B..., N+1, 3) — midpoint-integrated means
     covs : ndarray, shape (B..., N+1, 3, 3)
     """
-    sr, sl = _check_travels(ds_r, ds_l)
-    b = check_positive("track", track)
-    kr = check_nonnegative("k_r", k_r)
-    kl = check_nonnegative("k_l", k_l)
-    S0 = _check_cov0(cov0)
-    p0 = check_last_axis("start", start, 3)
+    sr, sl, b, kr, kl, S0, p0 = _check_inputs(ds_r, ds_l, track, k_r, k_l, cov0, start)
     geo = np.broadcast_shapes(sr.shape[:-1], b.shape)
     sr = np.broadcast_to(sr, geo + sr.shape[-1:])
     sl = np.broadcast_to(sl, geo + sl.shape[-1:])
