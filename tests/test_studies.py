@@ -158,3 +158,36 @@ def test_corrected_map_matches_its_sampler_better_than_the_thesis_map():
     assert abs(cm["coverage_xy_90"] - 0.9) < 0.015
     assert cm["hellinger"] < tm["hellinger"]
     assert abs(tm["coverage_xy_50"] - 0.5) > 0.05
+
+
+def test_calibration_demo_interval_width_matches_fisher():
+    # one k with Σ = k·G: the MLE is tr(G⁻¹S)/3, so var(k̂) = 2k²/(3n) and the 95 % interval has
+    # half-width 1.96·k·√(2/(3n)); profile and Wald intervals agree to O(1/√n) (≈2 % at n = 4000),
+    # so 10 % is a safe margin
+    n = 4000
+    res = st.calibration_demo(n=n, seed=3)
+    assert res["true_k"] == 5e-4
+    assert res["n"] == n
+    rows = {(r["coords"], r["equal"], r["parameter"]): r for r in res["rows"]}
+    assert len(rows) == 6
+    for coords in ("expcoords", "cartesian"):
+        r = rows[(coords, True, "k")]
+        half = 0.5 * (r["ci_high"] - r["ci_low"])
+        assert_allclose(half, 1.959964 * r["estimate"] * math.sqrt(2 / (3 * n)), rtol=0.1)
+        assert r["ci_low"] < r["estimate"] < r["ci_high"]
+        assert r["contains_true"] == (r["ci_low"] <= 5e-4 <= r["ci_high"])
+        assert_allclose(r["relative_bias"], r["estimate"] / 5e-4 - 1)
+    # Method A's model is the more biased one (12 % against 2 % at n = 2e4); the gap, ≈10 % of k, is
+    # ≈7 standard errors (√(2/(3n)) ≈ 1.3 %) at n = 4000
+    assert rows[("cartesian", True, "k")]["relative_bias"] > rows[("expcoords", True, "k")]["relative_bias"]
+
+
+def test_coverage_vs_distance_rows():
+    t = tr.straight(4.0, dt=0.02, track=0.2)
+    rows = st.coverage_vs_distance(t, 5e-4, 5e-4, 2000, 1, n_checkpoints=4)
+    assert_allclose([r["distance"] for r in rows], [1.0, 2.0, 3.0, 4.0], atol=1e-9)
+    # Method A's coverage of its 98.89 % ellipse falls as the banana bends (σ_θ grows with distance):
+    # 97.6 % → 61 % here, against binomial standard errors of at most 1.1 % (√(0.39·0.61/2000))
+    cov_a = [r["cartesian"]["coverage_xy_98.89"] for r in rows]
+    assert cov_a[-1] < cov_a[0]
+    assert_allclose(rows[0]["coverage_se_98.89"], math.sqrt(0.98889 * (1 - 0.98889) / 2000), rtol=1e-3)
