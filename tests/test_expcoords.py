@@ -152,3 +152,20 @@ def test_bad_input():
         ec.propagate(tr.straight(1.0), -1.0, 1e-4)
     with pytest.raises(ValueError, match="cov must have shape"):
         ec.pdf_xy([[0.0, 0.0]], [0, 0, 0], np.eye(2))
+
+
+def test_planar_density_resolves_a_thin_banana():
+    # 20 m straight: the banana is far thinner than its length; the quadrature in the heading
+    # must resolve it (a fixed 64-node rule left ripples that moved the 98.89 % coverage by 4 %)
+    t = tr.straight(20.0, dt=0.01, track=0.2)
+    E = ec.propagate(t, 5e-4, 5e-4)
+    mu, S = E.poses[-1], E.covs[-1]
+    pts = ec.sample(mu, S, 5000, np.random.default_rng(1))[:, :2]
+    auto = ec.pdf_xy(pts, mu, S)
+    finest = ec.pdf_xy(pts, mu, S, n_quad=8192)
+    assert_allclose(auto, finest, rtol=1e-8)
+    # and it is a density: integrates to 1 over a grid around the banana
+    x = np.linspace(pts[:, 0].min() - 1, pts[:, 0].max() + 1, 400)
+    y = np.linspace(pts[:, 1].min() - 1, pts[:, 1].max() + 1, 400)
+    Z = ec.marginal_xy_grid(x, y, mu, S)
+    assert_allclose(Z.sum() * (x[1] - x[0]) * (y[1] - y[0]), 1.0, atol=2e-3)

@@ -306,7 +306,6 @@ def expcoords_figure(
     pr: float = 1.0 - math.exp(-4.5),
     n: int = 5000,
     seed: int = 6,
-    n_quad: int = 256,
 ) -> Figure:
     """Monte Carlo end poses of long paths with both Gaussian methods' Pr regions drawn over them.
 
@@ -322,8 +321,6 @@ def expcoords_figure(
     k : float — wheel-noise constant [m]; track : float [m]; dt : float [s]
     pr : float in (0, 1) — region probability (default 98.89 %, radius 3)
     n : int — Monte Carlo runs per case; seed : int
-    n_quad : int — quadrature nodes of the planar density (:func:`expcoords.pdf_xy`); the
-        default 64 leaves ripples on the thin tips of a long banana, 256 does not
     """
     from matplotlib.path import Path as MplPath
 
@@ -342,7 +339,7 @@ def expcoords_figure(
         E = ec.propagate(t, k, k)
         end, cov = A.poses[-1], A.covs[-1]
         ell = cv.ellipse_polyline(cov[:2, :2], pr, end[:2], 400)
-        banana = _banana_outline(E.poses[-1], E.covs[-1], pr, rng, n_quad)
+        banana = ec.pr_region_xy(E.poses[-1], E.covs[-1], pr, rng, n_grid=240, n=50_000)
         d = cloud[:, :2] - end[:2]
         m2 = np.einsum("ni,ij,nj->n", d, np.linalg.inv(cov[:2, :2]), d)
         in_ell = float(np.mean(m2 <= cv.pr_to_k(pr)))
@@ -367,28 +364,6 @@ def expcoords_figure(
         ax.grid(True, lw=0.3, alpha=0.5)
         ax.legend(fontsize="x-small", loc="lower left")
     return fig
-
-
-def _banana_outline(
-    mean_pose: np.ndarray, cov: np.ndarray, pr: float, rng: np.random.Generator, n_quad: int,
-    n_grid: int = 240, n: int = 50_000,
-) -> list[np.ndarray]:
-    """As :func:`pose_uncertainty.expcoords.pr_region_xy`, with the quadrature order exposed."""
-    import contourpy
-
-    from . import expcoords as ec
-
-    draws = ec.sample(mean_pose, cov, n, rng)
-    dens = ec.pdf_xy(draws[:, :2], mean_pose, cov, n_quad=n_quad)
-    level = float(np.quantile(dens, 1.0 - pr))
-    inside = draws[dens >= level, :2]
-    lo, hi = inside.min(axis=0), inside.max(axis=0)
-    pad = 0.1 * (hi - lo) + 1e-12
-    x = np.linspace(lo[0] - pad[0], hi[0] + pad[0], n_grid)
-    y = np.linspace(lo[1] - pad[1], hi[1] + pad[1], n_grid)
-    Z = ec.marginal_xy_grid(x, y, mean_pose, cov, n_quad=n_quad)
-    gen = contourpy.contour_generator(x, y, Z.T)
-    return [np.asarray(line) for line in gen.lines(level)]
 
 
 def render_expcoords_figure(out: str | os.PathLike[str], **kwargs: Any) -> Path:
