@@ -374,3 +374,19 @@ def test_table_measures_match_the_straight_line_closed_form(quick: Path) -> None
         assert row["A_sigma_theta"] == pytest.approx(math.sqrt(2 * k * L) / b, rel=1e-9)
         across = 2 * k * L**3 / (3 * b**2) * (1 - 1 / (4 * n**2))
         assert row["A_sigma_across"] == pytest.approx(math.sqrt(across), rel=1e-9)
+
+
+def test_speed_results_are_read_for_the_report(tmp_path: Path) -> None:
+    from pose_uncertainty.report import read_speed_results
+
+    assert read_speed_results(tmp_path / "missing") == []
+    (tmp_path / "a.json").write_text(
+        json.dumps({"benchmark": "foundation", "machine": {"cores": 2},
+                    "results": {"mc": {"vectorised_s": 2.3, "speedup": 49.0}, "x": 1.5}}),
+        encoding="utf-8",
+    )
+    (tmp_path / "b.json").write_text("{not json", encoding="utf-8")
+    res = read_speed_results(tmp_path)
+    assert [r["benchmark"] for r in res] == ["foundation", "b"]
+    assert res[0]["results"] == {"mc": {"vectorised_s": 2.3, "speedup": 49.0}, "x": {"value": 1.5}}
+    assert "error" in res[1]

@@ -392,6 +392,34 @@ def study_summary(studies: Mapping[str, Any] | None) -> dict[str, Any]:
     return out
 
 
+def read_speed_results(directory: str | os.PathLike[str]) -> list[dict[str, Any]]:
+    """The speed benchmarks' result files (``benchmarks/results/*.json``, written by ``make bench``).
+
+    Returns one entry per file: ``{"benchmark", "machine", "file", "results":
+    {case: {measure: value}}}``, sorted by name; an unreadable file becomes an
+    entry with an ``"error"``. A missing directory gives an empty list.
+    """
+    d = Path(directory)
+    out: list[dict[str, Any]] = []
+    for f in sorted(d.glob("*.json")) if d.is_dir() else []:
+        try:
+            data = json.loads(f.read_text(encoding="utf-8"))
+            out.append(
+                {
+                    "benchmark": str(data.get("benchmark", f.stem)),
+                    "machine": data.get("machine", {}),
+                    "file": str(f),
+                    "results": {
+                        str(case): (vals if isinstance(vals, Mapping) else {"value": vals})
+                        for case, vals in dict(data.get("results", {})).items()
+                    },
+                }
+            )
+        except (OSError, ValueError, TypeError, AttributeError) as exc:
+            out.append({"benchmark": f.stem, "file": str(f), "error": str(exc), "results": {}})
+    return out
+
+
 def build_report(
     manifest: Mapping[str, Any],
     tables: Mapping[str, str | os.PathLike[str]],
@@ -403,6 +431,7 @@ def build_report(
     config_text: str = "",
     studies_path: str | os.PathLike[str] | None = None,
     studies_figures: Mapping[str, str | os.PathLike[str]] | None = None,
+    speed_dir: str | os.PathLike[str] | None = None,
 ) -> Path:
     """Render ``reports/comparison.html``.
 
@@ -419,6 +448,8 @@ def build_report(
     studies_path : path, optional — JSON written by :func:`run_studies` (seed 001's studies)
     studies_figures : mapping, optional — figures of the studies sections by kind
         (``expcoords``: :func:`pose_uncertainty.pipeline_figures.expcoords_figure`); missing files are skipped
+    speed_dir : path, optional — folder of the speed benchmarks' results
+        (``benchmarks/results``, :func:`read_speed_results`); shown when present
     """
     import jinja2
 
@@ -446,12 +477,14 @@ def build_report(
         sets.append({**s, "runs": runs})
     git = git_commit()
     bench = read_benchmarks(benchmarks)
+    speed = read_speed_results(speed_dir) if speed_dir is not None else []
     studies = None
     if studies_path is not None and Path(studies_path).is_file():
         studies = json.loads(Path(studies_path).read_text(encoding="utf-8"))
     template = env.get_template("comparison.html.j2")
     text = template.render(
         title=title,
+        speed=speed,
         sets=sets,
         claims=claims,
         bench=bench,

@@ -1,4 +1,5 @@
 # Config validation (JSON Schema 2020-12, before any rule reads the config) and input functions.
+from pathlib import Path
 from importlib import resources as _resources
 
 from pose_uncertainty import __version__ as PACKAGE_VERSION

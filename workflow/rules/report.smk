@@ -38,6 +38,8 @@ rule build_report:
         template=REPORT_TEMPLATE,
         studies=studies_output,
         studies_figures=lambda w: list(studies_figures().values()),
+        # the speed benchmarks' results, when `make bench` has written them (not made by the DAG)
+        speed=lambda w: sorted(str(p) for p in Path("benchmarks/results").glob("*.json")),
     output:
         "reports/comparison.html",
     params:

@@ -18,4 +18,5 @@ with open(sm.log[0], "w", encoding="utf-8") as log, redirect_stderr(log):
         config_text=yaml.safe_dump(sm.params.manifest["config"], sort_keys=False, width=100),
         studies_path=sm.input.studies[0] if len(sm.input.studies) else None,
         studies_figures=dict(sm.params.studies_figures),
+        speed_dir="benchmarks/results",
     )
