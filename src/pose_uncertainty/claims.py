@@ -98,6 +98,11 @@ def _get(row: Mapping[str, Any], key: str) -> float:
     return float(v)
 
 
+def _verdict_of_parts(parts: Sequence[bool]) -> str:
+    """A claim made of several parts: confirmed if all hold, refuted if none does, else qualified."""
+    return "confirmed" if all(parts) else ("refuted" if not any(parts) else "qualified")
+
+
 def _fig(set_name: str, run: str | None, kind: str) -> dict[str, Any]:
     return {"set": set_name, "run": run, "kind": kind}
 
@@ -241,7 +246,7 @@ def _c4(rows: Rows, c: Claim) -> None:
     ok_tilt = abs(tilt(a1) - tilt(eq)) > 0.5 and abs(tilt(a2) - tilt(eq)) > 0.5 and tilt(a1) * tilt(a2) <= 0
     ok_b = across["0.1"] > across["0.2"] > across["0.5"]
     good = [ok_k, ok_tilt, ok_b]
-    c.verdict = "confirmed" if all(good) else ("refuted" if not any(good) else "qualified")
+    c.verdict = _verdict_of_parts(good)
     c.reason = (
         f"Larger k → larger ellipse: {'yes' if ok_k else 'no'} (the axes scale with √k). "
         f"Unequal k tilt it: {'yes, in opposite directions when swapped' if ok_tilt else 'no measurable tilt'}. "
@@ -456,7 +461,7 @@ def _c9(rows: Rows, c: Claim) -> None:
     ok34 = res["a34"][1] < 0.9 and res["a34"][1] < res["a34"][0]
     ok56 = abs(res["a56"][0] - 1) < 0.02 and abs(res["a56"][1] - 1) < 0.02
     good = [ok12, ok34, ok56]
-    c.verdict = "confirmed" if all(good) else ("refuted" if not any(good) else "qualified")
+    c.verdict = _verdict_of_parts(good)
     c.reason = (
         f"α1,α2 mainly along: {'yes' if ok12 else 'no'}; α3,α4 mainly across: {'yes' if ok34 else 'no'}; "
         f"α5,α6 leave the (x, y) map unchanged: {'yes' if ok56 else 'no'} (γ only turns the final heading)."
@@ -483,7 +488,7 @@ def _c10(rows: Rows, c: Claim) -> None:
     smaller = ratios["rotation"] < 0.5
     off = max(_get(_run(t, r), "map_odometry_peak_offset") for r in ratios) > 0.005
     good = [larger, smaller, off]
-    c.verdict = "confirmed" if all(good) else ("refuted" if not any(good) else "qualified")
+    c.verdict = _verdict_of_parts(good)
     c.reason = (
         f"Larger for straight and arc: {'yes' if larger else 'no'}; much smaller for rotation: "
         f"{'yes' if smaller else 'no'}; peak off the end point: {'yes' if off else 'no'}. "
@@ -564,7 +569,7 @@ def _c12(rows: Rows, c: Claim) -> None:
     ok_fk = fk < se
     ok_b = maj[b_big] < maj[b_small]
     good = [ok_bent, ok_fk, ok_b]
-    c.verdict = "confirmed" if all(good) else ("refuted" if not any(good) else "qualified")
+    c.verdict = _verdict_of_parts(good)
     c.reason = (
         f"Bent: {'yes' if ok_bent else 'no, not measurably at 1 m'} ({sum(bent.values())} of {len(bent)} clouds "
         f"beyond noise); independent of the FK method: {'yes, within what 1000 runs can resolve' if ok_fk else 'no'} "
