@@ -16,12 +16,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from pose_uncertainty import accuracy as ac
-from pose_uncertainty import calibration as cb
-from pose_uncertainty import covariance as cv
-from pose_uncertainty import expcoords as ec
-from pose_uncertainty import sampling as sp
-from pose_uncertainty import trajectories as tr
+from pose_uncertainty.analysis import accuracy as ac
+from pose_uncertainty.analysis import calibration as cb
+from pose_uncertainty.core import trajectories as tr
+from pose_uncertainty.methods import covariance as cv
+from pose_uncertainty.methods import expcoords as ec
+from pose_uncertainty.methods import sampling as sp
 
 from ._common import best_of, write_results
 

@@ -17,9 +17,9 @@ import time
 
 import numpy as np
 
-from pose_uncertainty import covariance as cv
-from pose_uncertainty import sampling as sp
-from pose_uncertainty import trajectories as tr
+from pose_uncertainty.core import trajectories as tr
+from pose_uncertainty.methods import covariance as cv
+from pose_uncertainty.methods import sampling as sp
 
 from ._common import best_of, write_results
 

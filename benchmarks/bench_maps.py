@@ -34,9 +34,9 @@ from typing import Any
 
 import numpy as np
 
-from pose_uncertainty import maps as M
-from pose_uncertainty import motion_models as mm
-from pose_uncertainty import trajectories as tr
+from pose_uncertainty.core import trajectories as tr
+from pose_uncertainty.methods import maps as M
+from pose_uncertainty.methods import motion_models as mm
 
 from ._common import best_of, write_results
 

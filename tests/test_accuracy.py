@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from pose_uncertainty import accuracy as ac
-from pose_uncertainty import covariance as cv
-from pose_uncertainty import expcoords as ec
-from pose_uncertainty import sampling as sp
-from pose_uncertainty import trajectories as tr
+from pose_uncertainty.analysis import accuracy as ac
+from pose_uncertainty.core import trajectories as tr
+from pose_uncertainty.methods import covariance as cv
+from pose_uncertainty.methods import expcoords as ec
+from pose_uncertainty.methods import sampling as sp
 
 N = 40_000
 MU = np.array([1.0, 0.2, 0.4])

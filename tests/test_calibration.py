@@ -8,11 +8,12 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from pose_uncertainty import calibration as cb
 from pose_uncertainty import cli
-from pose_uncertainty import motion_models as mm
-from pose_uncertainty import sampling as sp
-from pose_uncertainty import trajectories as tr
+from pose_uncertainty.analysis import calibration as cb
+from pose_uncertainty.cli import calibrate as calibrate_cmd
+from pose_uncertainty.core import trajectories as tr
+from pose_uncertainty.methods import motion_models as mm
+from pose_uncertainty.methods import sampling as sp
 
 TRAJ = tr.straight(1.0, dt=0.02, track=0.2)
 
@@ -204,7 +205,7 @@ def test_calibrate_command_needs_trajectory(tmp_path):
     p = tmp_path / "end.csv"
     np.savetxt(p, np.zeros((12, 3)), delimiter=",", header="x,y,theta", comments="")
     parser = argparse.ArgumentParser()
-    cb.add_calibrate_parser(parser.add_subparsers())
+    calibrate_cmd.add_parser(parser.add_subparsers())
     args = parser.parse_args(["calibrate", str(p)])
     with pytest.raises(ValueError, match="needs the trajectory"):
         args.func(args)

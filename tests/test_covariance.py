@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from pose_uncertainty import covariance as cv
-from pose_uncertainty import kinematics as kin
-from pose_uncertainty import trajectories as tr
+from pose_uncertainty.core import kinematics as kin
+from pose_uncertainty.core import trajectories as tr
+from pose_uncertainty.methods import covariance as cv
 
 
 def _f(p, ds_r, ds_l, b):

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from pose_uncertainty import covariance as cv
-from pose_uncertainty import expcoords as ec
-from pose_uncertainty import sampling as sp
-from pose_uncertainty import trajectories as tr
+from pose_uncertainty.core import trajectories as tr
+from pose_uncertainty.methods import covariance as cv
+from pose_uncertainty.methods import expcoords as ec
+from pose_uncertainty.methods import sampling as sp
 
 
 def test_exp_log_round_trip_and_limits():

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from pose_uncertainty import kinematics as kin
+from pose_uncertainty.core import kinematics as kin
 
 
 def test_wheel_body_round_trip(rng):

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from pose_uncertainty import maps as M
-from pose_uncertainty import motion_models as mm
+from pose_uncertainty.methods import maps as M
+from pose_uncertainty.methods import motion_models as mm
 
 A6 = np.full(6, 0.05)
 A4 = np.full(4, 0.05)
@@ -213,7 +213,7 @@ def test_rotation_in_place_multi_step_needs_sub_cell_resolution():
 
 
 def test_multi_step_accepts_a_trajectory_object():
-    from pose_uncertainty import trajectories as tr
+    from pose_uncertainty.core import trajectories as tr
 
     t = tr.arc(radius=1.0, angle=0.4, dt=0.1, start=(0.1, 0.2, 0.3))
     kw = {"resolution": 0.02, "theta_resolution": math.radians(10)}

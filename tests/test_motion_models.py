@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from pose_uncertainty import maps as M
-from pose_uncertainty import motion_models as mm
-from pose_uncertainty import noise as nz
+from pose_uncertainty.core import noise as nz
+from pose_uncertainty.methods import maps as M
+from pose_uncertainty.methods import motion_models as mm
 
 A6 = np.full(6, 0.05)  # thesis error constants (SPEC §4, Method B)
 A4 = np.full(4, 0.05)

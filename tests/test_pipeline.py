@@ -21,9 +21,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from pose_uncertainty import sweep
-from pose_uncertainty.claims import VERDICTS, evaluate_claims, power_vs_exponential
-from pose_uncertainty.report import read_table
+from pose_uncertainty.analysis.claims import VERDICTS, evaluate_claims, power_vs_exponential
+from pose_uncertainty.core.tables import read_table
+from pose_uncertainty.logs import sweep
 
 REPO = Path(__file__).resolve().parents[1]
 SNAKEMAKE = Path(sys.executable).with_name("snakemake")
@@ -238,8 +238,8 @@ def test_bad_config_fails_before_any_rule_runs(tmp_path: Path) -> None:
 
 
 def test_quick_pipeline_end_to_end(quick: Path) -> None:
-    from pose_uncertainty import figures
-    from pose_uncertainty.runlog import open_run
+    from pose_uncertainty.logs.runlog import open_run
+    from pose_uncertainty.present import figures
 
     cfg = sweep.validate_config(_config("quick.yaml"), SCHEMA)
     sets = sweep.expand_all(cfg)
@@ -276,7 +276,7 @@ def test_quick_pipeline_end_to_end(quick: Path) -> None:
 
 
 def test_report_has_the_studies_sections(quick: Path) -> None:
-    from pose_uncertainty.pipeline_figures import render_expcoords_figure
+    from pose_uncertainty.present.pipeline_figures import render_expcoords_figure
 
     html = (quick / "reports/comparison.html").read_text(encoding="utf-8")
     for sid in ("studies", "accuracy", "accuracy-distance", "expcoords", "fig-studies-expcoords",
@@ -377,7 +377,7 @@ def test_table_measures_match_the_straight_line_closed_form(quick: Path) -> None
 
 
 def test_speed_results_are_read_for_the_report(tmp_path: Path) -> None:
-    from pose_uncertainty.report import read_speed_results
+    from pose_uncertainty.present.report import read_speed_results
 
     assert read_speed_results(tmp_path / "missing") == []
     (tmp_path / "a.json").write_text(

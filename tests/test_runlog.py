@@ -11,9 +11,12 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from pose_uncertainty import covariance, figures, runlog, trajectories
-from pose_uncertainty.run import MapRecord, RunConfig, RunResult, execute
-from pose_uncertainty.runlog import PartialLogWarning, RunLogError, open_run, write_run
+from pose_uncertainty.core import trajectories
+from pose_uncertainty.logs import runlog
+from pose_uncertainty.logs.run import MapRecord, RunConfig, RunResult, execute
+from pose_uncertainty.logs.runlog import PartialLogWarning, RunLogError, open_run, write_run
+from pose_uncertainty.methods import covariance
+from pose_uncertainty.present import figures
 
 CONFIG = {
     "name": "s_curve_test",
@@ -235,8 +238,8 @@ def test_write_is_atomic(
 
 KILL_SCRIPT = """
 import os, signal, sys
-from pose_uncertainty import runlog
-from pose_uncertainty.run import RunConfig, execute
+from pose_uncertainty.logs import runlog
+from pose_uncertainty.logs.run import RunConfig, execute
 
 result = execute(RunConfig.from_dict({config!r}))
 real_put, count = runlog._Log.put, [0]
@@ -406,7 +409,7 @@ MAP_CONFIG = {
 
 
 def test_computed_maps_round_trip(tmp_path: Path) -> None:
-    from pose_uncertainty import maps
+    from pose_uncertainty.methods import maps
 
     cfg = RunConfig.from_dict(MAP_CONFIG)
     assert cfg.maps[0].params["alphas"] == [0.05] * 6  # the thesis's constants filled in

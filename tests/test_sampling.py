@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
-from pose_uncertainty import covariance as cv
-from pose_uncertainty import sampling as sp
-from pose_uncertainty import stats
-from pose_uncertainty import trajectories as tr
+from pose_uncertainty.core import stats
+from pose_uncertainty.core import trajectories as tr
+from pose_uncertainty.methods import covariance as cv
+from pose_uncertainty.methods import sampling as sp
 
 N_MC = 200_000
 

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from pose_uncertainty import studies as st
-from pose_uncertainty import trajectories as tr
-from pose_uncertainty import wheel_noise as wn
+from pose_uncertainty.analysis import studies as st
+from pose_uncertainty.core import trajectories as tr
+from pose_uncertainty.methods import wheel_noise as wn
 
 
 def test_closed_form_arc_equals_trajectory_poses():
@@ -35,7 +35,7 @@ def test_float64_loop_equals_vectorised_integration():
     t = st.constant_speed_trajectory(1.0, 0.95, 0.5, 0.01, 0.1)
     r = t.ds_r * (1 + 0.01 * rng.normal(size=(4, t.n_steps)))
     l = t.ds_l * (1 + 0.01 * rng.normal(size=(4, t.n_steps)))
-    from pose_uncertainty.sampling import integrate_end
+    from pose_uncertainty.methods.sampling import integrate_end
 
     ref = integrate_end(r, l, 0.1, method="exact")[:, 0, :]
     for nt in ("float64", "longdouble"):
@@ -113,7 +113,7 @@ def test_method_a_growth_on_the_straight_line_is_a_power_law():
 
 
 def test_polar_view_is_more_gaussian():
-    from pose_uncertainty.sampling import sample_end_poses
+    from pose_uncertainty.methods.sampling import sample_end_poses
 
     cloud = sample_end_poses(tr.straight(1.0, dt=0.02, track=0.2), 5e-4, 5e-4, 40_000,
                              np.random.default_rng(5))

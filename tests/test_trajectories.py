@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from pose_uncertainty import trajectories as tr
-from pose_uncertainty.trajectories import Trajectory
+from pose_uncertainty.core import trajectories as tr
+from pose_uncertainty.core.trajectories import Trajectory
 
 
 @pytest.mark.parametrize(

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from pose_uncertainty import covariance as cv
-from pose_uncertainty import trajectories as tr
-from pose_uncertainty import wheel_noise as wn
+from pose_uncertainty.core import trajectories as tr
+from pose_uncertainty.methods import covariance as cv
+from pose_uncertainty.methods import wheel_noise as wn
 
 
 def test_seed001_numbers():

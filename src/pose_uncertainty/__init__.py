@@ -3,14 +3,14 @@
 Three ways to the same question — how sure is the robot of its pose after
 driving a path — computed side by side:
 
-* :mod:`pose_uncertainty.covariance` — first-order covariance propagation
+* :mod:`pose_uncertainty.methods.covariance` — first-order covariance propagation
   (Siegwart & Nourbakhsh) and its error ellipses;
-* :mod:`pose_uncertainty.maps` — probability maps from the velocity and
+* :mod:`pose_uncertainty.methods.maps` — probability maps from the velocity and
   odometry motion models (Thrun, Burgard & Fox);
-* :mod:`pose_uncertainty.sampling` — Monte Carlo ground truth.
+* :mod:`pose_uncertainty.methods.sampling` — Monte Carlo ground truth.
 
-Trajectories are built with :mod:`pose_uncertainty.trajectories`; the
-kinematics live in :mod:`pose_uncertainty.kinematics`.
+Trajectories are built with :mod:`pose_uncertainty.core.trajectories`; the
+kinematics live in :mod:`pose_uncertainty.core.kinematics`.
 """
 
 from importlib.metadata import PackageNotFoundError, version

@@ -3,7 +3,7 @@ from pathlib import Path
 from importlib import resources as _resources
 
 from pose_uncertainty import __version__ as PACKAGE_VERSION
-from pose_uncertainty import sweep as _sweep
+from pose_uncertainty.logs import sweep as _sweep
 
 # A config file given on the command line (--configfile config/quick.yaml) REPLACES
 # config/config.yaml instead of deep-merging into it (whose sets would otherwise leak in);
@@ -23,7 +23,7 @@ config.clear()
 config.update(_validated)  # in place: every default filled in
 
 # the report template ships with the package: a change to it rebuilds the report
-REPORT_TEMPLATE = str(_resources.files("pose_uncertainty") / "templates" / "comparison.html.j2")
+REPORT_TEMPLATE = str(_resources.files("pose_uncertainty.present") / "templates" / "comparison.html.j2")
 
 RUNS = _sweep.expand_all(config)  # {set: [Run, ...]}
 RUN_BY_ID = {(s, r.id): r for s, runs in RUNS.items() for r in runs}

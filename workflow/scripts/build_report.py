@@ -1,10 +1,10 @@
-"""Adapter: render reports/comparison.html (pose_uncertainty.report.build_report)."""
+"""Adapter: render reports/comparison.html (pose_uncertainty.present.report.build_report)."""
 
 from contextlib import redirect_stderr
 
 import yaml
 
-from pose_uncertainty.report import build_report
+from pose_uncertainty.present.report import build_report
 
 sm = snakemake  # noqa: F821 - injected by Snakemake
 with open(sm.log[0], "w", encoding="utf-8") as log, redirect_stderr(log):

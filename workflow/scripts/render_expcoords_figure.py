@@ -1,8 +1,8 @@
-"""Adapter: Monte Carlo clouds with the ellipse and the banana (pose_uncertainty.pipeline_figures)."""
+"""Adapter: Monte Carlo clouds with the ellipse and the banana (pose_uncertainty.present.pipeline_figures)."""
 
 from contextlib import redirect_stderr
 
-from pose_uncertainty.pipeline_figures import render_expcoords_figure
+from pose_uncertainty.present.pipeline_figures import render_expcoords_figure
 
 sm = snakemake  # noqa: F821 - injected by Snakemake
 with open(sm.log[0], "w", encoding="utf-8") as log, redirect_stderr(log):

@@ -1,8 +1,8 @@
-"""Adapter: draw figures of one run log (pose_uncertainty.pipeline_figures.render_run_figures)."""
+"""Adapter: draw figures of one run log (pose_uncertainty.present.pipeline_figures.render_run_figures)."""
 
 from contextlib import redirect_stderr
 
-from pose_uncertainty.pipeline_figures import render_run_figures
+from pose_uncertainty.present.pipeline_figures import render_run_figures
 
 sm = snakemake  # noqa: F821 - injected by Snakemake
 kinds = sm.params.kinds

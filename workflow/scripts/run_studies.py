@@ -1,8 +1,8 @@
-"""Adapter: seed 001's studies as JSON (pose_uncertainty.report.run_studies)."""
+"""Adapter: seed 001's studies as JSON (pose_uncertainty.present.report.run_studies)."""
 
 from contextlib import redirect_stderr
 
-from pose_uncertainty.report import run_studies
+from pose_uncertainty.present.report import run_studies
 
 sm = snakemake  # noqa: F821 - injected by Snakemake
 with open(sm.log[0], "w", encoding="utf-8") as log, redirect_stderr(log):

@@ -4,8 +4,8 @@ A *run* is one parameter point of a sweep: a trajectory, the odometry error
 constants, a seed and what to compute — Method A (covariance propagation with
 its error ellipses), Monte Carlo end poses under the same model, and optional
 probability maps (Method B). :func:`execute` turns a :class:`RunConfig` into a
-:class:`RunResult`; :mod:`pose_uncertainty.runlog` writes and reads results as
-MCAP files, :mod:`pose_uncertainty.figures` draws them.
+:class:`RunResult`; :mod:`pose_uncertainty.logs.runlog` writes and reads results as
+MCAP files, :mod:`pose_uncertainty.present.figures` draws them.
 
 A configuration is written as a plain mapping (YAML or JSON)::
 
@@ -62,7 +62,7 @@ DEFAULT_PR: float = 1.0 - math.exp(-4.5)
 
 _NAME_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$")
 
-#: Units of the trajectory builder parameters (SPEC §1, pose_uncertainty.trajectories).
+#: Units of the trajectory builder parameters (SPEC §1, pose_uncertainty.core.trajectories).
 TRAJECTORY_UNITS: dict[str, str] = {
     "name": "-",
     "length": "m",
@@ -133,7 +133,7 @@ class MonteCarloConfig:
     regime : {"per_step", "per_run"}
         Wheel-travel noise drawn every step (random walk) or once per run (systematic).
     method : str
-        Forward-kinematics step used by the sampler (``pose_uncertainty.kinematics.METHODS``).
+        Forward-kinematics step used by the sampler (``pose_uncertainty.core.kinematics.METHODS``).
     checkpoints : tuple of int
         Step indices (1..N) at which the whole cloud is also kept [step].
     """
@@ -189,7 +189,7 @@ class MapConfig:
         as the thesis), ``noise`` (normal | triangular), ``scaling`` (squared | abs),
         ``resolution`` [m] (cell, default 0.01 m), ``theta_resolution`` [rad]
         (default 2°). A one-step trajectory gives the thesis's single-step map
-        (``pose_uncertainty.maps.single_step_map``: also ``corrected`` (the
+        (``pose_uncertainty.methods.maps.single_step_map``: also ``corrected`` (the
         change-of-variables-corrected pose-space density instead of Thrun's
         control-space one), ``cell_average``, ``variance_from``, ``size`` [m], the
         side of the grid centred on the noiseless end pose, default 1 m); a longer
@@ -251,7 +251,7 @@ def map_kind(n_steps: int) -> str:
 
 def _map_defaults(model: str, kind: str) -> dict[str, Any]:
     """Every configurable parameter of a map builder with its default."""
-    from . import maps
+    from ..methods import maps
 
     defaults: dict[str, Any] = {"alphas": [0.05] * (6 if model == "velocity" else 4)}
     if kind == "single":
@@ -270,7 +270,7 @@ def _map_defaults(model: str, kind: str) -> dict[str, Any]:
 
 def _map_params(where: str, model: str, params: dict[str, Any], n_steps: int) -> dict[str, Any]:
     """Validate a map's parameters against its builder and fill in the builder's defaults."""
-    from . import maps
+    from ..methods import maps
 
     kind = map_kind(n_steps)
     defaults = _map_defaults(model, kind)
@@ -294,7 +294,7 @@ def _trajectory_params(data: Any) -> tuple[dict[str, Any], int]:
         raise _fail("trajectory", "a mapping with a 'name' key", data)
     if "name" not in data:
         raise ValueError("config key 'trajectory.name' is missing (e.g. straight, circle)")
-    from . import trajectories
+    from ..core import trajectories
 
     name = data["name"]
     if name not in trajectories.BUILDERS:
@@ -327,7 +327,7 @@ class RunConfig:
     Attributes
     ----------
     trajectory : dict
-        ``name`` of a builder in ``pose_uncertainty.trajectories.BUILDERS`` and its
+        ``name`` of a builder in ``pose_uncertainty.core.trajectories.BUILDERS`` and its
         parameters (units in :data:`TRAJECTORY_UNITS`: lengths m, angles rad,
         speed m/s, angular_speed rad/s, dt s, track m).
     k_r, k_l : float
@@ -490,7 +490,7 @@ class RunConfig:
 class MapRecord:
     """A probability map over a discretised ``(x, y, θ)`` grid, as computed and logged.
 
-    Holds the data of ``pose_uncertainty.maps.ProbabilityMap`` plus the map's
+    Holds the data of ``pose_uncertainty.methods.maps.ProbabilityMap`` plus the map's
     name and parameters; :meth:`to_probability_map` gives the full object back.
 
     Attributes
@@ -539,8 +539,8 @@ class MapRecord:
         return self.values.sum(axis=2)
 
     def to_probability_map(self) -> Any:
-        """The equivalent ``pose_uncertainty.maps.ProbabilityMap`` (without its grid object)."""
-        from . import maps
+        """The equivalent ``pose_uncertainty.methods.maps.ProbabilityMap`` (without its grid object)."""
+        from ..methods import maps
 
         return maps.ProbabilityMap(
             self.x,
@@ -618,7 +618,7 @@ class RunResult:
 # --- provenance ----------------------------------------------------------------------------
 
 
-_REPO_ROOT = Path(__file__).resolve().parents[2]
+_REPO_ROOT = Path(__file__).resolve().parents[3]
 
 
 @functools.lru_cache(maxsize=1)
@@ -682,7 +682,7 @@ def provenance() -> dict[str, str]:
 
     Values are strings; an unknown value is ``"unknown"``.
     """
-    from . import __version__
+    from .. import __version__
 
     git = git_commit()
     return {
@@ -710,7 +710,8 @@ def execute(config: RunConfig) -> RunResult:
         Everything but ``timings`` is a deterministic function of ``config``
         (including its seed), the package version and the environment.
     """
-    from . import covariance, sampling, stats, trajectories
+    from ..core import stats, trajectories
+    from ..methods import covariance, sampling
 
     timings: dict[str, float] = {}
     t_all = time.perf_counter()
@@ -784,14 +785,14 @@ def execute(config: RunConfig) -> RunResult:
 
 
 def _compute_map(mcfg: MapConfig, traj: Any) -> MapRecord:
-    """Compute one probability map with ``pose_uncertainty.maps``.
+    """Compute one probability map with ``pose_uncertainty.methods.maps``.
 
     A one-step trajectory gives the single-step map of its control ``(V, ω)``
     over ``dt`` from the start pose, on a grid centred on the noiseless
     (exact-arc) end pose; a longer one the multi-step map along all its controls
     (on a growing grid unless ``size`` is set).
     """
-    from . import maps as maps_mod
+    from ..methods import maps as maps_mod
 
     params = dict(mcfg.params)
     end = np.asarray(traj.poses[-1], dtype=np.float64)
@@ -829,10 +830,11 @@ def _accuracy_metrics(
     (the banana) of the same wheel-noise model, against the end-pose cloud:
     coverage of their Pr-regions for Pr ∈ {0.5, 0.9, 0.9889}, Hellinger and KL
     to the Monte Carlo histogram on one stated grid (60 × 60 bins over the
-    cloud), mean log-likelihood and NEES (:func:`pose_uncertainty.accuracy.compare_methods`).
+    cloud), mean log-likelihood and NEES (:func:`pose_uncertainty.analysis.accuracy.compare_methods`).
     Deterministic: its own generator is derived from the run's seed.
     """
-    from . import accuracy, expcoords
+    from ..analysis import accuracy
+    from ..methods import expcoords
 
     cov0 = None
     if config.cov0 is not None:

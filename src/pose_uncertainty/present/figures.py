@@ -1,4 +1,4 @@
-"""Figures of a run, drawn from a :class:`~pose_uncertainty.run.RunResult` alone.
+"""Figures of a run, drawn from a :class:`~pose_uncertainty.logs.run.RunResult` alone.
 
 These are the functions the pipeline calls and ``pose-uncertainty replay
 --figures`` calls on a run read back from its log; since the log is lossless,
@@ -27,8 +27,9 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from . import __version__, covariance
-from .run import MapRecord, RunResult
+from .. import __version__
+from ..logs.run import MapRecord, RunResult
+from ..methods import covariance
 
 __all__ = [
     "FORMATS",

@@ -63,7 +63,7 @@ Cell averaging
 --------------
 With ``cell=(h, h_θ)`` the density is averaged over one grid cell: each noise
 factor is replaced by its mean over the interval of control values that one
-cell spans along that factor's gradient (:func:`~pose_uncertainty.noise.prob_cell`),
+cell spans along that factor's gradient (:func:`~pose_uncertainty.core.noise.prob_cell`),
 width ``w_i = √(Σ_j (∂ĉ_i/∂p_j)² h_j²)``. Velocity: ``|∇V̂| = (1/(Δt s))·√(1+(s′/s)²)``
 (``s = sinc(ω̂Δt/2)``), ``|∇ω̂| = 2/(Δt r)``, so ``w_V = h|∇V̂|``, ``w_ω = 2h/(Δt r)``,
 ``w_γ = √(w_ω² + (h_θ/Δt)²)``; odometry: ``w_rot1 = h/r``, ``w_trans = h``,
@@ -78,9 +78,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .kinematics import wrap_angle
-from .noise import check_noise, check_scaling, prob, prob_cell, sample, scaled_variance
-from .validation import (
+from ..core.kinematics import wrap_angle
+from ..core.noise import check_noise, check_scaling, prob, prob_cell, sample, scaled_variance
+from ..core.validation import (
     check_choice,
     check_finite,
     check_last_axis,

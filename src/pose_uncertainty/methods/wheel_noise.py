@@ -49,7 +49,7 @@ step and on the speed. Two consequences of the derivation:
 In the per-run regime the total travel error is ``(u + a) t + ε L`` with
 ``t = L/|v|``: its variance ``σ_v² L²/v²`` grows with the *square* of distance.
 Matched at one distance ``L₀`` (the per-run ``k`` of
-:mod:`pose_uncertainty.sampling` is that matching), the two regimes differ
+:mod:`pose_uncertainty.methods.sampling` is that matching), the two regimes differ
 everywhere else.
 """
 
@@ -62,15 +62,15 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .sampling import REGIMES, integrate_end
-from .trajectories import Trajectory
-from .validation import (
+from ..core.trajectories import Trajectory
+from ..core.validation import (
     check_choice,
     check_finite,
     check_nonnegative,
     check_positive,
     check_positive_int,
 )
+from .sampling import REGIMES, integrate_end
 
 __all__ = [
     "SEED001",

@@ -16,7 +16,7 @@ Zero variance. A variance of exactly zero makes a density a Dirac. The densities
 here raise every variance to at least :data:`MIN_VARIANCE` (10⁻¹²) so that they stay
 finite (a zero-variance term then acts as a spike of width 10⁻⁶ in its own
 units); the samplers return exactly zero noise for zero variance. Maps raise
-variances further, to a floor tied to the grid cell (see :mod:`pose_uncertainty.maps`).
+variances further, to a floor tied to the grid cell (see :mod:`pose_uncertainty.methods.maps`).
 """
 
 from __future__ import annotations

@@ -31,9 +31,9 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .kinematics import METHODS, _translation
-from .trajectories import Trajectory
-from .validation import check_choice, check_finite, check_nonnegative, check_positive_int
+from ..core.kinematics import METHODS, _translation
+from ..core.trajectories import Trajectory
+from ..core.validation import check_choice, check_finite, check_nonnegative, check_positive_int
 
 __all__ = ["REGIMES", "integrate_end", "sample_end_poses"]
 

@@ -1,14 +1,49 @@
-"""Statistics of particle clouds: moments and coverage of Pr-ellipses."""
+"""Statistics of particle clouds: moments, Pr-regions of Gaussians and their coverage.
+
+The probability levels used everywhere (one convention): a 2-D Gaussian's
+Pr-ellipse is the set of squared Mahalanobis radius ``≤ k = −2 ln(1 − Pr)``
+(:func:`pr_to_k`); the levels of radius 1, 2 and 3 are :data:`PR_1SIGMA`,
+:data:`PR_2SIGMA` and :data:`PR_3SIGMA` (39.35 %, 86.47 %, 98.89 %, the thesis's
+figure), named in :data:`COVERAGE_LEVELS`.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .covariance import pr_to_k
-from .validation import check_finite, check_last_axis
+from .validation import check_finite, check_last_axis, check_nonnegative, check_probability
 
-__all__ = ["fraction_inside_ellipse", "mahalanobis_sq", "mean_cov"]
+__all__ = [
+    "COVERAGE_LEVELS",
+    "PR_1SIGMA",
+    "PR_2SIGMA",
+    "PR_3SIGMA",
+    "fraction_inside_ellipse",
+    "k_to_pr",
+    "mahalanobis_sq",
+    "mean_cov",
+    "pr_to_k",
+]
+
+#: Probability inside the 2-D ellipse of Mahalanobis radius 1: 1 − e^{−1/2} = 39.35 %.
+PR_1SIGMA: float = float(-np.expm1(-0.5))
+#: Probability inside the 2-D ellipse of Mahalanobis radius 2: 1 − e^{−2} = 86.47 %.
+PR_2SIGMA: float = float(-np.expm1(-2.0))
+#: Probability inside the 2-D ellipse of Mahalanobis radius 3: 1 − e^{−4.5} = 98.89 % (the thesis's).
+PR_3SIGMA: float = float(-np.expm1(-4.5))
+#: The three levels by name (``"1s"``, ``"2s"``, ``"3s"``): keys of coverage measures.
+COVERAGE_LEVELS: dict[str, float] = {"1s": PR_1SIGMA, "2s": PR_2SIGMA, "3s": PR_3SIGMA}
+
+
+def pr_to_k(pr: ArrayLike) -> NDArray[np.float64]:
+    """Squared Mahalanobis radius of the 2-D Pr-ellipse: ``k = −2 ln(1 − Pr)``; Pr in (0, 1)."""
+    return -2.0 * np.log1p(-check_probability("pr", pr))
+
+
+def k_to_pr(k: ArrayLike) -> NDArray[np.float64]:
+    """Probability inside the 2-D ellipse of squared Mahalanobis radius ``k``: ``1 − e^{−k/2}``."""
+    return -np.expm1(-check_nonnegative("k", k) / 2.0)
 
 
 def mean_cov(samples: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

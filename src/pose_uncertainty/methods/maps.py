@@ -21,7 +21,7 @@ Discretisation
 --------------
 * Single step: with ``corrected=True`` every cell holds the density *averaged
   over the cell* (each noise factor averaged over the control interval one cell
-  spans, see :mod:`pose_uncertainty.motion_models`), so structure thinner than a
+  spans, see :mod:`pose_uncertainty.methods.motion_models`), so structure thinner than a
   cell (rotation in place, zero variances) is integrated, not aliased. The
   corrected densities have an integrable ``1/r`` singularity at the start pose
   (every turn rate reaches it with zero speed), so the cells within
@@ -46,7 +46,17 @@ import numpy as np
 import scipy.fft as sfft
 from numpy.typing import ArrayLike, NDArray
 
-from .kinematics import wrap_angle
+from ..core.kinematics import wrap_angle
+from ..core.noise import cdf, check_noise, check_scaling, noise_reach, prob, prob_cell
+from ..core.validation import (
+    check_choice,
+    check_finite,
+    check_last_axis,
+    check_nonnegative,
+    check_positive,
+    check_positive_int,
+    check_probability,
+)
 from .motion_models import (
     check_alphas,
     noiseless_velocity_poses,
@@ -57,16 +67,6 @@ from .motion_models import (
     velocity_forward,
     velocity_separable,
     velocity_variances,
-)
-from .noise import cdf, check_noise, check_scaling, noise_reach, prob, prob_cell
-from .validation import (
-    check_choice,
-    check_finite,
-    check_last_axis,
-    check_nonnegative,
-    check_positive,
-    check_positive_int,
-    check_probability,
 )
 
 __all__ = [
@@ -655,10 +655,10 @@ def single_step_map(
     odometry : array_like, shape (2, 3), optional
         Odometry poses ``(x̄, x̄')`` for the odometry model.
     variance_from : {"hypothesis", "odometry"}, optional
-        Odometry model only; see :func:`~pose_uncertainty.motion_models.odometry_density`.
+        Odometry model only; see :func:`~pose_uncertainty.methods.motion_models.odometry_density`.
     cell_average : bool, optional
         True: each cell holds the density averaged over the cell (see
-        :mod:`~pose_uncertainty.motion_models`, "Cell averaging") — needed when the
+        :mod:`~pose_uncertainty.methods.motion_models`, "Cell averaging") — needed when the
         distribution has structure thinner than a cell (rotation in place, zero
         variances). False: the value at the cell centre, as the thesis computed it.
         Default: ``corrected`` (the corrected map averages, the thesis map does not).

@@ -29,15 +29,15 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .kinematics import integrate
-from .trajectories import Trajectory
-from .validation import (
+from ..core.kinematics import integrate
+from ..core.stats import PR_3SIGMA, k_to_pr, pr_to_k
+from ..core.trajectories import Trajectory
+from ..core.validation import (
     check_finite,
     check_last_axis,
     check_nonnegative,
     check_positive,
     check_positive_int,
-    check_probability,
 )
 
 __all__ = [
@@ -55,8 +55,6 @@ __all__ = [
     "step",
 ]
 
-#: Probability inside the r = 3 ellipse: 1 − e^{−4.5} (the thesis's 98.89 %).
-PR_3SIGMA: float = float(1.0 - np.exp(-4.5))
 
 
 @dataclass(frozen=True, eq=False)
@@ -389,16 +387,6 @@ class Ellipse(NamedTuple):
     alpha: NDArray[np.float64]
     a_major: NDArray[np.float64]
     a_minor: NDArray[np.float64]
-
-
-def pr_to_k(pr: ArrayLike) -> NDArray[np.float64]:
-    """Squared Mahalanobis radius of the 2-D Pr-ellipse: ``k = −2 ln(1 − Pr)``; Pr in (0, 1)."""
-    return -2.0 * np.log1p(-check_probability("pr", pr))
-
-
-def k_to_pr(k: ArrayLike) -> NDArray[np.float64]:
-    """Probability inside the 2-D ellipse of squared Mahalanobis radius ``k``: ``1 − e^{−k/2}``."""
-    return -np.expm1(-check_nonnegative("k", k) / 2.0)
 
 
 def _check_cov2(cov_xy: ArrayLike) -> NDArray[np.float64]:

@@ -3,7 +3,7 @@
 The pipeline config (``config/config.yaml``, validated against
 ``workflow/schemas/config.schema.yaml``, JSON Schema 2020-12) holds named
 *experiment sets*. A set is a sweep: a ``base`` run configuration (the keys of
-:class:`pose_uncertainty.run.RunConfig`) and a list of *axes*; each axis maps
+:class:`pose_uncertainty.logs.run.RunConfig`) and a list of *axes*; each axis maps
 dotted keys (``trajectory.speed``, ``k_r``, ``monte_carlo.method``, ``maps``)
 to equal-length lists whose values are taken together (zipped); the runs of
 the set are the product of its axes::
@@ -192,7 +192,7 @@ def _fill_defaults(schema: Mapping[str, Any], instance: Any, root: Mapping[str, 
     """Insert schema ``default`` values for missing object keys, recursively (in place).
 
     Local ``$ref`` are followed; a schema with ``x-fill-defaults: false`` (the run
-    configuration, whose defaults :class:`~pose_uncertainty.run.RunConfig` fills) is left alone.
+    configuration, whose defaults :class:`~pose_uncertainty.logs.run.RunConfig` fills) is left alone.
     """
     root = schema if root is None else root
     schema = _resolve(schema, root)
@@ -414,7 +414,7 @@ def expand_all(config: Mapping[str, Any]) -> dict[str, list[Run]]:
 
 def n_steps(config: Mapping[str, Any]) -> int:
     """Number of steps of a run configuration's trajectory (builds the trajectory)."""
-    from . import trajectories
+    from ..core import trajectories
 
     tp = {k: v for k, v in config["trajectory"].items() if k != "name"}
     return trajectories.build(config["trajectory"]["name"], **tp).n_steps

@@ -1,4 +1,4 @@
-"""Figures the pipeline draws beyond a single run's (those are in :mod:`pose_uncertainty.figures`).
+"""Figures the pipeline draws beyond a single run's (those are in :mod:`pose_uncertainty.present.figures`).
 
 * :func:`render_run_figure` — one figure of one run log, by kind (``trajectory``,
   ``cloud``, ``map_<name>``), drawn by the same functions ``replay --figures`` uses;
@@ -8,7 +8,7 @@
 * :func:`expcoords_figure` — long-path Monte Carlo clouds with Method A's ellipse and the
   exponential-coordinates Gaussian's region (the banana) drawn over them.
 
-Every figure is saved by :func:`pose_uncertainty.figures.save_figure` (deterministic bytes).
+Every figure is saved by :func:`pose_uncertainty.present.figures.save_figure` (deterministic bytes).
 """
 
 from __future__ import annotations
@@ -22,8 +22,8 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..logs.runlog import open_run
 from . import figures
-from .runlog import open_run
 
 __all__ = [
     "MAP_SAMPLES",
@@ -115,8 +115,8 @@ def map_sampler_cloud(run: Any, mp: Any, n: int = MAP_SAMPLES) -> np.ndarray:
     -------
     ndarray, shape (n, 3)
     """
-    from . import motion_models as mm
-    from . import trajectories
+    from ..core import trajectories
+    from ..methods import motion_models as mm
 
     p = mp.params
     traj = run.config.trajectory
@@ -271,7 +271,7 @@ def cloud_polar_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") 
         end, cov = run.poses[-1], run.covs[-1]
         cloud = run.end_poses if run.end_poses is not None else np.zeros((0, 3))
         ax.scatter(cloud[:, 0], cloud[:, 1], s=1.0, color="0.3", alpha=0.4, linewidths=0, rasterized=True)
-        from .covariance import ellipse_polyline
+        from ..methods.covariance import ellipse_polyline
 
         pts = ellipse_polyline(cov[:2, :2], run.config.pr, end[:2], 200)
         ax.plot(pts[:, 0], pts[:, 1], color="red", lw=1.0)
@@ -312,7 +312,7 @@ def expcoords_figure(
     One panel per case: ``n`` per-step Monte Carlo end positions (midpoint
     integration, ``k_r = k_l = k`` [m]), Method A's Pr-ellipse (red) and the
     boundary of the exponential-coordinates Gaussian's planar Pr highest-density
-    region (blue, :func:`pose_uncertainty.expcoords.pr_region_xy`); equal aspect,
+    region (blue, :func:`pose_uncertainty.methods.expcoords.pr_region_xy`); equal aspect,
     metres. The legend gives the share of the cloud inside each region.
 
     Parameters
@@ -324,10 +324,10 @@ def expcoords_figure(
     """
     from matplotlib.path import Path as MplPath
 
-    from . import covariance as cv
-    from . import expcoords as ec
-    from . import trajectories as tr
-    from .sampling import sample_end_poses
+    from ..core import trajectories as tr
+    from ..methods import covariance as cv
+    from ..methods import expcoords as ec
+    from ..methods.sampling import sample_end_poses
 
     fig = figures.new_figure((5.2 * len(cases), 5.0))
     for j, (label, params) in enumerate(cases):

@@ -1,7 +1,7 @@
 """The claims of the theses (SPEC §5), each evaluated from the collected per-run measures.
 
 :func:`evaluate_claims` takes the per-set tables (rows of
-:func:`pose_uncertainty.report.run_measures`, keyed by set name) and returns one
+:func:`pose_uncertainty.present.report.run_measures`, keyed by set name) and returns one
 :class:`Claim` per claim of SPEC §5: what the source showed, what we measured
 (with the numbers), the verdict — ``confirmed``, ``refuted``, ``qualified`` (true
 only in part or under conditions), or ``not measured`` (the sets it needs are not
@@ -22,6 +22,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from ..core.tables import read_table
 
 __all__ = ["CLAIM_SETS", "VERDICTS", "Claim", "evaluate_claims", "power_vs_exponential", "write_claims"]
 
@@ -615,7 +617,7 @@ def evaluate_claims(rows: Rows) -> list[Claim]:
 
     Parameters
     ----------
-    rows : mapping of set name to its rows (dicts from :func:`pose_uncertainty.report.read_table`)
+    rows : mapping of set name to its rows (dicts from :func:`pose_uncertainty.core.tables.read_table`)
 
     Returns
     -------
@@ -638,8 +640,6 @@ def evaluate_claims(rows: Rows) -> list[Claim]:
 
 def write_claims(tables: Mapping[str, str | os.PathLike[str]], out: str | os.PathLike[str]) -> Path:
     """Read the per-set CSV tables, evaluate the claims and write them as JSON (a list of Claim dicts)."""
-    from .report import read_table
-
     rows = {name: read_table(p) for name, p in tables.items()}
     claims = evaluate_claims(rows)
     p = Path(out)

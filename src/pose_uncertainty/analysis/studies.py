@@ -8,7 +8,7 @@
   the given type (the one place a per-step loop is the point), its drift from
   the exact end pose and what it does to the cloud of end poses.
 * :func:`error_sources_vs_monte_carlo` — seed 001's error sources mapped to
-  the equivalent ``k`` (:mod:`pose_uncertainty.wheel_noise`) and checked
+  the equivalent ``k`` (:mod:`pose_uncertainty.methods.wheel_noise`) and checked
   against Monte Carlo; :func:`regime_growth` — systematic (per-run) against
   random (per-step) errors and their growth with distance.
 * :func:`polar_vs_cartesian` — moments of the cloud in Cartesian ``(x, y)``
@@ -20,7 +20,7 @@
 * :func:`accuracy_table` — coverage and distances of both Gaussian methods on
   the long paths (straight 1, 5, 20 m; 1 and 3 laps of a circle; larger k).
 
-``python -m pose_uncertainty.studies [--quick]`` runs all of them with the
+``python -m pose_uncertainty.analysis.studies [--quick]`` runs all of them with the
 default (thesis) parameters and prints one JSON document.
 """
 
@@ -37,14 +37,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import stats as sstats
 
+from ..core import trajectories as tr
+from ..core.kinematics import METHODS
+from ..core.validation import check_choice, check_positive, check_positive_int
+from ..methods import covariance as cv
+from ..methods import expcoords as ec
+from ..methods import sampling as sp
+from ..methods import wheel_noise as wn
 from . import accuracy as ac
-from . import covariance as cv
-from . import expcoords as ec
-from . import sampling as sp
-from . import trajectories as tr
-from . import wheel_noise as wn
-from .kinematics import METHODS
-from .validation import check_choice, check_positive, check_positive_int
 
 __all__ = [
     "NUMBER_TYPES",
@@ -491,7 +491,7 @@ def regime_growth(
     """Per-step (random) against per-run (systematic) errors: spreads against distance.
 
     Both regimes have the same total-travel variance at the end of the path
-    (:mod:`pose_uncertainty.sampling`); along the way the per-run spread grows
+    (:mod:`pose_uncertainty.methods.sampling`); along the way the per-run spread grows
     faster. Spreads are Monte Carlo standard deviations along/across the
     nominal heading.
 
@@ -627,14 +627,14 @@ def map_vs_sampler(
     ``maps.single_step_map(corrected=False)`` (Thrun's density, as the thesis)
     and ``corrected=True`` (the sampler's pose-space density), on a square
     grid of side ``size`` [m] centred on the noiseless end pose. Measures as
-    :func:`pose_uncertainty.accuracy.evaluate_gridded`.
+    :func:`pose_uncertainty.analysis.accuracy.evaluate_gridded`.
 
     Returns
     -------
     dict: ``thesis_map``, ``corrected_map`` → measures (plus ``lost_mass``)
     """
-    from . import maps
-    from . import motion_models as mm
+    from ..methods import maps
+    from ..methods import motion_models as mm
 
     check_choice("model", model, ("velocity", "odometry"))
     al = np.full(6 if model == "velocity" else 4, 0.05) if alphas is None else np.asarray(alphas)
@@ -681,7 +681,7 @@ def accuracy_table(
     Returns
     -------
     list of dict: ``case``, ``k``, ``length`` [m] and the entries of
-    :func:`pose_uncertainty.accuracy.compare_methods`.
+    :func:`pose_uncertainty.analysis.accuracy.compare_methods`.
     """
     rows = []
     for i, (label, t, k) in enumerate(accuracy_cases(dt)):
@@ -707,7 +707,7 @@ def calibration_demo(
     """Fit ``k`` back from Monte Carlo end poses of a straight line, with both models.
 
     ``n`` per-step Monte Carlo runs of a straight line of ``length`` [m] with
-    true ``k_r = k_l = k`` [m]; :func:`pose_uncertainty.calibration.fit_k` with
+    true ``k_r = k_l = k`` [m]; :func:`pose_uncertainty.analysis.calibration.fit_k` with
     ``coords`` "expcoords" and "cartesian", each with one constant (``equal``)
     and with separate ``k_r, k_l``; 95 % profile-likelihood intervals.
 
@@ -806,8 +806,8 @@ def _fits_only(g: dict[str, Any]) -> dict[str, Any]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m pose_uncertainty.studies [--quick] [-o OUT.json]``: run every study, print JSON."""
-    p = argparse.ArgumentParser(prog="python -m pose_uncertainty.studies", description=__doc__)
+    """``python -m pose_uncertainty.analysis.studies [--quick] [-o OUT.json]``: run every study, print JSON."""
+    p = argparse.ArgumentParser(prog="python -m pose_uncertainty.analysis.studies", description=__doc__)
     p.add_argument("--quick", action="store_true", help="fewer particles (2e4 instead of 1e5)")
     p.add_argument("-o", "--output", help="also write the JSON here")
     args = p.parse_args(argv)

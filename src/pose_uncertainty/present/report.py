@@ -14,7 +14,6 @@
 from __future__ import annotations
 
 import base64
-import csv
 import datetime as _dt
 import html
 import json
@@ -28,12 +27,13 @@ from typing import Any
 
 import numpy as np
 
+from ..core.tables import read_table, write_table
+
 __all__ = [
     "COVERAGE_LEVELS",
     "build_report",
     "collect_table",
     "read_benchmarks",
-    "read_table",
     "run_measures",
     "run_studies",
     "study_summary",
@@ -62,7 +62,7 @@ def _flat(prefix: str, value: Any, out: dict[str, Any]) -> None:
 
 def _map_measures(run: Any, mp: Any, end: np.ndarray, pr: float) -> dict[str, float]:
     """Peak, spread along/across the end heading, Pr-region area, lost mass and agreement with the sampler."""
-    from . import maps as maps_mod
+    from ..methods import maps as maps_mod
     from .pipeline_figures import map_sampler_cloud
 
     w = mp.marginal_xy()  # (nx, ny) probability mass per cell [1]
@@ -126,13 +126,14 @@ def run_measures(log: str | os.PathLike[str], timings: str | os.PathLike[str] | 
     * ``map_<name>_*`` — per probability map: ``peak_x/y/offset/angle``, ``sigma_along``,
       ``sigma_across``, ``mean_offset``, ``region_area`` (highest-density region of
       Pr), ``lost_mass``, ``mass_on_grid``;
-    * ``metric_*`` — the metrics logged by the run itself (:func:`pose_uncertainty.run.execute`),
+    * ``metric_*`` — the metrics logged by the run itself (:func:`pose_uncertainty.logs.run.execute`),
       among them ``metric_accuracy_<cartesian|expcoords>_<hellinger|kl|nees_xy|coverage_*>``: how far
       Method A's Gaussian in Cartesian and in exponential coordinates is from the run's Monte Carlo;
     * ``time_*`` — compute time per method [s] (wall clock; not reproducible).
     """
-    from . import covariance, stats
-    from .runlog import open_run
+    from ..core import stats
+    from ..logs.runlog import open_run
+    from ..methods import covariance
 
     run = open_run(log)
     cfg = run.config
@@ -225,35 +226,7 @@ def collect_table(
         row = run_measures(log, tim)
         row["set"] = set_name
         rows.append(row)
-    keys = sorted({k for r in rows for k in r})
-    cols = [k for k in _FIRST if k in keys] + [k for k in keys if k not in _FIRST]
-    p = Path(out)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    with open(p, "w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh, lineterminator="\n")
-        w.writerow(cols)
-        for r in rows:
-            w.writerow(["" if r.get(k) is None else (repr(r[k]) if isinstance(r[k], float) else r[k]) for k in cols])
-    return p
-
-
-def _num(text: str) -> Any:
-    if text == "":
-        return None
-    try:
-        return int(text)
-    except ValueError:
-        pass
-    try:
-        return float(text)
-    except ValueError:
-        return text
-
-
-def read_table(path: str | os.PathLike[str]) -> list[dict[str, Any]]:
-    """Read a CSV written by :func:`collect_table` (numbers parsed, empty cells as None)."""
-    with open(path, newline="", encoding="utf-8") as fh:
-        return [{k: _num(v) for k, v in row.items()} for row in csv.DictReader(fh)]
+    return write_table(rows, out, _FIRST)
 
 
 def read_benchmarks(paths: Sequence[str | os.PathLike[str]]) -> dict[str, dict[str, float]]:
@@ -284,14 +257,14 @@ def read_benchmarks(paths: Sequence[str | os.PathLike[str]]) -> dict[str, dict[s
 
 
 def run_studies(out: str | os.PathLike[str], quick: bool = False) -> Path:
-    """Run seed 001's studies (:func:`pose_uncertainty.studies.run_all`) and write them as JSON.
+    """Run seed 001's studies (:func:`pose_uncertainty.analysis.studies.run_all`) and write them as JSON.
 
     Parameters
     ----------
     out : path — JSON file
     quick : bool — fewer particles (2·10⁴ instead of 10⁵)
     """
-    from . import studies
+    from ..analysis import studies
 
     result = studies.run_all(quick)
     p = Path(out)
@@ -342,7 +315,7 @@ def study_summary(studies: Mapping[str, Any] | None) -> dict[str, Any]:
 
     Parameters
     ----------
-    studies : mapping — :func:`pose_uncertainty.studies.run_all`'s result (or None)
+    studies : mapping — :func:`pose_uncertainty.analysis.studies.run_all`'s result (or None)
 
     Returns
     -------
@@ -440,23 +413,23 @@ def build_report(
     manifest : mapping — ``{"sets": [{name, title, source, description, figures, runs: [{id,
         log, swept, config, figures}]}], "config": {...}}`` (built by the workflow)
     tables : mapping of set name to its CSV (from :func:`collect_table`)
-    claims_path : path — JSON written by :func:`pose_uncertainty.claims.write_claims`
+    claims_path : path — JSON written by :func:`pose_uncertainty.analysis.claims.write_claims`
     benchmarks : paths of Snakemake benchmark files (per-rule times)
     out : path — the HTML file (self-contained: images inlined, no external resources)
     title : str
     config_text : str — the validated config as YAML (shown verbatim)
     studies_path : path, optional — JSON written by :func:`run_studies` (seed 001's studies)
     studies_figures : mapping, optional — figures of the studies sections by kind
-        (``expcoords``: :func:`pose_uncertainty.pipeline_figures.expcoords_figure`); missing files are skipped
+        (``expcoords``: :func:`pose_uncertainty.present.pipeline_figures.expcoords_figure`); missing files are skipped
     speed_dir : path, optional — folder of the speed benchmarks' results
         (``benchmarks/results``, :func:`read_speed_results`); shown when present
     """
     import jinja2
 
-    from .run import environment_lock_sha256, git_commit
+    from ..logs.run import environment_lock_sha256, git_commit
 
     env = jinja2.Environment(
-        loader=jinja2.PackageLoader("pose_uncertainty", "templates"),
+        loader=jinja2.PackageLoader("pose_uncertainty.present", "templates"),
         autoescape=jinja2.select_autoescape(["html", "j2"]),
         undefined=jinja2.StrictUndefined,
         trim_blocks=True,

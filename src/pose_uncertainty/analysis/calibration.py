@@ -13,10 +13,10 @@ where ``G_r, G_l`` are the propagated covariances for unit constants. Two
 coordinate choices (``coords``):
 
 * ``"expcoords"`` (default): residuals ``ε_j = log(μ⁻¹ p_j)`` and ``G`` from
-  :func:`pose_uncertainty.expcoords.propagate` — the banana-shaped model, which
+  :func:`pose_uncertainty.methods.expcoords.propagate` — the banana-shaped model, which
   stays right where the Cartesian Gaussian fails (see :mod:`accuracy`);
 * ``"cartesian"``: residuals ``p_j − μ`` (heading unwrapped) and ``G`` from
-  :func:`pose_uncertainty.covariance.propagate` — Method A itself. It is
+  :func:`pose_uncertainty.methods.covariance.propagate` — Method A itself. It is
   biased once the heading spread is large (a quarter of a radian or so),
   because the cloud is not Gaussian in (x, y, θ).
 
@@ -33,8 +33,8 @@ Motion-model constants ``α``
 ----------------------------
 Data: single-step samples ``x_t`` from known start poses and controls. The
 sampler's noise draws are recovered exactly by inverting the model
-(:func:`pose_uncertainty.motion_models.velocity_inverse`,
-:func:`~pose_uncertainty.motion_models.odometry_deltas`): residuals ``V̂ − V``,
+(:func:`pose_uncertainty.methods.motion_models.velocity_inverse`,
+:func:`~pose_uncertainty.methods.motion_models.odometry_deltas`): residuals ``V̂ − V``,
 ``ω̂ − ω``, ``γ̂`` (velocity) or ``δ̂ − δ`` (odometry), each normal with a
 variance linear in the α's and in known features of the control (``V², ω²``,
 ``δrot1², δtrans², …`` — the variances of the *sampler*, evaluated at the
@@ -64,9 +64,7 @@ Errors name the file, the line, the column and the problem.
 
 from __future__ import annotations
 
-import argparse
 import csv
-import json
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -76,18 +74,16 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from . import covariance as cv
-from . import expcoords as ec
-from .trajectories import Trajectory
-from .validation import check_choice, check_finite, check_last_axis, check_probability
+from ..core.trajectories import Trajectory
+from ..core.validation import check_choice, check_finite, check_last_axis, check_probability
+from ..methods import covariance as cv
+from ..methods import expcoords as ec
 
 __all__ = [
     "CI_METHODS",
     "COORDS",
     "MIN_ROWS",
     "CalibrationResult",
-    "add_calibrate_parser",
-    "cmd_calibrate",
     "fit_alphas_odometry",
     "fit_alphas_velocity",
     "fit_k",
@@ -463,7 +459,7 @@ def fit_alphas_velocity(
     -------
     dict: ``"V"`` (α1, α2), ``"omega"`` (α3, α4), ``"gamma"`` (α5, α6)
     """
-    from .motion_models import velocity_inverse
+    from ..methods.motion_models import velocity_inverse
 
     check_choice("scaling", scaling, ("squared", "abs"))
     x = check_last_axis("samples", samples, 3)
@@ -517,8 +513,8 @@ def fit_alphas_odometry(
     -------
     dict: ``"rotation"`` (α1, α2), ``"translation"`` (α3, α4)
     """
-    from .kinematics import wrap_angle
-    from .motion_models import odometry_deltas
+    from ..core.kinematics import wrap_angle
+    from ..methods.motion_models import odometry_deltas
 
     check_choice("scaling", scaling, ("squared", "abs"))
     x = check_last_axis("samples", samples, 3)
@@ -648,114 +644,3 @@ def read_motion_samples_csv(path: str | Path, model: str) -> dict[str, NDArray[n
         out["odom_prev"] = np.stack([d["odo_x0"], d["odo_y0"], d["odo_theta0"]], -1)
         out["odom_next"] = np.stack([d["odo_x1"], d["odo_y1"], d["odo_theta1"]], -1)
     return out
-
-
-# --- command line ---------------------------------------------------------------------------------
-
-
-def add_calibrate_parser(subparsers: Any) -> None:
-    """Add the ``calibrate`` sub-command to an argparse sub-parser collection (sets ``func``)."""
-    p = subparsers.add_parser(
-        "calibrate",
-        help="estimate error constants (k_r, k_l or motion-model alphas) with confidence intervals",
-        description=(
-            "Maximum-likelihood error constants with confidence intervals. DATA is a CSV "
-            "(end poses x,y,theta of repeated runs of a known trajectory; or single-step "
-            "samples for --model velocity/odometry) or a run log *.mcap (its Monte Carlo "
-            "end poses and its trajectory)."
-        ),
-    )
-    p.add_argument("data", help="CSV file or run log (*.mcap)")
-    p.add_argument(
-        "--model", choices=("k", "velocity", "odometry"), default="k",
-        help="what to fit: wheel-noise k_r, k_l (default) or a motion model's alphas",
-    )
-    p.add_argument("--config", metavar="FILE", help="run config (YAML/JSON) whose trajectory was driven")
-    p.add_argument(
-        "--trajectory", metavar="NAME",
-        help="trajectory builder name (straight, arc, circle, ...), instead of --config",
-    )
-    p.add_argument(
-        "--param", action="append", default=[], metavar="KEY=VALUE",
-        help="trajectory parameter, repeatable (e.g. --param length=1 --param dt=0.01)",
-    )
-    p.add_argument("--coords", choices=COORDS, default="expcoords", help="model coordinates for k")
-    p.add_argument("--equal", action="store_true", help="fit one k = k_r = k_l")
-    p.add_argument("--scaling", choices=("squared", "abs"), default="squared", help="alpha variance form")
-    p.add_argument("--level", type=float, default=0.95, help="confidence level (default 0.95)")
-    p.add_argument("--ci", choices=CI_METHODS, default="profile", help="interval method")
-    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
-    p.set_defaults(func=cmd_calibrate)
-
-
-def _parse_params(items: Sequence[str]) -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for item in items:
-        if "=" not in item:
-            raise ValueError(f"--param must be KEY=VALUE, got {item!r}")
-        key, val = item.split("=", 1)
-        try:
-            out[key.strip()] = int(val) if val.strip().lstrip("-").isdigit() else float(val)
-        except ValueError:
-            out[key.strip()] = val.strip()
-    return out
-
-
-def _trajectory_from_args(args: argparse.Namespace) -> Trajectory:
-    from . import trajectories
-
-    if args.config and args.trajectory:
-        raise ValueError("give either --config or --trajectory, not both")
-    if args.config:
-        from .cli import load_config_file
-        from .run import RunConfig
-
-        cfg = RunConfig.from_dict(load_config_file(args.config))
-        tp = dict(cfg.trajectory)
-        return trajectories.build(tp.pop("name"), **tp)
-    if args.trajectory:
-        return trajectories.build(args.trajectory, **_parse_params(args.param))
-    raise ValueError(
-        "calibrating k from a CSV needs the trajectory: --config RUN.yaml or --trajectory NAME "
-        "[--param KEY=VALUE ...]"
-    )
-
-
-def cmd_calibrate(args: argparse.Namespace) -> int:
-    """``calibrate``: read the data, fit, print the estimates and intervals; returns 0."""
-    level = float(check_probability("level", args.level))
-    path = Path(args.data)
-    results: dict[str, CalibrationResult]
-    if args.model == "k":
-        if path.suffix.lower() == ".mcap":
-            from . import trajectories
-            from .runlog import open_run
-
-            log = open_run(path)
-            if log.end_poses is None or len(log.end_poses) == 0:
-                raise ValueError(f"{path}: the run log holds no Monte Carlo end poses")
-            tp = dict(log.config.trajectory)
-            traj = trajectories.build(tp.pop("name"), **tp)
-            poses = log.end_poses
-        else:
-            traj = _trajectory_from_args(args)
-            poses = read_end_poses_csv(path)
-        res = fit_k(poses, traj, coords=args.coords, equal=args.equal, level=level, ci_method=args.ci)
-        results = {"k": res}
-    else:
-        d = read_motion_samples_csv(path, args.model)
-        if args.model == "velocity":
-            results = fit_alphas_velocity(
-                d["samples"], d["controls"], d["dt"], d["starts"], scaling=args.scaling,
-                level=level, ci_method=args.ci,
-            )
-        else:
-            results = fit_alphas_odometry(
-                d["samples"], d["odom_prev"], d["odom_next"], d["starts"], scaling=args.scaling,
-                level=level, ci_method=args.ci,
-            )
-    if args.json:
-        print(json.dumps({k: r.as_dict() for k, r in results.items()}, indent=2))
-    else:
-        print("\n\n".join(r.format() for r in results.values()))
-    return 0

@@ -67,8 +67,8 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .trajectories import Trajectory
-from .validation import (
+from ..core.trajectories import Trajectory
+from ..core.validation import (
     check_finite,
     check_last_axis,
     check_nonnegative,

@@ -37,7 +37,7 @@ All functions are plain functions returning dicts of floats. A gridded density
 is any object with ``x`` (nx,), ``y`` (ny,) cell centres [m] and either
 ``marginal_xy()`` returning (nx, ny) or ``values`` of shape (nx, ny) — a
 density [1/m²] (e.g. :class:`GriddedDensity`), except for a
-``pose_uncertainty.maps.ProbabilityMap``, whose ``marginal_xy()`` is mass per
+``pose_uncertainty.methods.maps.ProbabilityMap``, whose ``marginal_xy()`` is mass per
 cell and is divided by the cell area here.
 """
 
@@ -52,15 +52,15 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import stats as sstats
 
-from . import covariance as cv
-from . import expcoords as ec
-from .trajectories import Trajectory
-from .validation import (
+from ..core.trajectories import Trajectory
+from ..core.validation import (
     check_finite,
     check_last_axis,
     check_positive_int,
     check_probability,
 )
+from ..methods import covariance as cv
+from ..methods import expcoords as ec
 
 __all__ = [
     "KL_FLOOR",
@@ -225,7 +225,7 @@ def coverage_ellipse(
 
     Returns ``{pr_label(pr): fraction}``.
     """
-    from .stats import mahalanobis_sq
+    from ..core.stats import mahalanobis_sq
 
     d2 = mahalanobis_sq(xy, center, cov_xy)
     return {pr_label(pr): float(np.mean(d2 <= cv.pr_to_k(pr))) for pr in prs}
@@ -235,7 +235,7 @@ def coverage_ellipsoid(
     points: ArrayLike, center: ArrayLike, cov: ArrayLike, prs: Sequence[float] = PRS
 ) -> dict[str, float]:
     """Fraction of d-dimensional points inside ``dᵀΣ⁻¹d ≤ χ²_d(Pr)``; ``{pr_label: fraction}``."""
-    from .stats import mahalanobis_sq
+    from ..core.stats import mahalanobis_sq
 
     C = check_finite("cov", cov)
     d2 = mahalanobis_sq(points, center, C)
@@ -260,9 +260,9 @@ class GriddedDensity:
 
 
 def _is_mass_map(density: Any) -> bool:
-    """True for :class:`pose_uncertainty.maps.ProbabilityMap`, whose values are mass per cell."""
+    """True for :class:`pose_uncertainty.methods.maps.ProbabilityMap`, whose values are mass per cell."""
     try:
-        from .maps import ProbabilityMap
+        from ..methods.maps import ProbabilityMap
     except ImportError:  # pragma: no cover - maps not available
         return False
     return isinstance(density, ProbabilityMap)
@@ -412,7 +412,7 @@ def evaluate_cartesian(
     dict: ``coverage_xy_<pr>``, ``coverage_pose_<pr>``, ``hellinger``, ``kl``,
     ``model_mass_on_grid``, ``loglik_pose``, ``loglik_xy``, ``nees_pose``, ``nees_xy``.
     """
-    from .stats import mahalanobis_sq
+    from ..core.stats import mahalanobis_sq
 
     s = _check_samples(samples)
     mu = check_last_axis("pose", pose, 3)
@@ -449,7 +449,7 @@ def evaluate_expcoords(
     """All accuracy measures of the exponential-coordinates Gaussian ``μ exp(N(0, cov))``.
 
     The planar Pr-region is the banana ``{p(x, y) ≥ c}`` with ``c`` from
-    :func:`pose_uncertainty.expcoords.hdr_threshold` (``n_threshold`` draws
+    :func:`pose_uncertainty.methods.expcoords.hdr_threshold` (``n_threshold`` draws
     from ``rng``); the pose region and NEES use the exponential coordinates
     ``ε = log(μ⁻¹ g)``.
 
@@ -471,7 +471,7 @@ def evaluate_expcoords(
     out.update(_distances(histogram_probabilities(s[:, :2], g), q))
     out["loglik_pose"] = float(np.mean(ec.logpdf_pose(s, mu, C)))
     out["loglik_xy"] = _safe_mean_log(dens)
-    from .stats import mahalanobis_sq
+    from ..core.stats import mahalanobis_sq
 
     # NEES in the method's own coordinates: εᵀΣ⁻¹ε (3 if consistent), planar block of ε (2)
     out["nees_pose"] = float(np.mean(mahalanobis_sq(eps, np.zeros(3), C)))
@@ -596,7 +596,7 @@ def accuracy_vs_distance(
     list of dict, one per checkpoint: ``step``, ``distance`` [m] (path length
     so far) and the entries of :func:`compare_methods`.
     """
-    from .sampling import sample_end_poses
+    from ..methods.sampling import sample_end_poses
 
     n = check_positive_int("n", n)
     m = check_positive_int("n_checkpoints", n_checkpoints)

@@ -1,0 +1,83 @@
+"""Command line: ``pose-uncertainty <command> ...``.
+
+Commands
+--------
+``run CONFIG.(yaml|json) -o OUT.mcap [--timings] [--figures DIR]``
+    Execute one run and write its log atomically.
+``replay RUN.mcap [--figures DIR] [--verify] [--at TIME] [--recover]``
+    Summarise a log; re-render its figures from the log alone; recompute and
+    compare; print the state at a simulated time.
+
+Exit status: 0 success; 1 ``--verify`` found a mismatch; 2 bad input (usage,
+unreadable/invalid config or log). Errors are one line on stderr, never a
+traceback.
+
+New commands register themselves in :data:`COMMANDS` with a function that adds
+their sub-parser (each command is a module of this package with ``add_parser``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from collections.abc import Callable, Sequence
+from typing import Any
+
+from .. import __version__
+from ..logs.runlog import RunLogError
+from . import calibrate, replay, run
+from ._common import EXIT_INPUT, EXIT_OK, CommandError, load_config_file
+
+__all__ = ["COMMANDS", "CommandError", "build_parser", "load_config_file", "main"]
+
+
+# --- wiring ---------------------------------------------------------------------------------
+
+#: Sub-command name → function adding its parser (which sets ``func``).
+COMMANDS: dict[str, Callable[[Any], None]] = {
+    "run": run.add_parser,
+    "replay": replay.add_parser,
+    "calibrate": calibrate.add_parser,
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser with every command of :data:`COMMANDS`."""
+    parser = argparse.ArgumentParser(
+        prog="pose-uncertainty",
+        description="Pose uncertainty of a differential-drive robot: runs, logs and replays.",
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for add in COMMANDS.values():
+        add(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``pose-uncertainty`` console script; returns the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args))
+    except (CommandError, RunLogError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_INPUT
+    except ValueError as exc:  # bad parameters surfaced by the computation
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_INPUT
+    except BrokenPipeError:  # e.g. `pose-uncertainty replay RUN.mcap | head`
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_OK
+    except OSError as exc:
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return EXIT_INPUT
+    except KeyboardInterrupt:
+        print("error: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
