@@ -24,7 +24,7 @@ topic                              schema                              content
 ``/timings``                       pose_uncertainty.Metrics            wall-clock timings (opt-in)
 =================================  ==================================  ==========================
 
-A metadata record ``pose_uncertainty.logs.run`` holds the full configuration (JSON,
+A metadata record ``pose_uncertainty.run`` holds the full configuration (JSON,
 every parameter) with its units, the package version, the sha256 of
 ``environment.lock``, the seed and the git commit.
 
@@ -103,7 +103,7 @@ __all__ = [
 FORMAT = "pose-uncertainty-runlog"
 FORMAT_VERSION = "1"
 LIBRARY = f"pose-uncertainty/{__version__}"
-METADATA_NAME = "pose_uncertainty.logs.run"
+METADATA_NAME = "pose_uncertainty.run"
 WORLD, BASE = "world", "base_link"
 MAGIC = b"\x89MCAP0\r\n"
 _FOOTER_RECORD = 1 + 8 + 8 + 8 + 4  # opcode, length, summary_start, summary_offset_start, crc
@@ -592,7 +592,7 @@ class RunLog(RunResult):
     Attributes (beyond RunResult's)
     -------------------------------
     path : Path
-    metadata : dict of str to str — the ``pose_uncertainty.logs.run`` metadata record
+    metadata : dict of str to str — the ``pose_uncertainty.run`` metadata record
     library : str — the MCAP header's library string
     topics : dict of str to (schema name, message count)
     partial : bool — True when recovered from an incomplete or damaged file
