@@ -34,7 +34,9 @@ from typing import Any
 
 import numpy as np
 
+from pose_uncertainty.core import stats
 from pose_uncertainty.core import trajectories as tr
+from pose_uncertainty.core.grids import Grid
 from pose_uncertainty.methods import maps as M
 from pose_uncertainty.methods import motion_models as mm
 
@@ -78,7 +80,7 @@ def _thesis_cell(x: float, y: float, xp: float, yp: float, th: float, thp: float
     )
 
 
-def _thesis_loop(grid: M.MapGrid, nx: int, ny: int, V: float, w: float) -> float:
+def _thesis_loop(grid: Grid, nx: int, ny: int, V: float, w: float) -> float:
     xs, ys, ts = grid.x[:nx].tolist(), grid.y[:ny].tolist(), grid.theta.tolist()
     a = A6.tolist()
     total = 0.0
@@ -92,7 +94,7 @@ def _thesis_loop(grid: M.MapGrid, nx: int, ny: int, V: float, w: float) -> float
 # ----------------------------------------------------------------------------- direct O(n⁶)
 
 
-def _direct_step(belief: np.ndarray, grid: M.MapGrid, u: tuple[float, float], dt: float) -> np.ndarray:
+def _direct_step(belief: np.ndarray, grid: Grid, u: tuple[float, float], dt: float) -> np.ndarray:
     """One prediction step by the sum over all (source, destination) cell pairs."""
     X, Y, T = np.meshgrid(grid.x, grid.y, grid.theta, indexing="ij")
     dest = np.stack([X, Y, T], axis=-1)
@@ -109,9 +111,9 @@ def _direct_step(belief: np.ndarray, grid: M.MapGrid, u: tuple[float, float], dt
 
 
 def _hellinger_vs(mp: M.ProbabilityMap, samples: np.ndarray) -> dict[str, float]:
-    hist = M.histogram_xy(samples, mp.grid)
-    h = M.hellinger(mp.marginal_xy(), hist)
-    floor = M.hellinger_noise_floor(mp.marginal_xy(), samples.shape[0])
+    hist = mp.grid.histogram_xy(samples)
+    h = stats.hellinger(mp.marginal_xy(), hist)
+    floor = stats.hellinger_noise_floor(mp.marginal_xy(), samples.shape[0])
     return {
         "hellinger": round(h, 4),
         "sampling_noise_floor": round(floor, 4),
@@ -188,7 +190,7 @@ def main() -> None:
     # --- 1. single step -----------------------------------------------------------------
     V, w = 1.0, 1.0
     end = mm.velocity_forward(np.zeros(3), V, w, 0.0, 1.0)
-    g100 = M.MapGrid(end[0] - 0.495, end[1] - 0.495, 100, 100, 0.01, 180, end[2])
+    g100 = Grid.square(end[0] - 0.495, end[1] - 0.495, 100, 100, 0.01, 180, end[2])
     t_thesis = best_of(lambda: M.single_step_map("velocity", (0, 0, 0), (V, w), 1.0, A6, g100), 5)
     t_corr = best_of(
         lambda: M.single_step_map("velocity", (0, 0, 0), (V, w), 1.0, A6, g100, corrected=True), 3
@@ -215,7 +217,7 @@ def main() -> None:
     circ = tr.circle(1.0, dt=2 * math.pi / 50)  # circle of radius 1 m at 1 m/s, 50 steps
     ctr, dt = circ.controls, circ.dt
     n_steps = circ.n_steps
-    g128 = M.MapGrid(-1.92, -0.9, 128, 128, 0.03, 72, 0.0)  # 3 cm × 5°; start is a cell centre
+    g128 = Grid.square(-1.92, -0.9, 128, 128, 0.03, 72, 0.0)  # 3 cm × 5°; start is a cell centre
     assert g128.contains((0, 0))
     assert abs(g128.x[64]) < 1e-12
     assert abs(g128.y[30]) < 1e-12
@@ -230,7 +232,7 @@ def main() -> None:
     s = mm.sample_velocity_path((0, 0, 0), ctr, dt, A6, N_MC, np.random.default_rng(5))
     acc = _hellinger_vs(mp, s)
     # direct pair sum on a 12 × 12 × 12 grid (one step from a spread-out belief)
-    gs = M.MapGrid(-0.05, -0.06, 12, 12, 0.01, 12, 0.0)
+    gs = Grid.square(-0.05, -0.06, 12, 12, 0.01, 12, 0.0)
     b = np.random.default_rng(0).random(gs.shape)
     b /= b.sum()
     t0 = time.perf_counter()

@@ -7,10 +7,12 @@ import pytest
 from numpy.testing import assert_allclose
 
 from pose_uncertainty.analysis import accuracy as ac
+from pose_uncertainty.core import stats
 from pose_uncertainty.core import trajectories as tr
 from pose_uncertainty.methods import covariance as cv
 from pose_uncertainty.methods import expcoords as ec
 from pose_uncertainty.methods import sampling as sp
+from pose_uncertainty.methods.maps import ProbabilityMap
 
 N = 40_000
 MU = np.array([1.0, 0.2, 0.4])
@@ -59,7 +61,7 @@ def test_distance_of_a_model_to_its_own_samples_is_the_floor():
     # both are histograms of N draws from the same law against that law: same expected distance
     # (Hellinger² of a histogram ≈ (cells − 1)/(8N); relative spread between two draws ≲ 10 %)
     assert_allclose(res["cartesian"]["hellinger"], res["monte_carlo"]["hellinger_floor"], rtol=0.15)
-    assert res["grid"]["grid_nx"] == 60
+    assert res["grid"]["nx"] == 60
 
 
 def test_expcoords_measures_on_exact_banana_samples():
@@ -91,7 +93,7 @@ def test_gridded_route_agrees_with_ellipse_route():
     v = np.exp(-0.5 * np.einsum("...i,ij,...j", d, np.linalg.inv(C2), d)) / (
         2 * np.pi * math.sqrt(np.linalg.det(C2))
     )
-    dens = ac.GriddedDensity(x, y, v)
+    dens = ProbabilityMap.from_density_xy(x, y, v)
     grid_cov = ac.coverage_gridded(dens, s[:, :2])
     ell_cov = ac.coverage_ellipse(s[:, :2], MU[:2], C2)
     for lab in ell_cov:
@@ -133,7 +135,7 @@ def test_accuracy_vs_distance_rows():
 def test_bad_input():
     with pytest.raises(ValueError, match=r"samples must have shape \(n, 3\)"):
         ac.evaluate_cartesian(np.zeros((1, 3)), MU, SIGMA)
-    with pytest.raises(ValueError, match="density values must have shape"):
-        ac.density_at(ac.GriddedDensity(np.arange(3.0), np.arange(4.0), np.zeros((4, 3))), [[0, 0]])
+    with pytest.raises(ValueError, match=r"density must have shape \(nx, ny\) = \(3, 4\)"):
+        ProbabilityMap.from_density_xy(np.arange(3.0), np.arange(4.0), np.zeros((4, 3)))
     with pytest.raises(ValueError, match="pr must be a probability"):
-        ac.hdr_level(np.ones(4), 1.0, 1.5)
+        stats.hdr_region(np.ones(4) / 4, 1.5)

@@ -58,7 +58,7 @@ def test_replay_prints_summary(logged: Path, capsys: pytest.CaptureFixture[str])
     assert "trajectory.radius = 0.5  [m]" in out
     assert 'monte_carlo.regime = "per_run"' in out
     assert f"final state (step {n - 1}," in out
-    assert "mc_coverage = " in out
+    assert "MC_coverage_pr = " in out
     assert "environment_lock_sha256: " in out
 
 

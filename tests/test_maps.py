@@ -8,6 +8,8 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from pose_uncertainty.core import stats
+from pose_uncertainty.core.grids import Grid
 from pose_uncertainty.methods import maps as M
 from pose_uncertainty.methods import motion_models as mm
 
@@ -24,7 +26,7 @@ TARGET = 0.05
 
 
 def test_default_grid_is_the_thesis_map_centred_on_the_end_pose():
-    g = M.MapGrid.centered((1.0, 0.5, 0.3))
+    g = Grid.centered((1.0, 0.5, 0.3))
     assert g.shape == (101, 101, 180)
     assert_allclose(g.x[50], 1.0)
     assert_allclose(g.y[50], 0.5)
@@ -41,7 +43,7 @@ TWO_DEG = math.radians(2)
 
 
 def _gaussian_map(cov, mean=(0.1, -0.2, 0.3), h=0.01, ht=TWO_DEG):
-    g = M.MapGrid.centered(mean, size=1.5, resolution=h, theta_resolution=ht)
+    g = Grid.centered(mean, size=1.5, resolution=h, theta_resolution=ht)
     X, Y, T = np.meshgrid(g.x, g.y, g.theta, indexing="ij")
     d = np.stack([X - mean[0], Y - mean[1], (T - mean[2] + np.pi) % (2 * np.pi) - np.pi], -1)
     q = np.einsum("...i,ij,...j->...", d, np.linalg.inv(cov), d)
@@ -68,21 +70,21 @@ def test_map_statistics_of_a_known_gaussian():
 def test_hellinger_properties():
     p = np.array([0.2, 0.3, 0.5, 0.0])
     q = np.array([0.0, 0.0, 0.0, 1.0])
-    assert M.hellinger(p, p) == 0.0
-    assert_allclose(M.hellinger(p, q), 1.0)
+    assert stats.hellinger(p, p) == 0.0
+    assert_allclose(stats.hellinger(p, q), 1.0)
     r = np.array([0.25, 0.25, 0.25, 0.25])
-    assert_allclose(M.hellinger(p, r), M.hellinger(r, p))
+    assert_allclose(stats.hellinger(p, r), stats.hellinger(r, p))
     with pytest.raises(ValueError, match="same shape"):
-        M.hellinger(p, p[:3])
+        stats.hellinger(p, p[:3])
 
 
 def test_noise_floor_predicts_the_distance_of_a_histogram_from_its_own_distribution():
     rng = np.random.default_rng(1)
     p = rng.dirichlet(np.full(400, 0.5))
     n = 20_000
-    hs = [M.hellinger(p, rng.multinomial(n, p) / n) for _ in range(40)]
+    hs = [stats.hellinger(p, rng.multinomial(n, p) / n) for _ in range(40)]
     # mean of 40 draws of H²: relative s.e. ≈ √(2/400)/√40 ≈ 1 %; allow 5 %
-    assert_allclose(np.mean(np.square(hs)), M.hellinger_noise_floor(p, n) ** 2, rtol=0.05)
+    assert_allclose(np.mean(np.square(hs)), stats.hellinger_noise_floor(p, n) ** 2, rtol=0.05)
 
 
 # ----------------------------------------------------------------------------- single step
@@ -100,7 +102,7 @@ def test_claim6_rotation_in_place_peak():
     corrected = M.single_step_map("velocity", (0, 0, 0), (0.0, 1.0), 1.0, A6, corrected=True)
     assert_allclose(corrected.most_probable_xy(), [0.0, 0.0], atol=1e-12)
     s = mm.sample_velocity((0, 0, 0), (0.0, 1.0), 1.0, A6, 200_000, np.random.default_rng(6))
-    hist = M.histogram_xy(s, corrected.grid)
+    hist = corrected.grid.histogram_xy(s)
     i, j = np.unravel_index(np.argmax(hist), hist.shape)
     assert_allclose([corrected.grid.x[i], corrected.grid.y[j]], [0.0, 0.0], atol=1e-12)
 
@@ -119,7 +121,7 @@ def test_zero_control_is_a_dirac_and_single_step_deposits_it():
 
 def _coarse_grid(center=(0.5, 0.24, 0.0), size=2.4):
     # 2 cm × 4°, the start (0, 0, 0) is a cell centre
-    return M.MapGrid.centered(center, size=size, resolution=0.02, theta_resolution=math.radians(4))
+    return Grid.centered(center, size=size, resolution=0.02, theta_resolution=math.radians(4))
 
 
 @pytest.mark.parametrize("u", [(1.0, 0.0), (1.0, 1.0), (0.0, 1.0)])
@@ -133,14 +135,14 @@ def test_one_step_multi_step_map_equals_the_single_step_map(u):
         "velocity", np.array([u]), 1.0, A6, start=(0, 0, 0), grid=g, diffusion_compensation=False
     )
     single = M.single_step_map("velocity", (0, 0, 0), u, 1.0, A6, g, corrected=True)
-    assert M.hellinger(multi.marginal_xy(), single.marginal_xy()) < 5e-3
+    assert stats.hellinger(multi.marginal_xy(), single.marginal_xy()) < 5e-3
     assert_allclose(multi.values.sum() + multi.lost_mass, 1.0, atol=1e-12)
     assert_allclose(multi.lost_mass, single.lost_mass, atol=2e-3)
     # the full (x, y, θ) multi-step map is the sampler's distribution up to sampling noise
     samples = mm.sample_velocity((0, 0, 0), u, 1.0, A6, N_PARTICLES, np.random.default_rng(8))
-    hist3 = M.histogram(samples, g)
-    floor = M.hellinger_noise_floor(multi.values, N_PARTICLES)
-    assert M.hellinger(multi.values, hist3) ** 2 - floor**2 <= 0.02**2
+    hist3 = g.histogram(samples)
+    floor = stats.hellinger_noise_floor(multi.values, N_PARTICLES)
+    assert stats.hellinger(multi.values, hist3) ** 2 - floor**2 <= 0.02**2
 
 
 def test_one_step_odometry_multi_step_equals_single_step():
@@ -148,7 +150,7 @@ def test_one_step_odometry_multi_step_equals_single_step():
     od = mm.noiseless_velocity_poses((0, 0, 0), np.array([[1.0, 1.0]]), 1.0)
     multi = M.multi_step_map("odometry", None, None, A4, grid=g, odometry=od, diffusion_compensation=False)
     single = M.single_step_map("odometry", (0, 0, 0), (1.0, 1.0), 1.0, A4, g, corrected=True)
-    assert M.hellinger(multi.marginal_xy(), single.marginal_xy()) < 0.01
+    assert stats.hellinger(multi.marginal_xy(), single.marginal_xy()) < 0.01
 
 
 def test_mass_leaving_a_fixed_grid_is_counted():
@@ -156,10 +158,10 @@ def test_mass_leaving_a_fixed_grid_is_counted():
     # of Monte Carlo particles outside (binomial s.e. √(q(1−q)/n) < 1e-3 at n = 2·10⁵,
     # plus the map's discretisation ~1e-3)
     ctr = np.tile([1.0, 1.0], (3, 1))
-    g = M.MapGrid.centered((0.3, 0.2, 0.0), size=0.62, resolution=0.02, theta_resolution=math.radians(10))
+    g = Grid.centered((0.3, 0.2, 0.0), size=0.62, resolution=0.02, theta_resolution=math.radians(10))
     m = M.multi_step_map("velocity", ctr, 0.3, A6, grid=g)
     s = mm.sample_velocity_path((0, 0, 0), ctr, 0.3, A6, 200_000, np.random.default_rng(4))
-    outside = 1.0 - M.histogram_xy(s, g).sum()
+    outside = 1.0 - g.histogram_xy(s).sum()
     assert 0.05 < m.lost_mass < 0.95
     assert_allclose(m.values.sum() + m.lost_mass, 1.0, atol=1e-12)
     assert_allclose(m.lost_mass, outside, atol=5e-3)
@@ -185,10 +187,10 @@ def test_multi_step_map_matches_monte_carlo_at_default_resolution(model, u):
     m = M.multi_step_map(model, ctr, 0.1, A6 if model == "velocity" else A4)
     assert m.lost_mass < 1e-9  # the grid grew to hold everything
     s = _mc_end_poses(model, ctr, 0.1, N_PARTICLES, seed=77)
-    hist = M.histogram_xy(s, m.grid)
+    hist = m.grid.histogram_xy(s)
     assert hist.sum() > 1 - 1e-5
-    h = M.hellinger(m.marginal_xy(), hist)
-    floor = M.hellinger_noise_floor(m.marginal_xy(), N_PARTICLES)
+    h = stats.hellinger(m.marginal_xy(), hist)
+    floor = stats.hellinger_noise_floor(m.marginal_xy(), N_PARTICLES)
     assert h**2 - floor**2 <= TARGET**2, (h, floor)
     # first and second moments: Monte Carlo s.e. of a variance ≈ var·√(2/n) ≈ 0.14 %;
     # the map's cell-centre moments carry the histogram filter's diffusion (≤ 10 %)
@@ -206,9 +208,9 @@ def test_rotation_in_place_multi_step_needs_sub_cell_resolution():
     assert np.min(np.abs(m.grid.x)) < 1e-12  # the start is a cell centre
     assert np.min(np.abs(m.grid.y)) < 1e-12
     s = _mc_end_poses("velocity", ctr, 0.1, N_PARTICLES, seed=78)
-    hist = M.histogram_xy(s, m.grid)
-    h = M.hellinger(m.marginal_xy(), hist)
-    floor = M.hellinger_noise_floor(m.marginal_xy(), N_PARTICLES)
+    hist = m.grid.histogram_xy(s)
+    h = stats.hellinger(m.marginal_xy(), hist)
+    floor = stats.hellinger_noise_floor(m.marginal_xy(), N_PARTICLES)
     assert h**2 - floor**2 <= TARGET**2, (h, floor)
 
 
@@ -230,14 +232,14 @@ def test_multi_step_accepts_a_trajectory_object():
 @pytest.mark.parametrize(
     ("call", "match"),
     [
-        (lambda: M.MapGrid.centered((0, 0, 0), resolution=0.0), r"resolution must be > 0 .*got 0.0"),
-        (lambda: M.MapGrid.centered((0, 0, 0), resolution=-0.01), r"resolution must be > 0 .*got -0.01"),
+        (lambda: Grid.centered((0, 0, 0), resolution=0.0), r"resolution must be > 0 .*got 0.0"),
+        (lambda: Grid.centered((0, 0, 0), resolution=-0.01), r"resolution must be > 0 .*got -0.01"),
         (
             lambda: M.multi_step_map("velocity", [[1, 0]], 1.0, A6, resolution=-1.0),
             r"resolution must be > 0 \(allowed: \(0, inf\)\), got -1.0",
         ),
         (
-            lambda: M.multi_step_map("velocity", [[1, 0]], 1.0, A6, start=(5, 5, 0), grid=M.MapGrid.centered()),
+            lambda: M.multi_step_map("velocity", [[1, 0]], 1.0, A6, start=(5, 5, 0), grid=Grid.centered()),
             r"start must lie inside the grid \(allowed: x in \[-0.505, 0.505\), y in \[-0.505, 0.505\)\), got \(5, 5\)",
         ),
         (
@@ -252,7 +254,7 @@ def test_multi_step_accepts_a_trajectory_object():
         (lambda: M.single_step_map("velocity", (0, 0, 0), (1, 0), 1.0, A6, scaling="cubic"), r"scaling must be"),
         (lambda: M.multi_step_map("velocity", [[1, 0]], -1.0, A6), r"dt must be > 0"),
         (
-            lambda: M.multi_step_map("velocity", [[1, 0]], 1.0, A6, grid=M.MapGrid.centered(), oversample=3),
+            lambda: M.multi_step_map("velocity", [[1, 0]], 1.0, A6, grid=Grid.centered(), oversample=3),
             r"oversample must be 1 with a fixed grid \(allowed: 1\), got 3",
         ),
         (lambda: M.ProbabilityMap(*_gaussian_map(np.eye(3) * 0.01)[0].__dict__.values()).credible_area(1.5),

@@ -9,6 +9,8 @@ import pytest
 from numpy.testing import assert_allclose
 
 from pose_uncertainty.core import noise as nz
+from pose_uncertainty.core import stats
+from pose_uncertainty.core.grids import Grid
 from pose_uncertainty.methods import maps as M
 from pose_uncertainty.methods import motion_models as mm
 
@@ -207,7 +209,7 @@ def test_corrected_densities_integrate_to_one(noise, name):
 @pytest.mark.parametrize("model", ["velocity", "odometry"])
 def test_rotation_in_place_corrected_map_integrates_to_one(model):
     # 1/r singularity at the start: the start cell is integrated exactly (CDF along the ray)
-    g = M.MapGrid.centered((0, 0, 0), size=3.0, resolution=0.02, theta_resolution=math.radians(4))
+    g = Grid.centered((0, 0, 0), size=3.0, resolution=0.02, theta_resolution=math.radians(4))
     m = M.single_step_map(model, (0, 0, 0), (0.0, 1.0), 1.0, A6 if model == "velocity" else A4, g, corrected=True)
     assert_allclose(m.info["raw_sum"], 1.0, atol=3e-3)
 
@@ -233,16 +235,16 @@ def _sampler(model, u, n, rng, noise="normal"):
 def test_corrected_map_agrees_with_its_sampler_and_thrun_map_does_not(model, name):
     u = THESIS[name]
     alphas = A6 if model == "velocity" else A4
-    grid = M.MapGrid.centered(
+    grid = Grid.centered(
         mm.velocity_forward(np.zeros(3), *u, 0.0, 1.0), size=1.0, resolution=0.01, theta_resolution=math.radians(6)
     )
     samples = _sampler(model, u, N_SAMPLES, np.random.default_rng(2024))
-    hist = M.histogram_xy(samples, grid)
+    hist = grid.histogram_xy(samples)
     corrected = M.single_step_map(model, (0, 0, 0), u, 1.0, alphas, grid, corrected=True)
     thrun = M.single_step_map(model, (0, 0, 0), u, 1.0, alphas, grid, corrected=False)
-    floor2 = M.hellinger_noise_floor(corrected.marginal_xy(), N_SAMPLES) ** 2
-    h_corr = M.hellinger(corrected.marginal_xy(), hist)
-    h_thrun = M.hellinger(thrun.marginal_xy(), hist)
+    floor2 = stats.hellinger_noise_floor(corrected.marginal_xy(), N_SAMPLES) ** 2
+    h_corr = stats.hellinger(corrected.marginal_xy(), hist)
+    h_thrun = stats.hellinger(thrun.marginal_xy(), hist)
     assert h_corr**2 - floor2 <= DELTA**2, (h_corr, math.sqrt(floor2))
     assert h_thrun**2 - floor2 > (2 * DELTA) ** 2, (h_thrun, math.sqrt(floor2))
     # the corrected map's lost mass is the fraction of samples outside the grid
@@ -252,14 +254,14 @@ def test_corrected_map_agrees_with_its_sampler_and_thrun_map_does_not(model, nam
 
 def test_triangular_noise_map_agrees_with_its_sampler():
     u = THESIS["arc"]
-    grid = M.MapGrid.centered(
+    grid = Grid.centered(
         mm.velocity_forward(np.zeros(3), *u, 0.0, 1.0), size=1.0, resolution=0.01, theta_resolution=math.radians(6)
     )
     samples = _sampler("velocity", u, N_SAMPLES, np.random.default_rng(5), "triangular")
     m = M.single_step_map("velocity", (0, 0, 0), u, 1.0, A6, grid, noise="triangular", corrected=True)
-    hist = M.histogram_xy(samples, grid)
-    floor2 = M.hellinger_noise_floor(m.marginal_xy(), N_SAMPLES) ** 2
-    assert M.hellinger(m.marginal_xy(), hist) ** 2 - floor2 <= DELTA**2
+    hist = grid.histogram_xy(samples)
+    floor2 = stats.hellinger_noise_floor(m.marginal_xy(), N_SAMPLES) ** 2
+    assert stats.hellinger(m.marginal_xy(), hist) ** 2 - floor2 <= DELTA**2
 
 
 # ----------------------------------------------------------------------------- odometry

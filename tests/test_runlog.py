@@ -12,10 +12,12 @@ import pytest
 from mcap.reader import make_reader
 
 from pose_uncertainty.core import trajectories
+from pose_uncertainty.core.grids import Grid
 from pose_uncertainty.logs import runlog
-from pose_uncertainty.logs.run import MapRecord, RunConfig, RunResult, execute
+from pose_uncertainty.logs.run import RunConfig, RunResult, execute
 from pose_uncertainty.logs.runlog import PartialLogWarning, RunLogError, open_run, write_run
 from pose_uncertainty.methods import covariance
+from pose_uncertainty.methods.maps import ProbabilityMap
 from pose_uncertainty.present import figures
 
 CONFIG = {
@@ -29,7 +31,7 @@ CONFIG = {
 }
 
 
-def synthetic_map(name: str, end: np.ndarray, rng: np.random.Generator) -> MapRecord:
+def synthetic_map(name: str, end: np.ndarray, rng: np.random.Generator) -> ProbabilityMap:
     """A ProbabilityMap-like record: a normalised Gaussian bump in (x, y, θ) around ``end``."""
     x = end[0] + np.linspace(-0.5, 0.5, 41)
     y = end[1] + np.linspace(-0.5, 0.5, 37)
@@ -37,17 +39,10 @@ def synthetic_map(name: str, end: np.ndarray, rng: np.random.Generator) -> MapRe
     X, Y, T = np.meshgrid(x - end[0], y - end[1], theta, indexing="ij")
     values = np.exp(-(X**2 / 0.02 + Y**2 / 0.01 + T**2)) * (1.0 + 0.01 * rng.random(X.shape))
     values *= (1.0 - 1e-3) / values.sum()  # probability mass per cell; 1e-3 lost off the grid
-    return MapRecord(
-        name,
-        "velocity",
-        x,
-        y,
-        theta,
-        values,
-        lost_mass=1e-3,
-        params={"alphas": [0.05] * 6},
-        info={"synthetic": True},
-    )
+    return ProbabilityMap(
+        x, y, theta, values, lost_mass=1e-3, model="velocity", name=name,
+        params={"alphas": [0.05] * 6}, info={"synthetic": True},
+    )  # fmt: skip
 
 
 @pytest.fixture(scope="module")
@@ -94,6 +89,8 @@ def test_write_read_is_lossless_for_every_topic(result: RunResult, logfile: Path
             assert exact(getattr(a, attr), getattr(b, attr)), attr
     assert log.metrics == result.metrics
     assert log.metric_units == result.metric_units
+    assert log.metric_definitions == result.metric_definitions
+    assert all(log.metric_definitions[k] for k in log.metrics)  # every logged number is defined
     assert log.timings == result.timings  # written because include_timings=True
     assert log.provenance == result.provenance
     assert log.metadata["seed"] == "11"
@@ -423,9 +420,9 @@ def test_computed_maps_round_trip(tmp_path: Path) -> None:
     )
     # the map builder called directly with the trajectory's control, (V, ω) = (1, 1) up to
     # rounding, on that grid gives the same array, bit for bit
-    traj = trajectories.build(**cfg.trajectory)
+    traj = trajectories.from_config(cfg.trajectory)
     np.testing.assert_allclose(traj.controls[0], [1.0, 1.0], rtol=0, atol=1e-15)
-    grid = maps.MapGrid.centered(center, resolution=0.02, theta_resolution=0.2)
+    grid = Grid.centered(center, resolution=0.02, theta_resolution=0.2)
     direct = maps.single_step_map(
         "velocity", traj.start, traj.controls[0], 1.0, [0.05] * 6, grid=grid
     )
@@ -437,8 +434,7 @@ def test_computed_maps_round_trip(tmp_path: Path) -> None:
         assert exact(a.center, b.center)
         assert a.info == b.info
         assert a.params == b.params
-        pm = a.to_probability_map()
-        assert exact(pm.most_probable_xy(), b.to_probability_map().most_probable_xy())
+        assert exact(a.most_probable_xy(), b.most_probable_xy())
     # the odometry map's peak is off the noiseless end point, the velocity map's is on it (claim 10)
     assert log.metrics["map_vel_peak_offset"] < 0.02 < log.metrics["map_odo_peak_offset"]
 
@@ -509,13 +505,13 @@ def test_metrics_agree_with_independent_routes(result: RunResult) -> None:
     d = result.end_poses[:, :2] - end[:2]
     k = -2.0 * math.log1p(-result.config.pr)
     inside = float(np.mean(np.einsum("ni,ij,nj->n", d, np.linalg.inv(S), d) <= k))
-    assert result.metrics["mc_coverage"] == inside
+    assert result.metrics["MC_coverage_pr"] == inside
     mean = result.end_poses.mean(axis=0)
-    assert result.metrics["mc_mean_offset"] == pytest.approx(
+    assert result.metrics["MC_mean_offset"] == pytest.approx(
         math.dist(mean[:2], end[:2]), rel=1e-12
     )
     e = covariance.ellipse(S, result.config.pr)
-    assert result.metrics["ellipse_major"] == float(e.a_major)
+    assert result.metrics["A_ellipse_major"] == float(e.a_major)
     # semi-axes² = k · eigenvalues of Σ_xy (second route to the same ellipse)
     lam = np.linalg.eigvalsh(S)
     np.testing.assert_allclose([e.a_minor**2, e.a_major**2], k * lam, rtol=1e-10)

@@ -136,10 +136,12 @@ def test_method_cloud_spread_small():
     assert r["euler"]["max_rel_cov_difference"] < 0.05
 
 
-def test_accuracy_table_structure():
-    rows = st.accuracy_table(n=500, dt=0.2, n_bins=20, n_threshold=5000)
-    assert [r["case"] for r in rows][:3] == ["straight 1 m", "straight 5 m", "straight 20 m"]
-    assert {"cartesian", "expcoords", "grid", "monte_carlo"} <= set(rows[0])
+def test_accuracy_case_structure():
+    row = st.accuracy_case({"name": "straight", "length": 1.0, "dt": 0.2, "track": 0.2}, n=500,
+                           n_bins=20, n_threshold=5000, label="straight 1 m")
+    assert row["case"] == "straight 1 m"
+    assert row["length"] == pytest.approx(1.0)
+    assert {"cartesian", "expcoords", "grid", "monte_carlo"} <= set(row)
 
 
 def test_bad_input():

@@ -2,8 +2,9 @@
 from pathlib import Path
 from importlib import resources as _resources
 
-from pose_uncertainty import __version__ as PACKAGE_VERSION
 from pose_uncertainty.logs import sweep as _sweep
+from pose_uncertainty.logs import study as _study
+from pose_uncertainty.logs.provenance import source_sha256
 
 # A config file given on the command line (--configfile config/quick.yaml) REPLACES
 # config/config.yaml instead of deep-merging into it (whose sets would otherwise leak in);
@@ -26,6 +27,21 @@ config.update(_validated)  # in place: every default filled in
 REPORT_TEMPLATE = str(_resources.files("pose_uncertainty.present") / "templates" / "comparison.html.j2")
 
 RUNS = _sweep.expand_all(config)  # {set: [Run, ...]}
+
+# the studies: name -> (kind, every parameter), validated like the runs
+try:
+    STUDIES = {
+        name: _study.study_params(name, spec)
+        for name, spec in (config["studies"]["runs"] if config["studies"]["enabled"] else {}).items()
+    }
+except ValueError as _exc:
+    raise WorkflowError(f"invalid config: {_exc}") from None
+
+# The source of the layers each rule runs (a rule param): Snakemake reruns a rule when its code
+# changes, so no log, table or figure can be older than the code that makes it.
+SOURCE_RUNS = source_sha256("core", "methods", "localization", "analysis", "logs")
+SOURCE_CLAIMS = source_sha256("core", "methods", "localization", "analysis")
+SOURCE_PRESENT = source_sha256("core", "methods", "localization", "analysis", "logs", "present")
 RUN_BY_ID = {(s, r.id): r for s, runs in RUNS.items() for r in runs}
 SETS = list(RUNS)
 
@@ -33,6 +49,7 @@ SETS = list(RUNS)
 wildcard_constraints:
     set="[A-Za-z0-9_]+",
     run="[A-Za-z0-9_.-]+",
+    study="[A-Za-z0-9_.-]+",
     map="[A-Za-z0-9_.-]+",
 
 
@@ -83,8 +100,30 @@ def all_tables(wildcards=None):
     return [f"reports/tables/{s}.csv" for s in SETS]
 
 
+def study_logs(wildcards=None):
+    """The study logs, in config order (data/studies/<name>.json)."""
+    return [f"data/studies/{name}.json" for name in STUDIES]
+
+
+def study_config(wildcards):
+    """The configuration ``{"study": kind, **every parameter}`` of one study (a rule param)."""
+    kind, params = STUDIES[wildcards.study]
+    return {"study": kind, **params}
+
+
+def studies_figures(wildcards=None):
+    """Figures of the studies sections: the exp.-coordinates figure when an expcoords_regions study runs."""
+    names = [n for n, (kind, _) in STUDIES.items() if kind == "expcoords_regions"]
+    return {"expcoords": f"reports/figures/studies/{names[0]}.png"} if names else {}
+
+
+def studies_json(wildcards=None):
+    """reports/studies.json when any study is configured, else nothing."""
+    return ["reports/studies.json"] if STUDIES else []
+
+
 def all_benchmarks(wildcards=None):
-    """Benchmark files of every job the report depends on (per-rule times in the report)."""
+    """Benchmark files of every job the summary depends on (per-rule times in the report)."""
     out = []
     for s in SETS:
         for r in RUNS[s]:
@@ -100,20 +139,9 @@ def all_benchmarks(wildcards=None):
             out.append(f"data/benchmarks/render_{kind}_figure/{s}.tsv")
         out.append(f"data/benchmarks/collect_metrics/{s}.tsv")
     out.append("data/benchmarks/evaluate_claims/all.tsv")
-    if config["studies"]["enabled"]:
-        out.append("data/benchmarks/run_studies/all.tsv")
-        out.append("data/benchmarks/render_expcoords_figure/all.tsv")
+    out.extend(f"data/benchmarks/run_study/{name}.tsv" for name in STUDIES)
+    out.extend(f"data/benchmarks/render_study_figure/{Path(f).stem}.tsv" for f in studies_figures().values())
     return out
-
-
-def studies_output(wildcards=None):
-    """reports/studies.json when config key studies.enabled, else nothing."""
-    return ["reports/studies.json"] if config["studies"]["enabled"] else []
-
-
-def studies_figures(wildcards=None):
-    """Figures of the studies section (reports/figures/studies/) when studies.enabled, else none."""
-    return {"expcoords": "reports/figures/studies/expcoords.png"} if config["studies"]["enabled"] else {}
 
 
 def report_manifest():

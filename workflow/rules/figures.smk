@@ -13,6 +13,7 @@ rule render_trajectory_figure:
             labels={"run": "{run}", "figure": "trajectory and ellipses"},
         ),
     params:
+        source=SOURCE_PRESENT,
         kinds=["trajectory"],
     log:
         "logs/render_trajectory_figure/{set}/{run}.log",
@@ -34,6 +35,7 @@ rule render_cloud_figure:
             labels={"run": "{run}", "figure": "Monte Carlo cloud"},
         ),
     params:
+        source=SOURCE_PRESENT,
         kinds=["cloud"],
     log:
         "logs/render_cloud_figure/{set}/{run}.log",
@@ -62,6 +64,7 @@ rule render_map_figure:
             labels={"run": "{run}", "figure": "map {map} vs its sampler"},
         ),
     params:
+        source=SOURCE_PRESENT,
         kinds=lambda w: [f"map_{w.map}", f"mapcloud_{w.map}"],
     log:
         "logs/render_map_figure/{set}/{run}/{map}.log",
@@ -83,6 +86,7 @@ rule render_growth_figure:
             labels={"figure": "growth with distance"},
         ),
     params:
+        source=SOURCE_PRESENT,
         kind="growth",
         title=lambda w: config["experiment_sets"][w.set]["title"],
     log:
@@ -105,6 +109,7 @@ rule render_cloud_polar_figure:
             labels={"figure": "Cartesian and polar views"},
         ),
     params:
+        source=SOURCE_PRESENT,
         kind="cloud_polar",
         title=lambda w: config["experiment_sets"][w.set]["title"],
     log:
@@ -113,21 +118,3 @@ rule render_cloud_polar_figure:
         "data/benchmarks/render_cloud_polar_figure/{set}.tsv"
     script:
         "../scripts/render_set_figure.py"
-
-
-
-rule render_expcoords_figure:
-    output:
-        report(
-            "reports/figures/studies/expcoords.png",
-            caption="../report/expcoords.rst",
-            category="studies",
-            subcategory="exponential coordinates",
-            labels={"figure": "Method A ellipse vs exp.-coordinates banana"},
-        ),
-    log:
-        "logs/render_expcoords_figure/all.log",
-    benchmark:
-        "data/benchmarks/render_expcoords_figure/all.tsv"
-    script:
-        "../scripts/render_expcoords_figure.py"

@@ -1,4 +1,5 @@
-# The claims of SPEC §5 evaluated from the tables, and the self-contained HTML report.
+# The claims of SPEC §5 and the method guide from the tables, the pipeline's provenance from the
+# logs, and the self-contained HTML report that formats them.
 
 
 rule evaluate_claims:
@@ -8,6 +9,7 @@ rule evaluate_claims:
         "reports/claims.json",
     params:
         sets=SETS,
+        source=SOURCE_CLAIMS,
     log:
         "logs/evaluate_claims.log",
     benchmark:
@@ -16,27 +18,30 @@ rule evaluate_claims:
         "../scripts/evaluate_claims.py"
 
 
-rule run_studies:
+rule summarize_pipeline:
+    input:
+        tables=all_tables,
+        studies=study_logs,
+        benchmarks=all_benchmarks,
     output:
-        "reports/studies.json",
+        "reports/pipeline.json",
     params:
-        quick=lambda w: config["studies"]["quick"],
+        sets=SETS,
+        source=SOURCE_RUNS,
     log:
-        "logs/run_studies.log",
-    benchmark:
-        "data/benchmarks/run_studies/all.tsv"
+        "logs/summarize_pipeline.log",
     script:
-        "../scripts/run_studies.py"
+        "../scripts/summarize_pipeline.py"
 
 
 rule build_report:
     input:
         tables=all_tables,
         claims=rules.evaluate_claims.output[0],
+        pipeline=rules.summarize_pipeline.output[0],
         figures=all_figures,
-        benchmarks=all_benchmarks,
         template=REPORT_TEMPLATE,
-        studies=studies_output,
+        studies=studies_json,
         studies_figures=lambda w: list(studies_figures().values()),
         # the speed benchmarks' results, when `make bench` has written them (not made by the DAG)
         speed=lambda w: sorted(str(p) for p in Path("benchmarks/results").glob("*.json")),
@@ -47,6 +52,7 @@ rule build_report:
         sets=SETS,
         title=config["report"]["title"],
         studies_figures=studies_figures(),
+        source=SOURCE_PRESENT,
     log:
         "logs/build_report.log",
     script:

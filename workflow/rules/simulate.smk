@@ -7,8 +7,8 @@ rule simulate_run:
         timings="data/runs/{set}/{run}.timings.json",
     params:
         config=run_config,
-        # a new package version reruns every simulation (the logs record it)
-        version=PACKAGE_VERSION,
+        # the code that computes a run: a change to it reruns every simulation (the logs record it)
+        source=SOURCE_RUNS,
     log:
         "logs/simulate_run/{set}/{run}.log",
     benchmark:

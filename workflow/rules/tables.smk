@@ -13,6 +13,8 @@ rule collect_metrics:
             subcategory="tables",
             labels={"table": "per-run measures"},
         ),
+    params:
+        source=SOURCE_RUNS,
     log:
         "logs/collect_metrics/{set}.log",
     benchmark:

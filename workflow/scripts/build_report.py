@@ -12,7 +12,7 @@ with open(sm.log[0], "w", encoding="utf-8") as log, redirect_stderr(log):
         sm.params.manifest,
         dict(zip(sm.params.sets, sm.input.tables, strict=True)),
         sm.input.claims,
-        list(sm.input.benchmarks),
+        sm.input.pipeline,
         sm.output[0],
         title=sm.params.title,
         config_text=yaml.safe_dump(sm.params.manifest["config"], sort_keys=False, width=100),

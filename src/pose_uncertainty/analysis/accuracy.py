@@ -34,39 +34,38 @@ NEES
     planar block 2 (``nees_xy``).
 
 All functions are plain functions returning dicts of floats. A gridded density
-is any object with ``x`` (nx,), ``y`` (ny,) cell centres [m] and either
-``marginal_xy()`` returning (nx, ny) or ``values`` of shape (nx, ny) — a
-density [1/m²] (e.g. :class:`GriddedDensity`), except for a
-``pose_uncertainty.methods.maps.ProbabilityMap``, whose ``marginal_xy()`` is mass per
-cell and is divided by the cell area here.
+is a :class:`pose_uncertainty.methods.maps.ProbabilityMap` (mass per cell; a
+planar density on cell centres becomes one with
+:meth:`~pose_uncertainty.methods.maps.ProbabilityMap.from_density_xy`).
+The distances use the package's one Hellinger convention
+(:func:`pose_uncertainty.core.stats.hellinger`).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import stats as sstats
 
+from ..core.grids import Grid
+from ..core.stats import PR_3SIGMA, hellinger, mahalanobis_sq, pr_to_k
 from ..core.trajectories import Trajectory
 from ..core.validation import (
     check_finite,
     check_last_axis,
     check_positive_int,
-    check_probability,
 )
 from ..methods import covariance as cv
 from ..methods import expcoords as ec
+from ..methods.maps import ProbabilityMap
 
 __all__ = [
     "KL_FLOOR",
     "PRS",
-    "Grid",
-    "GriddedDensity",
     "accuracy_vs_distance",
     "cell_probabilities",
     "compare_methods",
@@ -78,16 +77,12 @@ __all__ = [
     "evaluate_expcoords",
     "evaluate_gridded",
     "flatten",
-    "grid_for_cloud",
-    "hdr_level",
-    "hellinger",
-    "histogram_probabilities",
     "kl_divergence",
     "pr_label",
 ]
 
 #: The probabilities of the credible regions compared: 50 %, 90 % and the thesis's 98.89 % (r = 3).
-PRS: tuple[float, ...] = (0.5, 0.9, cv.PR_3SIGMA)
+PRS: tuple[float, ...] = (0.5, 0.9, PR_3SIGMA)
 
 #: Floor of a model cell probability in the KL divergence (a zero would make it infinite).
 KL_FLOOR: float = 1e-12
@@ -99,82 +94,6 @@ def pr_label(pr: float) -> str:
 
 
 # --- grids and histograms -------------------------------------------------------------------
-
-
-@dataclass(frozen=True, eq=False)
-class Grid:
-    """A rectangular grid in the plane, by its cell edges.
-
-    Attributes
-    ----------
-    x_edges : ndarray, shape (nx+1,) [m]; y_edges : ndarray, shape (ny+1,) [m]
-    """
-
-    x_edges: NDArray[np.float64]
-    y_edges: NDArray[np.float64]
-
-    @property
-    def x(self) -> NDArray[np.float64]:
-        """Cell centres along x, shape (nx,) [m]."""
-        return 0.5 * (self.x_edges[1:] + self.x_edges[:-1])
-
-    @property
-    def y(self) -> NDArray[np.float64]:
-        """Cell centres along y, shape (ny,) [m]."""
-        return 0.5 * (self.y_edges[1:] + self.y_edges[:-1])
-
-    @property
-    def dx(self) -> float:
-        """Cell width [m]."""
-        return float(self.x_edges[1] - self.x_edges[0])
-
-    @property
-    def dy(self) -> float:
-        """Cell height [m]."""
-        return float(self.y_edges[1] - self.y_edges[0])
-
-    @property
-    def cell_area(self) -> float:
-        """Cell area [m²]."""
-        return self.dx * self.dy
-
-    def describe(self) -> dict[str, float]:
-        """The binning, as floats: bins, cell sizes and the covered rectangle."""
-        return {
-            "grid_nx": float(self.x_edges.size - 1),
-            "grid_ny": float(self.y_edges.size - 1),
-            "grid_dx": self.dx,
-            "grid_dy": self.dy,
-            "grid_x_min": float(self.x_edges[0]),
-            "grid_x_max": float(self.x_edges[-1]),
-            "grid_y_min": float(self.y_edges[0]),
-            "grid_y_max": float(self.y_edges[-1]),
-        }
-
-
-def grid_for_cloud(xy: ArrayLike, n_bins: int = 60, pad: float = 0.05) -> Grid:
-    """The stated grid of the density comparisons: ``n_bins × n_bins`` equal cells.
-
-    It covers the bounding box of the whole cloud, widened by ``pad`` of its
-    extent on each side, so every particle falls in a cell.
-
-    Parameters
-    ----------
-    xy : array_like, shape (n, 2) [m]; n_bins : int; pad : float ≥ 0
-    """
-    p = check_last_axis("xy", xy, 2)
-    n_bins = check_positive_int("n_bins", n_bins)
-    lo, hi = p.min(axis=0), p.max(axis=0)
-    span = np.maximum(hi - lo, 1e-9)
-    lo, hi = lo - pad * span, hi + pad * span
-    return Grid(np.linspace(lo[0], hi[0], n_bins + 1), np.linspace(lo[1], hi[1], n_bins + 1))
-
-
-def histogram_probabilities(xy: ArrayLike, grid: Grid) -> NDArray[np.float64]:
-    """Fraction of the points in each cell, shape (nx, ny) (sums to the fraction on the grid)."""
-    p = check_last_axis("xy", xy, 2)
-    h, _, _ = np.histogram2d(p[:, 0], p[:, 1], bins=(grid.x_edges, grid.y_edges))
-    return h / p.shape[0]
 
 
 def cell_probabilities(pdf: Any, grid: Grid, supersample: int = 4) -> NDArray[np.float64]:
@@ -195,16 +114,8 @@ def cell_probabilities(pdf: Any, grid: Grid, supersample: int = 4) -> NDArray[np
     ys = (grid.y_edges[:-1, None] + off[None, :] * grid.dy).ravel()
     X, Y = np.meshgrid(xs, ys, indexing="ij")
     d = np.asarray(pdf(np.stack([X.ravel(), Y.ravel()], axis=-1))).reshape(X.shape)
-    nx, ny = grid.x_edges.size - 1, grid.y_edges.size - 1
+    nx, ny = grid.nx, grid.ny
     return d.reshape(nx, s, ny, s).mean(axis=(1, 3)) * grid.cell_area
-
-
-def hellinger(p: ArrayLike, q: ArrayLike) -> float:
-    """Hellinger distance ``√(1 − Σ √(p_i q_i))`` between two cell-probability arrays (0 … 1)."""
-    pp = check_finite("p", p)
-    qq = check_finite("q", q)
-    bc = float(np.sum(np.sqrt(np.clip(pp, 0, None) * np.clip(qq, 0, None))))
-    return math.sqrt(max(0.0, 1.0 - bc))
 
 
 def kl_divergence(p: ArrayLike, q: ArrayLike, floor: float = KL_FLOOR) -> float:
@@ -225,18 +136,14 @@ def coverage_ellipse(
 
     Returns ``{pr_label(pr): fraction}``.
     """
-    from ..core.stats import mahalanobis_sq
-
     d2 = mahalanobis_sq(xy, center, cov_xy)
-    return {pr_label(pr): float(np.mean(d2 <= cv.pr_to_k(pr))) for pr in prs}
+    return {pr_label(pr): float(np.mean(d2 <= pr_to_k(pr))) for pr in prs}
 
 
 def coverage_ellipsoid(
     points: ArrayLike, center: ArrayLike, cov: ArrayLike, prs: Sequence[float] = PRS
 ) -> dict[str, float]:
     """Fraction of d-dimensional points inside ``dᵀΣ⁻¹d ≤ χ²_d(Pr)``; ``{pr_label: fraction}``."""
-    from ..core.stats import mahalanobis_sq
-
     C = check_finite("cov", cov)
     d2 = mahalanobis_sq(points, center, C)
     dim = C.shape[-1]
@@ -246,110 +153,49 @@ def coverage_ellipsoid(
 # --- gridded densities ------------------------------------------------------------------------
 
 
-@dataclass(frozen=True, eq=False)
-class GriddedDensity:
-    """A planar density on cell centres: ``values[i, j]`` at ``(x[i], y[j])`` [1/m²]."""
-
-    x: NDArray[np.float64]
-    y: NDArray[np.float64]
-    values: NDArray[np.float64]
-
-    def marginal_xy(self) -> NDArray[np.float64]:
-        """The density itself, shape (nx, ny)."""
-        return self.values
-
-
-def _is_mass_map(density: Any) -> bool:
-    """True for :class:`pose_uncertainty.methods.maps.ProbabilityMap`, whose values are mass per cell."""
-    try:
-        from ..methods.maps import ProbabilityMap
-    except ImportError:  # pragma: no cover - maps not available
-        return False
-    return isinstance(density, ProbabilityMap)
-
-
-def _marginal(density: Any) -> tuple[NDArray, NDArray, NDArray]:
-    """Cell centres and the planar *density* [1/m²] of a gridded density or probability map."""
+def _planar(density: ProbabilityMap) -> tuple[Grid, NDArray]:
+    """The map's planar grid (from its cell centres) and its θ-marginal mass per cell."""
     x = check_finite("density.x", density.x)
     y = check_finite("density.y", density.y)
-    vals = density.marginal_xy() if hasattr(density, "marginal_xy") else density.values
-    v = check_finite("density values", vals)
-    if _is_mass_map(density) and x.size > 1 and y.size > 1:
-        v = v / float((x[1] - x[0]) * (y[1] - y[0]))  # mass per cell → density
-    if v.shape != (x.size, y.size):
-        raise ValueError(
-            f"density values must have shape (nx, ny) = ({x.size}, {y.size}), got {v.shape}"
-        )
     if x.size < 2 or y.size < 2:
-        raise ValueError(f"density grid must have at least 2 cells per axis, got {v.shape}")
-    return x, y, v
+        raise ValueError(f"density grid must have at least 2 cells per axis, got ({x.size}, {y.size})")
+    grid = Grid(float(x[0]), float(y[0]), x.size, y.size, float(x[1] - x[0]), float(y[1] - y[0]))
+    return grid, density.marginal_xy()
 
 
-def _cell_index(x: NDArray, y: NDArray, xy: NDArray) -> tuple[NDArray, NDArray, NDArray]:
-    """Index of the cell (centres x, y; uniform spacing) holding each point, and an inside mask."""
-    dx, dy = x[1] - x[0], y[1] - y[0]
-    i = np.floor((xy[:, 0] - (x[0] - dx / 2)) / dx).astype(np.intp)
-    j = np.floor((xy[:, 1] - (y[0] - dy / 2)) / dy).astype(np.intp)
-    inside = (i >= 0) & (i < x.size) & (j >= 0) & (j < y.size)
-    return np.clip(i, 0, x.size - 1), np.clip(j, 0, y.size - 1), inside
-
-
-def density_at(density: Any, xy: ArrayLike) -> NDArray[np.float64]:
-    """Value of a gridded density at points: the value of the cell holding each point, 0 off the grid.
+def density_at(density: ProbabilityMap, xy: ArrayLike) -> NDArray[np.float64]:
+    """Planar density of a map at points: the mass of the cell holding each point over its area.
 
     Parameters
     ----------
-    density : object with ``x``, ``y`` and ``marginal_xy()`` or ``values`` (nx, ny)
+    density : ProbabilityMap
     xy : array_like, shape (n, 2) [m]
 
     Returns
     -------
-    ndarray, shape (n,) [1/m²]
+    ndarray, shape (n,) [1/m²] — 0 off the grid
     """
-    x, y, v = _marginal(density)
+    grid, mass = _planar(density)
     p = check_last_axis("xy", xy, 2).reshape(-1, 2)
-    i, j, inside = _cell_index(x, y, p)
-    return np.where(inside, v[i, j], 0.0)
+    i, j, inside = grid.index_xy(p)
+    return np.where(inside, mass[i, j] / grid.cell_area, 0.0)
 
 
-def hdr_level(values: ArrayLike, cell_area: float, pr: float, total: float | None = None) -> float:
-    """Density level ``c`` of the highest-density region of a gridded density holding ``pr``.
+def coverage_gridded(
+    density: ProbabilityMap, xy: ArrayLike, prs: Sequence[float] = PRS
+) -> dict[str, float]:
+    """Fraction of points inside a map's planar Pr highest-density regions.
 
-    Cells sorted by density, highest first; ``c`` is the density of the cell at
-    which the cumulative probability first reaches ``pr·total``. ``total`` is
-    the probability of the whole distribution in the units of ``values``:
-    default the mass on the grid (a relative map); for a map that lost mass
-    off its grid, 1 — then ``nan`` if the grid holds less than ``pr``.
+    A point is inside when the cell holding it belongs to the region
+    (:meth:`ProbabilityMap.region_xy`: Pr of the whole distribution, lost mass
+    included; ``nan`` when the grid holds less than Pr).
     """
-    v = np.sort(check_finite("values", values).ravel())[::-1]
-    pr_ = float(check_probability("pr", pr))
-    cum = np.cumsum(v) * cell_area
-    on_grid = cum[-1]
-    if on_grid <= 0:
-        raise ValueError("values must have positive total mass (allowed: a density), got total 0")
-    need = pr_ * (on_grid if total is None else total)
-    if need > on_grid * (1 + 1e-12):
-        return float("nan")
-    idx = int(np.searchsorted(cum, need))
-    return float(v[min(idx, v.size - 1)])
-
-
-def coverage_gridded(density: Any, xy: ArrayLike, prs: Sequence[float] = PRS) -> dict[str, float]:
-    """Fraction of points inside the gridded density's Pr highest-density regions.
-
-    A point is inside when the cell holding it has density ≥ :func:`hdr_level`.
-    For an object with ``lost_mass > 0`` (a map whose grid missed part of the
-    distribution) Pr is a fraction of the whole distribution (``nan`` when the
-    grid holds less than Pr); otherwise of the mass on the grid.
-    """
-    x, y, v = _marginal(density)
-    area = float((x[1] - x[0]) * (y[1] - y[0]))
-    lost = float(getattr(density, "lost_mass", 0.0) or 0.0)
-    total = 1.0 if lost > 0 else None
-    at = density_at(density, xy)
+    grid, mass = _planar(density)
+    i, j, inside = grid.index_xy(check_last_axis("xy", xy, 2).reshape(-1, 2))
+    at = np.where(inside, mass[i, j], 0.0)
     out = {}
     for pr in prs:
-        level = hdr_level(v, area, pr, total)
+        level, _ = density.region_xy(pr)
         out[pr_label(pr)] = float(np.mean(at >= level)) if math.isfinite(level) else float("nan")
     return out
 
@@ -412,19 +258,17 @@ def evaluate_cartesian(
     dict: ``coverage_xy_<pr>``, ``coverage_pose_<pr>``, ``hellinger``, ``kl``,
     ``model_mass_on_grid``, ``loglik_pose``, ``loglik_xy``, ``nees_pose``, ``nees_xy``.
     """
-    from ..core.stats import mahalanobis_sq
-
     s = _check_samples(samples)
     mu = check_last_axis("pose", pose, 3)
     C = check_finite("cov", cov)
-    g = grid_for_cloud(s[:, :2]) if grid is None else grid
+    g = Grid.covering(s[:, :2]) if grid is None else grid
     out: dict[str, float] = {}
     for key, val in coverage_ellipse(s[:, :2], mu[:2], C[:2, :2], prs).items():
         out[f"coverage_xy_{key}"] = val
     for key, val in coverage_ellipsoid(s, mu, C, prs).items():
         out[f"coverage_pose_{key}"] = val
     q = cell_probabilities(_gauss2_pdf(mu[:2], C[:2, :2]), g, supersample)
-    out.update(_distances(histogram_probabilities(s[:, :2], g), q))
+    out.update(_distances(g.histogram_xy(s[:, :2]), q))
     d3 = mahalanobis_sq(s, mu, C)
     d2 = mahalanobis_sq(s[:, :2], mu[:2], C[:2, :2])
     _, logdet3 = np.linalg.slogdet(C)
@@ -458,7 +302,7 @@ def evaluate_expcoords(
     s = _check_samples(samples)
     mu = check_last_axis("pose", pose, 3)
     C = check_finite("cov", cov)
-    g = grid_for_cloud(s[:, :2]) if grid is None else grid
+    g = Grid.covering(s[:, :2]) if grid is None else grid
     out: dict[str, float] = {}
     dens = ec.pdf_xy(s[:, :2], mu, C)
     levels = ec.hdr_threshold(mu, C, np.asarray(prs), rng, n=n_threshold)
@@ -468,11 +312,9 @@ def evaluate_expcoords(
     for key, val in coverage_ellipsoid(eps, np.zeros(3), C, prs).items():
         out[f"coverage_pose_{key}"] = val
     q = cell_probabilities(lambda pts: ec.pdf_xy(pts, mu, C), g, supersample)
-    out.update(_distances(histogram_probabilities(s[:, :2], g), q))
+    out.update(_distances(g.histogram_xy(s[:, :2]), q))
     out["loglik_pose"] = float(np.mean(ec.logpdf_pose(s, mu, C)))
     out["loglik_xy"] = _safe_mean_log(dens)
-    from ..core.stats import mahalanobis_sq
-
     # NEES in the method's own coordinates: εᵀΣ⁻¹ε (3 if consistent), planar block of ε (2)
     out["nees_pose"] = float(np.mean(mahalanobis_sq(eps, np.zeros(3), C)))
     out["nees_xy"] = float(np.mean(mahalanobis_sq(eps[:, :2], np.zeros(2), C[:2, :2])))
@@ -480,7 +322,7 @@ def evaluate_expcoords(
 
 
 def evaluate_gridded(
-    density: Any,
+    density: ProbabilityMap,
     samples: ArrayLike,
     grid: Grid | None = None,
     prs: Sequence[float] = PRS,
@@ -498,15 +340,15 @@ def evaluate_gridded(
     ``loglik_xy``, ``fraction_off_map``.
     """
     s = _check_samples(samples)
-    x, y, _ = _marginal(density)
-    g = grid_for_cloud(s[:, :2]) if grid is None else grid
+    map_grid, _ = _planar(density)
+    g = Grid.covering(s[:, :2]) if grid is None else grid
     out: dict[str, float] = {}
     for key, val in coverage_gridded(density, s[:, :2], prs).items():
         out[f"coverage_xy_{key}"] = val
     q = cell_probabilities(lambda pts: density_at(density, pts), g, 4)
-    out.update(_distances(histogram_probabilities(s[:, :2], g), q))
+    out.update(_distances(g.histogram_xy(s[:, :2]), q))
     out["loglik_xy"] = _safe_mean_log(density_at(density, s[:, :2]))
-    _, _, inside = _cell_index(x, y, s[:, :2])
+    _, _, inside = map_grid.index_xy(s[:, :2])
     out["fraction_off_map"] = float(1.0 - inside.mean())
     return out
 
@@ -515,7 +357,7 @@ def _floor(pose: NDArray, cov_xy: NDArray, n: int, grid: Grid, rng: np.random.Ge
     """Distances of the Cartesian Gaussian to a histogram of ``n`` of its own draws."""
     draws = rng.multivariate_normal(pose[:2], cov_xy, size=n, method="eigh")
     q = cell_probabilities(_gauss2_pdf(pose[:2], cov_xy), grid, 4)
-    p = histogram_probabilities(draws, grid)
+    p = grid.histogram_xy(draws)
     return {"hellinger_floor": hellinger(p, q), "kl_floor": kl_divergence(p, q)}
 
 
@@ -524,7 +366,7 @@ def compare_methods(
     cartesian: tuple[ArrayLike, ArrayLike],
     expcoords: tuple[ArrayLike, ArrayLike] | None,
     rng: np.random.Generator,
-    densities: Mapping[str, Any] | None = None,
+    densities: Mapping[str, ProbabilityMap] | None = None,
     prs: Sequence[float] = PRS,
     n_bins: int = 60,
     n_threshold: int = 200_000,
@@ -537,7 +379,7 @@ def compare_methods(
     cartesian : (pose (3,), cov (3, 3)) — Method A
     expcoords : (pose (3,), cov (3, 3)) or None — exponential-coordinates Gaussian
     rng : numpy.random.Generator — for the banana thresholds and the floors
-    densities : mapping name → gridded density, optional (e.g. probability maps)
+    densities : mapping name → ProbabilityMap, optional
     prs : probabilities; n_bins : bins per axis of the stated grid
     n_threshold : draws for the banana's density thresholds (:func:`evaluate_expcoords`)
 
@@ -548,7 +390,7 @@ def compare_methods(
     ``"cartesian"``, ``"expcoords"``, and one entry per gridded density.
     """
     s = _check_samples(samples)
-    grid = grid_for_cloud(s[:, :2], n_bins=n_bins)
+    grid = Grid.covering(s[:, :2], n_bins=n_bins)
     pose_a, cov_a = (np.asarray(v, dtype=float) for v in cartesian)
     res: dict[str, dict[str, float]] = {"grid": {**grid.describe(), "n_samples": float(len(s))}}
     mc = _floor(pose_a, cov_a[:2, :2], len(s), grid, rng)

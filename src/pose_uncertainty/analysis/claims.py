@@ -7,8 +7,13 @@
 only in part or under conditions), or ``not measured`` (the sets it needs are not
 in the config) — the reason, and the figure that shows it.
 
-The sets each claim reads are named in :data:`CLAIM_SETS`; the default config
-(``config/config.yaml``) provides all of them, the quick config a subset.
+Every number a claim uses is a logged measure of a run, read from the per-set
+tables (:mod:`pose_uncertainty.logs.tables`; names and definitions in
+:mod:`pose_uncertainty.analysis.measures`); a claim only combines them across runs
+(ratios, orders, fitted growth laws) and says which reference point each
+distance uses. The default config (``config/config.yaml``) provides every set
+the claims read, the quick config a subset. :func:`method_guide` turns the same
+tables into advice on which method to use, with the numbers behind it.
 """
 
 from __future__ import annotations
@@ -23,30 +28,14 @@ from typing import Any
 
 import numpy as np
 
+from ..core.stats import COVERAGE_LEVELS, fit_growth
 from ..core.tables import read_table
 
-__all__ = ["CLAIM_SETS", "VERDICTS", "Claim", "evaluate_claims", "power_vs_exponential", "write_claims"]
+__all__ = ["VERDICTS", "Claim", "evaluate_claims", "method_guide", "write_claims"]
 
 VERDICTS: tuple[str, ...] = ("confirmed", "refuted", "qualified", "not measured")
 
 Rows = Mapping[str, Sequence[Mapping[str, Any]]]
-
-#: Experiment sets each claim reads (the first one found is used when several are listed).
-CLAIM_SETS: dict[int, tuple[str, ...]] = {
-    1: ("L_straight", "A1_shape"),
-    2: ("A1_shape",),
-    3: ("A2_profile",),
-    4: ("A3_parameters",),
-    5: ("A4_distribution",),
-    6: ("B1_trajectory",),
-    7: ("L_straight", "L_circle", "B2_distance"),
-    8: ("B3_speed",),
-    9: ("B4_alpha",),
-    10: ("B1_trajectory",),
-    11: ("B3_speed",),
-    12: ("S001_seed001",),
-}
-
 
 @dataclass
 class Claim:
@@ -105,34 +94,22 @@ def _verdict_of_parts(parts: Sequence[bool]) -> str:
     return "confirmed" if all(parts) else ("refuted" if not any(parts) else "qualified")
 
 
+#: Tolerance of a coverage test, in binomial standard errors √(Pr(1−Pr)/n).
+COVERAGE_TOLERANCE_SE: float = 3.0
+
+
+def _coverage_tolerance(level: float, n: float) -> float:
+    """The one verdict rule for a coverage: it holds within 3 binomial standard errors of its level."""
+    return COVERAGE_TOLERANCE_SE * math.sqrt(level * (1.0 - level) / n)
+
+
 def _fig(set_name: str, run: str | None, kind: str) -> dict[str, Any]:
     return {"set": set_name, "run": run, "kind": kind}
 
 
 def _slope(x: Any, y: Any) -> float:
-    return float(np.polyfit(np.log(np.asarray(x)), np.log(np.asarray(y)), 1)[0])
-
-
-def power_vs_exponential(x: Sequence[float], y: Sequence[float]) -> dict[str, float]:
-    """Fit ``y = c x^p`` (log-log line) and ``y = c e^{λx}`` (log-lin line); compare their fits.
-
-    Returns
-    -------
-    dict with ``power_exponent`` p, ``power_rmse`` and ``exp_rate`` λ [1/unit of x],
-    ``exp_rmse``: root-mean-square residuals of ``ln y`` for each law (smaller = better).
-    """
-    xa, ya = np.asarray(x, float), np.asarray(y, float)
-    ly = np.log(ya)
-    pp = np.polyfit(np.log(xa), ly, 1)
-    pe = np.polyfit(xa, ly, 1)
-    rp = ly - np.polyval(pp, np.log(xa))
-    re_ = ly - np.polyval(pe, xa)
-    return {
-        "power_exponent": float(pp[0]),
-        "power_rmse": float(np.sqrt(np.mean(rp**2))),
-        "exp_rate": float(pe[0]),
-        "exp_rmse": float(np.sqrt(np.mean(re_**2))),
-    }
+    """Log-log slope: the exponent of the fitted power law (:func:`pose_uncertainty.core.stats.fit_growth`)."""
+    return fit_growth(x, y)["power_exponent"]
 
 
 # --- the claims ---------------------------------------------------------------------------
@@ -141,15 +118,15 @@ def power_vs_exponential(x: Sequence[float], y: Sequence[float]) -> dict[str, fl
 def _c1(rows: Rows, c: Claim) -> None:
     name, t = _set(rows, "L_straight")
     pts = sorted((_get(r, "path_length"), _get(r, "A_sigma_along"), _get(r, "A_sigma_across")) for r in t)
-    if len(pts) < 2:
-        raise _Missing("needs at least two lengths in L_straight")
+    if len(pts) < 3:
+        raise _Missing("needs at least three lengths in L_straight")
     L, al, ac = (np.array(v) for v in zip(*pts, strict=True))
     s_al, s_ac = _slope(L, al), _slope(L, ac)
     i1 = int(np.argmin(abs(L - 1.0)))
     extra = ""
     mc = [(_get(r, "path_length"), r.get("MC_sigma_along"), r.get("MC_sigma_across")) for r in t]
     mc = sorted(m for m in mc if m[1] and m[2])
-    if len(mc) >= 2:
+    if len(mc) >= 3:
         Lm, mal, mac = (np.array(v, float) for v in zip(*mc, strict=True))
         extra = f" Monte Carlo: slopes {_slope(Lm, mal):.2f} (along) and {_slope(Lm, mac):.2f} (across)."
         c.numbers.update(mc_slope_along=_slope(Lm, mal), mc_slope_across=_slope(Lm, mac))
@@ -262,13 +239,11 @@ def _c5(rows: Rows, c: Claim) -> None:
     name, t = _set(rows, "A4_distribution")
     r = _run(t, "per_step")
     n = _get(r, "MC_n")
-    cov3, lvl3 = _get(r, "MC_coverage_3s"), _get(r, "MC_level_3s")
-    cov1, lvl1 = _get(r, "MC_coverage_1s"), _get(r, "MC_level_1s")
+    cov3, lvl3 = _get(r, "MC_coverage_3s"), COVERAGE_LEVELS["3s"]
+    cov1, lvl1 = _get(r, "MC_coverage_1s"), COVERAGE_LEVELS["1s"]
     ks, ksc = _get(r, "MC_ks_gauss"), _get(r, "MC_ks_crit")
     bend, bc = _get(r, "MC_bend"), _get(r, "MC_bend_crit")
-    # binomial standard error of a coverage fraction: √(p(1−p)/n); 3 of them as tolerance
-    tol3 = 3 * math.sqrt(lvl3 * (1 - lvl3) / n)
-    tol1 = 3 * math.sqrt(lvl1 * (1 - lvl1) / n)
+    tol3, tol1 = _coverage_tolerance(lvl3, n), _coverage_tolerance(lvl1, n)
     c.numbers.update(coverage_3s=cov3, coverage_1s=cov1, ks=ks, bend=bend, sigma_theta=_get(r, "A_sigma_theta"))
     c.measured = (
         f"n = {n:.0f} particles, σ_θ at the end {_get(r, 'A_sigma_theta'):.3g} rad. Inside the 39.35 % / 98.89 % "
@@ -309,8 +284,8 @@ def _c6(rows: Rows, c: Claim) -> None:
     line_mod = line % math.pi
     c.numbers.update(peak_offset=off, peak_line_angle=line_mod)
     c.measured = (
-        f"Most probable cell {off * 100:.2f} cm from the start, on the line at {line_mod:.3f} rad "
-        f"({math.degrees(line_mod):.1f}°) through it."
+        f"Most probable cell {off * 100:.2f} cm from the start (the map's centre: the noiseless end pose "
+        f"of a rotation in place), on the line at {line_mod:.3f} rad ({math.degrees(line_mod):.1f}°) through it."
     )
     near = 0.01 <= off <= 0.03
     angle_ok = min(abs(line_mod - 0.5), abs(line_mod - 0.5 - math.pi)) < 0.1
@@ -359,11 +334,11 @@ def _c7(rows: Rows, c: Claim) -> None:
         pts = sorted((_get(r, "path_length"), _get(r, col)) for r in rows[sname])
         if len(pts) < 3:
             continue
-        f = power_vs_exponential(*zip(*pts, strict=True))
+        f = fit_growth(*zip(*pts, strict=True))
         fits.append(f)
         parts.append(
             f"{sname} {col}: power law exponent {f['power_exponent']:.2f} (rms log residual "
-            f"{f['power_rmse']:.3f}) vs exponential (rms {f['exp_rmse']:.3f})"
+            f"{f['power_rms_log_residual']:.3f}) vs exponential (rms {f['exp_rms_log_residual']:.3f})"
         )
     for model in ("velocity", "odometry"):
         if rows.get("B2_distance"):
@@ -372,14 +347,14 @@ def _c7(rows: Rows, c: Claim) -> None:
                 if str(r.get("run", "")).startswith("straight") and r.get(f"map_{model}_region_area")
             )
             if len(pts) >= 3:
-                f = power_vs_exponential(*zip(*pts, strict=True))
+                f = fit_growth(*zip(*pts, strict=True))
                 fits.append(f)
                 parts.append(f"B2 {model} map 98.89 % region area vs duration: exponent {f['power_exponent']:.2f} "
-                             f"(rms {f['power_rmse']:.3f}) vs exponential (rms {f['exp_rmse']:.3f})")
+                             f"(rms {f['power_rms_log_residual']:.3f}) vs exponential (rms {f['exp_rms_log_residual']:.3f})")
     if not fits:
         raise _Missing("needs the sets L_straight or L_circle (or B2_distance) with at least three lengths")
     c.measured = "; ".join(parts) + "."
-    better_power = sum(f["power_rmse"] < f["exp_rmse"] for f in fits)
+    better_power = sum(f["power_rms_log_residual"] < f["exp_rms_log_residual"] for f in fits)
     c.numbers.update(n_fits=len(fits), power_better=better_power)
     if better_power == len(fits):
         c.verdict = "refuted"
@@ -485,7 +460,10 @@ def _c10(rows: Rows, c: Claim) -> None:
         parts.append(f"{run}: odometry/velocity 98.89 % region area {ratios[run]:.3g}, odometry peak "
                      f"{_get(r, 'map_odometry_peak_offset') * 100:.2f} cm off the noiseless end point")
     c.numbers.update({f"ratio_{k}": v for k, v in ratios.items()})
-    c.measured = (f"Areas from the {'2 m x 2 m' if wide else 'thesis (1 m x 1 m)'} maps; " + "; ".join(parts) + ".")
+    c.numbers.update({f"odometry_peak_offset_{k}": _get(_run(t, k), "map_odometry_peak_offset") for k in ratios})
+    c.measured = (f"Areas from the {'2 m x 2 m' if wide else 'thesis (1 m x 1 m)'} maps; " + "; ".join(parts)
+                  + ". Peak offsets are measured on the thesis (1 m x 1 m, 1 cm) odometry map from the map's "
+                  "centre, the noiseless exact-arc end pose (logged measure map_odometry_peak_offset).")
     larger = ratios["straight"] > 1 and ratios["arc"] > 1
     smaller = ratios["rotation"] < 0.5
     off = max(_get(_run(t, r), "map_odometry_peak_offset") for r in ratios) > 0.005
@@ -639,10 +617,138 @@ def evaluate_claims(rows: Rows) -> list[Claim]:
 
 
 def write_claims(tables: Mapping[str, str | os.PathLike[str]], out: str | os.PathLike[str]) -> Path:
-    """Read the per-set CSV tables, evaluate the claims and write them as JSON (a list of Claim dicts)."""
+    """Read the per-set CSV tables; write the claims and the method guide as JSON.
+
+    The file holds ``{"claims": [Claim as dict, ...], "guide": [{"advice", "evidence",
+    "numbers"}, ...]}``.
+    """
     rows = {name: read_table(p) for name, p in tables.items()}
-    claims = evaluate_claims(rows)
+    doc = {"claims": [asdict(c) for c in evaluate_claims(rows)], "guide": method_guide(rows)}
     p = Path(out)
     p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(json.dumps([asdict(c) for c in claims], indent=1, sort_keys=True) + "\n", encoding="utf-8")
+    p.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n", encoding="utf-8")
     return p
+
+
+# --- the method guide ---------------------------------------------------------------------
+
+
+def _g(r: Mapping[str, Any], key: str) -> float | None:
+    v = r.get(key)
+    return None if v is None or (isinstance(v, float) and math.isnan(v)) else float(v)
+
+
+def _guide_covariance(all_rows: Sequence[Mapping[str, Any]]) -> dict[str, Any] | None:
+    """When Method A's ellipse holds: runs ordered by the bend ratio, the coverage rule of the claims."""
+    level = COVERAGE_LEVELS["3s"]
+    runs = [r for r in all_rows if r.get("param.monte_carlo.regime") == "per_step"
+            and _g(r, "MC_coverage_3s") is not None and _g(r, "A_bend_ratio") is not None]  # fmt: skip
+    if not runs:
+        return None
+    runs.sort(key=lambda r: float(r["A_bend_ratio"]))
+    short = [r for r in runs if r["MC_coverage_3s"] < level - _coverage_tolerance(level, r["MC_n"])]
+    worst = min(runs, key=lambda r: r["MC_coverage_3s"])
+    numbers: dict[str, Any] = {
+        "n_runs": len(runs), "median_coverage_3s": float(np.median([r["MC_coverage_3s"] for r in runs])),
+        "worst_run": worst["run"], "worst_coverage_3s": worst["MC_coverage_3s"],
+    }  # fmt: skip
+    if short:
+        first = short[0]
+        numbers.update(first_short_run=first["run"], first_short_bend_ratio=first["A_bend_ratio"],
+                       first_short_coverage_3s=first["MC_coverage_3s"],
+                       n_hold_below=sum(r["A_bend_ratio"] < first["A_bend_ratio"] for r in runs))  # fmt: skip
+        limit = (f"Ordered by the bend ratio ρ, all {numbers['n_hold_below']} runs with ρ < "
+                 f"{first['A_bend_ratio']:.2g} held 98.89 % within 3 binomial standard errors; the first to fall "
+                 f"short was {first['run']} ({100 * first['MC_coverage_3s']:.2f} %)")  # fmt: skip
+    else:
+        limit = "Every run held 98.89 % within 3 binomial standard errors"
+    t_cov = [r["time_covariance"] for r in all_rows if _g(r, "time_covariance") is not None]
+    t_mc = [r["time_monte_carlo"] for r in all_rows if _g(r, "time_monte_carlo") is not None]
+    times = (f" Median compute time {float(np.median(t_cov)):.3g} s against {float(np.median(t_mc)):.3g} s for "
+             "Monte Carlo." if t_cov and t_mc else "")  # fmt: skip
+    return {
+        "advice": "Method A (covariance propagation) for quick, repeated estimates while the cloud does not bend: "
+                  "check ρ = σ_θ·a/(2b) from Method A's own output; trust the ellipse for ρ well below 1.",
+        "evidence": f"Over {len(runs)} per-step runs the 98.89 % ellipse held a median "
+                    f"{100 * numbers['median_coverage_3s']:.2f} % of the Monte Carlo particles. {limit}; the worst "
+                    f"run, {worst['run']}, {100 * worst['MC_coverage_3s']:.2f} %.{times}",
+        "numbers": numbers,
+    }  # fmt: skip
+
+
+def _guide_bend(all_rows: Sequence[Mapping[str, Any]]) -> dict[str, Any] | None:
+    bends = [r for r in all_rows if _g(r, "MC_bend") is not None]
+    if not bends:
+        return None
+    b = max(bends, key=lambda r: abs(r["MC_bend"]))
+    return {
+        "advice": "Monte Carlo when the cloud bends (large heading uncertainty, systematic errors): a single "
+                  "ellipse then misstates the shape.",
+        "evidence": f"Largest bend statistic {b['MC_bend']:.3g} (run {b['run']}, σ_θ = "
+                    f"{b.get('A_sigma_theta', math.nan):.3g} rad; 0 for an ellipse, noise level "
+                    f"±{b.get('MC_bend_crit', math.nan):.2g}).",
+        "numbers": {"run": b["run"], "bend": b["MC_bend"]},
+    }  # fmt: skip
+
+
+def _guide_expcoords(all_rows: Sequence[Mapping[str, Any]]) -> dict[str, Any] | None:
+    pairs = [r for r in all_rows if _g(r, "accuracy_cartesian_hellinger") is not None
+             and _g(r, "accuracy_expcoords_hellinger") is not None]  # fmt: skip
+    if not pairs:
+        return None
+    better = sum(r["accuracy_expcoords_hellinger"] < r["accuracy_cartesian_hellinger"] for r in pairs)
+    bad = max(pairs, key=lambda r: r["accuracy_cartesian_hellinger"])
+    return {
+        "advice": "Method A in exponential coordinates (the banana-shaped Gaussian) instead of the Cartesian "
+                  "ellipse when the heading uncertainty is large: same cost, closer to the truth.",
+        "evidence": f"Hellinger distance to the Monte Carlo cloud lower in exponential coordinates in {better} of "
+                    f"{len(pairs)} runs; worst Cartesian case {bad['accuracy_cartesian_hellinger']:.3f} against "
+                    f"{bad['accuracy_expcoords_hellinger']:.3f} (run {bad['run']}, σ_θ = "
+                    f"{bad.get('A_sigma_theta', math.nan):.3g} rad; the sampling floor there is "
+                    f"{bad.get('accuracy_monte_carlo_hellinger_floor', math.nan):.2g}).",
+        "numbers": {"n_better": better, "n_runs": len(pairs), "worst_run": bad["run"]},
+    }  # fmt: skip
+
+
+def _guide_control_step(rows: Rows) -> dict[str, Any] | None:
+    ms = sorted((r for r in rows.get("M_multistep", []) if _g(r, "map_velocity_region_area")),
+                key=lambda r: r.get("n_steps") or 0)  # fmt: skip
+    if len(ms) < 2:
+        return None
+    parts = ", ".join(f"{r['n_steps']} step{'s' if r['n_steps'] != 1 else ''}: "
+                      f"{r['map_velocity_region_area'] * 1e4:.4g} cm²" for r in ms)  # fmt: skip
+    hel = ", ".join(f"{r.get('map_velocity_hellinger_sampler', math.nan):.2g} (floor "
+                    f"{r.get('map_velocity_hellinger_floor', math.nan):.2g})" for r in ms)  # fmt: skip
+    return {
+        "advice": "Probability maps and their motion models only for the control period they were tuned for: "
+                  "their noise is per control step, so the same motion cut into more steps is predicted more "
+                  "certain. Method A's k (per metre of wheel travel) has no such dependence.",
+        "evidence": f"The arc V = 1 m/s, ω = 1 rad/s over 1 s, velocity model: 98.89 % region {parts}; Hellinger "
+                    f"distance of each map to its model's sampler {hel}.",
+        "numbers": {"region_area": {str(r["n_steps"]): r["map_velocity_region_area"] for r in ms}},
+    }  # fmt: skip
+
+
+def method_guide(rows: Rows) -> list[dict[str, Any]]:
+    """When to use which method, with the numbers behind each piece of advice.
+
+    Parameters
+    ----------
+    rows : mapping of set name to its rows (:func:`pose_uncertainty.core.tables.read_table`)
+
+    Returns
+    -------
+    list of ``{"advice", "evidence", "numbers"}`` — only the advice the tables hold evidence for.
+    """
+    all_rows = [r for rs in rows.values() for r in rs]
+    items = [_guide_covariance(all_rows), _guide_bend(all_rows), _guide_expcoords(all_rows),
+             _guide_control_step(rows)]  # fmt: skip
+    n_maps = sum(1 for r in all_rows for k in r if k.startswith("map_") and k.endswith("_region_area"))
+    if n_maps:
+        items.append({
+            "advice": "Probability maps (Method B) for single steps with large or non-Gaussian noise, where the "
+                      "full density (several peaks, off-centre peak) matters; their cost grows with the grid.",
+            "evidence": f"{n_maps} maps computed; see the claims 6, 9 and 10 for their shapes.",
+            "numbers": {"n_maps": n_maps},
+        })  # fmt: skip
+    return [g for g in items if g is not None]

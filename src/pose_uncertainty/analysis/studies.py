@@ -17,20 +17,20 @@
   area grow with distance: log-log power-law fits against exponential fits.
 * :func:`calibration_demo` — ``k`` fitted back from Monte Carlo end poses
   with both models; :func:`coverage_vs_distance` — coverage along a path.
-* :func:`accuracy_table` — coverage and distances of both Gaussian methods on
-  the long paths (straight 1, 5, 20 m; 1 and 3 laps of a circle; larger k).
+* :func:`accuracy_case` — coverage and distances of both Gaussian methods on
+  one path (the pipeline runs the long paths: straight 1, 5, 20 m; 1 and 3 laps
+  of a circle; larger k); :func:`expcoords_regions` — the data of the figure of
+  clouds, ellipses and bananas.
 
-``python -m pose_uncertainty.analysis.studies [--quick]`` runs all of them with the
-default (thesis) parameters and prints one JSON document.
+The pipeline runs each study as a job of its own (config key ``studies``; kinds
+in :data:`STUDIES`, executed and logged by :mod:`pose_uncertainty.logs.study`);
+:func:`summarize` turns the logged results into what the report quotes.
 """
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
-import sys
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -38,24 +38,27 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import stats as sstats
 
 from ..core import trajectories as tr
+from ..core.grids import Grid
 from ..core.kinematics import METHODS
+from ..core.stats import PR_3SIGMA, along_across, fit_growth, pr_to_k
 from ..core.validation import check_choice, check_positive, check_positive_int
 from ..methods import covariance as cv
 from ..methods import expcoords as ec
+from ..methods import maps
+from ..methods import motion_models as mm
 from ..methods import sampling as sp
 from ..methods import wheel_noise as wn
 from . import accuracy as ac
+from . import calibration as cb
 
 __all__ = [
     "NUMBER_TYPES",
-    "accuracy_table",
-    "along_across",
+    "accuracy_case",
     "calibration_demo",
     "constant_speed_trajectory",
     "coverage_vs_distance",
     "error_sources_vs_monte_carlo",
     "exact_constant_arc",
-    "fit_growth",
     "growth_laws",
     "integrate_in_type",
     "integration_vs_step",
@@ -63,6 +66,7 @@ __all__ = [
     "method_cloud_spread",
     "number_type_clouds",
     "number_type_drift",
+    "path_spreads",
     "polar_vs_cartesian",
     "regime_growth",
 ]
@@ -418,9 +422,7 @@ def error_sources_vs_monte_carlo(
     return out
 
 
-def along_across(
-    poses: NDArray[np.float64], covs: NDArray[np.float64]
-) -> dict[str, NDArray[np.float64]]:
+def path_spreads(poses: NDArray[np.float64], covs: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
     """Standard deviations along and across the path (frame of the nominal heading) and of θ.
 
     Parameters
@@ -429,54 +431,17 @@ def along_across(
 
     Returns
     -------
-    dict of ndarray (M,): ``sigma_along``, ``sigma_across`` [m], ``sigma_theta`` [rad],
+    dict of ndarray (M,): ``sigma_along``, ``sigma_across`` [m]
+    (:func:`pose_uncertainty.core.stats.along_across`), ``sigma_theta`` [rad],
     ``area`` — area of the 98.89 % ellipse ``π k √det Σ_xy`` [m²]
     """
-    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
-    sxx, syy, sxy = covs[:, 0, 0], covs[:, 1, 1], covs[:, 0, 1]
-    along = c * c * sxx + 2 * c * s * sxy + s * s * syy
-    across = s * s * sxx - 2 * c * s * sxy + c * c * syy
-    det = np.maximum(sxx * syy - sxy**2, 0.0)
+    aa = along_across(covs[:, :2, :2], poses[:, 2])
+    det = np.maximum(covs[:, 0, 0] * covs[:, 1, 1] - covs[:, 0, 1] ** 2, 0.0)
     return {
-        "sigma_along": np.sqrt(np.maximum(along, 0)),
-        "sigma_across": np.sqrt(np.maximum(across, 0)),
+        "sigma_along": aa[:, 0],
+        "sigma_across": aa[:, 1],
         "sigma_theta": np.sqrt(np.maximum(covs[:, 2, 2], 0)),
-        "area": math.pi * float(cv.pr_to_k(cv.PR_3SIGMA)) * np.sqrt(det),
-    }
-
-
-def fit_growth(distance: ArrayLike, value: ArrayLike) -> dict[str, float]:
-    """Fit ``value = a·s^p`` (log-log) and ``value = a·e^{c s}`` (semi-log) by least squares.
-
-    Returns
-    -------
-    dict: ``power_exponent`` p, ``power_rms_log_residual``, ``exp_rate`` c [1/m],
-    ``exp_rms_log_residual`` — the residuals are rms of ``log value``, so the
-    smaller one is the better law; ``local_exponent_end`` — d log v / d log s
-    over the last fifth of the range.
-    """
-    s = np.asarray(distance, dtype=float)
-    v = np.asarray(value, dtype=float)
-    ok = (s > 0) & (v > 0)
-    s, v = s[ok], v[ok]
-    if s.size < 3:
-        raise ValueError(f"need at least 3 positive points to fit a growth law, got {s.size}")
-    lv = np.log(v)
-    p, a = np.polyfit(np.log(s), lv, 1)
-    res_p = lv - (a + p * np.log(s))
-    c, b = np.polyfit(s, lv, 1)
-    res_e = lv - (b + c * s)
-    tail = s >= s[0] + 0.8 * (s[-1] - s[0])
-    if tail.sum() >= 2:
-        local = float(np.polyfit(np.log(s[tail]), lv[tail], 1)[0])
-    else:
-        local = float(p)
-    return {
-        "power_exponent": float(p),
-        "power_rms_log_residual": float(np.sqrt(np.mean(res_p**2))),
-        "exp_rate": float(c),
-        "exp_rms_log_residual": float(np.sqrt(np.mean(res_e**2))),
-        "local_exponent_end": local,
+        "area": math.pi * float(pr_to_k(PR_3SIGMA)) * np.sqrt(det),
     }
 
 
@@ -510,7 +475,7 @@ def regime_growth(
             trajectory, k_r, k_l, n, np.random.default_rng(seed), regime=regime, checkpoints=steps
         )
         covs = np.stack([np.cov(clouds[:, i, :].T) for i in range(len(steps))])
-        aa = along_across(nominal, covs)
+        aa = path_spreads(nominal, covs)
         row: dict[str, Any] = {k: v.tolist() for k, v in aa.items() if k != "area"}
         row["fits"] = {k: fit_growth(dist, aa[k]) for k in ("sigma_along", "sigma_across", "sigma_theta")}
         out[regime] = row
@@ -549,7 +514,7 @@ def polar_vs_cartesian(samples: ArrayLike, origin: ArrayLike = (0.0, 0.0)) -> di
 
     def cover(a: NDArray, b: NDArray) -> float:
         X = np.stack([a, b], -1)
-        return ac.coverage_ellipse(X, X.mean(0), np.cov(X.T), (cv.PR_3SIGMA,))["98.89"]
+        return ac.coverage_ellipse(X, X.mean(0), np.cov(X.T), (PR_3SIGMA,))["98.89"]
 
     return {
         "cartesian": {"x": _moments(s[:, 0]), "y": _moments(s[:, 1]),
@@ -593,14 +558,14 @@ def growth_laws(
     idx = np.unique(np.clip(np.searchsorted(dist, targets), 1, trajectory.n_steps))
     s = dist[idx]
     out: dict[str, Any] = {"distance": s.tolist()}
-    measures = {"method_a": along_across(A.poses[idx], A.covs[idx])}
+    measures = {"method_a": path_spreads(A.poses[idx], A.covs[idx])}
     if n_particles > 0:
         clouds = sp.sample_end_poses(
             trajectory, k_r, k_l, n_particles, np.random.default_rng(seed), regime=regime,
             checkpoints=idx.tolist(),
         )
         covs = np.stack([np.cov(clouds[:, i, :].T) for i in range(idx.size)])
-        measures["monte_carlo"] = along_across(trajectory.poses[idx], covs)
+        measures["monte_carlo"] = path_spreads(trajectory.poses[idx], covs)
     for name, d in measures.items():
         out[name] = {k: v.tolist() for k, v in d.items()}
         out[name]["fits"] = {k: fit_growth(s, v) for k, v in d.items()}
@@ -633,15 +598,12 @@ def map_vs_sampler(
     -------
     dict: ``thesis_map``, ``corrected_map`` → measures (plus ``lost_mass``)
     """
-    from ..methods import maps
-    from ..methods import motion_models as mm
-
     check_choice("model", model, ("velocity", "odometry"))
     al = np.full(6 if model == "velocity" else 4, 0.05) if alphas is None else np.asarray(alphas)
     u = np.asarray(control, dtype=float)
     start = np.zeros(3)
     end = mm.noiseless_velocity_poses(start, u[None, :], 1.0)[-1]
-    grid = maps.MapGrid.centered(end, size=size, resolution=resolution)
+    grid = Grid.centered(end, size=size, resolution=resolution)
     rng = np.random.default_rng(seed)
     if model == "velocity":
         samples = mm.sample_velocity(start, u, 1.0, al, n, rng)
@@ -659,42 +621,36 @@ def map_vs_sampler(
 # --- 7. accuracy on long paths --------------------------------------------------------------------
 
 
-def accuracy_cases(dt: float = 0.01) -> list[tuple[str, tr.Trajectory, float]]:
-    """The paths of the accuracy table: (label, trajectory, k)."""
-    return [
-        ("straight 1 m", tr.straight(1.0, dt=dt, track=0.2), 5e-4),
-        ("straight 5 m", tr.straight(5.0, dt=dt, track=0.2), 5e-4),
-        ("straight 20 m", tr.straight(20.0, dt=dt, track=0.2), 5e-4),
-        ("circle r=1 m, 1 lap", tr.circle(1.0, laps=1, dt=dt, track=0.2), 5e-4),
-        ("circle r=1 m, 3 laps", tr.circle(1.0, laps=3, dt=dt, track=0.2), 5e-4),
-        ("straight 1 m, k=5e-5", tr.straight(1.0, dt=dt, track=0.2), 5e-5),
-        ("straight 1 m, k=5e-3", tr.straight(1.0, dt=dt, track=0.2), 5e-3),
-    ]
-
-
-def accuracy_table(
-    n: int = 100_000, seed: int = 2026, dt: float = 0.01, n_bins: int = 60,
+def accuracy_case(
+    trajectory: dict[str, Any] | None = None,
+    k: float = 5e-4,
+    n: int = 100_000,
+    seed: int = 2026,
+    n_bins: int = 60,
     n_threshold: int = 200_000,
-) -> list[dict[str, Any]]:
-    """Coverage, Hellinger, KL, log-likelihood and NEES of both Gaussian methods on each case.
+    label: str = "",
+) -> dict[str, Any]:
+    """Coverage, Hellinger, KL, log-likelihood and NEES of both Gaussian methods on one path.
+
+    ``n`` per-step Monte Carlo runs (midpoint integration, ``k_r = k_l = k`` [m])
+    of ``trajectory`` (a :func:`pose_uncertainty.core.trajectories.from_config`
+    mapping; default straight 1 m, dt 0.01 s, b 0.2 m) against Method A and the
+    exponential-coordinates Gaussian (:func:`pose_uncertainty.analysis.accuracy.compare_methods`).
 
     Returns
     -------
-    list of dict: ``case``, ``k``, ``length`` [m] and the entries of
-    :func:`pose_uncertainty.analysis.accuracy.compare_methods`.
+    dict: ``case`` (the label), ``k``, ``length`` [m] and the entries of ``compare_methods``.
     """
-    rows = []
-    for i, (label, t, k) in enumerate(accuracy_cases(dt)):
-        rng = np.random.default_rng([seed, i])
-        cloud = sp.sample_end_poses(t, k, k, n, rng)
-        A = cv.propagate(t, k, k)
-        E = ec.propagate(t, k, k)
-        res = ac.compare_methods(
-            cloud, (A.poses[-1], A.covs[-1]), (E.poses[-1], E.covs[-1]), rng, n_bins=n_bins,
-            n_threshold=n_threshold,
-        )
-        rows.append({"case": label, "k": k, "length": t.length, **res})
-    return rows
+    t = tr.from_config(trajectory or {"name": "straight", "length": 1.0, "dt": 0.01, "track": 0.2})
+    rng = np.random.default_rng(seed)
+    cloud = sp.sample_end_poses(t, k, k, n, rng)
+    A = cv.propagate(t, k, k)
+    E = ec.propagate(t, k, k)
+    res = ac.compare_methods(
+        cloud, (A.poses[-1], A.covs[-1]), (E.poses[-1], E.covs[-1]), rng, n_bins=n_bins,
+        n_threshold=n_threshold,
+    )  # fmt: skip
+    return {"case": label, "k": k, "length": t.length, **res}
 
 
 # --- 8. calibration and coverage along a path -----------------------------------------------------
@@ -717,8 +673,6 @@ def calibration_demo(
     of {``coords``, ``equal``, ``parameter``, ``estimate``, ``ci_low``,
     ``ci_high``, ``contains_true``, ``relative_bias``}
     """
-    from . import calibration as cb
-
     t = tr.straight(length, dt=dt, track=track)
     cloud = sp.sample_end_poses(t, k, k, n, np.random.default_rng(seed))
     rows = []
@@ -760,64 +714,207 @@ def coverage_vs_distance(
     ]
 
 
-# --- command line ---------------------------------------------------------------------------------
+# --- 9. the figure of the exponential coordinates --------------------------------------------------
 
 
-def run_all(quick: bool = False) -> dict[str, Any]:
-    """Every study with the default (thesis) parameters; ``quick`` uses fewer particles."""
-    n = 20_000 if quick else 100_000
-    out: dict[str, Any] = {}
-    out["integration_vs_step"] = integration_vs_step()
-    out["method_cloud_spread"] = method_cloud_spread(
-        constant_speed_trajectory(), 4.17e-6, 4.17e-6, n, 7
-    )
-    out["number_type_drift_full"] = number_type_drift(
-        (100, 1000, 10_000) if quick else (100, 1000, 10_000, 100_000)
-    )
-    out["number_type_drift_seed001"] = number_type_drift((100, 1000, 10_000), scheme="seed001")
-    out["number_type_clouds"] = number_type_clouds(
-        constant_speed_trajectory(1.0, 1.0), wn.SEED001, 1000, 3
-    )
-    out["error_sources"] = error_sources_vs_monte_carlo(n=n)
-    out["regime_growth_straight_5m"] = regime_growth(
-        tr.straight(5.0, dt=0.01, track=0.2), 5e-4, 5e-4, n // 5, 4
-    )
-    cloud = sp.sample_end_poses(tr.straight(1.0, dt=0.01, track=0.2), 5e-4, 5e-4, n,
-                                np.random.default_rng(5))
-    out["polar_vs_cartesian_straight_1m"] = polar_vs_cartesian(cloud)
-    out["growth_laws_straight_20m"] = _fits_only(
-        growth_laws(tr.straight(20.0, dt=0.01, track=0.2), 5e-4, 5e-4, 20, n_particles=n // 5)
-    )
-    out["growth_laws_circle_3_laps"] = _fits_only(
-        growth_laws(tr.circle(1.0, laps=3, dt=0.01, track=0.2), 5e-4, 5e-4, 20, n_particles=n // 5)
-    )
-    out["map_vs_sampler_velocity_arc"] = map_vs_sampler("velocity", (1.0, 1.0), n=n)
-    out["map_vs_sampler_odometry_arc"] = map_vs_sampler("odometry", (1.0, 1.0), n=n)
-    out["accuracy_table"] = accuracy_table(n=n)
-    out["calibration_demo"] = calibration_demo(n=n)
-    out["accuracy_vs_distance_straight_20m"] = coverage_vs_distance(
-        tr.straight(20.0, dt=0.01, track=0.2), 5e-4, 5e-4, 4000 if quick else 10_000, 12
-    )
+def expcoords_regions(
+    cases: Sequence[dict[str, Any]] = (
+        {"label": "straight 5 m", "trajectory": {"name": "straight", "length": 5.0}},
+        {"label": "circle r = 1 m, 1 lap", "trajectory": {"name": "circle", "radius": 1.0, "laps": 1}},
+    ),
+    k: float = 5e-4,
+    track: float = 0.2,
+    dt: float = 0.01,
+    pr: float = PR_3SIGMA,
+    n: int = 5000,
+    seed: int = 6,
+) -> dict[str, Any]:
+    """Monte Carlo clouds of long paths with both Gaussian methods' Pr regions, for the figure.
+
+    Per case: ``n`` per-step Monte Carlo end positions (midpoint integration,
+    ``k_r = k_l = k`` [m], seeded ``[seed, case index]``), the nominal path,
+    Method A's Pr-ellipse (polyline) and the boundary polygons of the
+    exponential-coordinates Gaussian's planar Pr highest-density region
+    (:func:`pose_uncertainty.methods.expcoords.pr_region_xy`), and the share of
+    the cloud inside each region.
+
+    Returns
+    -------
+    dict: ``k``, ``track``, ``pr``, ``n`` and ``cases`` — list of {``label``,
+    ``cloud_xy`` (n, 2), ``path_xy`` (N+1, 2), ``end`` (3,), ``ellipse_xy`` (401, 2),
+    ``banana_xy`` (list of (m, 2)), ``inside_ellipse``, ``inside_banana``} (arrays as lists)
+    """
+    out: dict[str, Any] = {"k": k, "track": track, "pr": pr, "n": n, "cases": []}
+    for j, case in enumerate(cases):
+        t = tr.from_config({**dict(case["trajectory"]), "dt": dt, "track": track})
+        rng = np.random.default_rng([seed, j])
+        cloud = sp.sample_end_poses(t, k, k, n, rng)
+        A, E = cv.propagate(t, k, k), ec.propagate(t, k, k)
+        end, cov = A.poses[-1], A.covs[-1]
+        ellipse = cv.ellipse_polyline(cov[:2, :2], pr, end[:2], 400)
+        banana = ec.pr_region_xy(E.poses[-1], E.covs[-1], pr, rng, n_grid=240, n=50_000)
+        out["cases"].append({
+            "label": str(case.get("label", j)),
+            "cloud_xy": cloud[:, :2].tolist(), "path_xy": t.poses[:, :2].tolist(), "end": end.tolist(),
+            "ellipse_xy": ellipse.tolist(), "banana_xy": [b.tolist() for b in banana],
+            "inside_ellipse": ac.coverage_ellipse(cloud[:, :2], end[:2], cov[:2, :2], (pr,))[ac.pr_label(pr)],
+            "inside_banana": _inside_polygons(cloud[:, :2], banana),
+        })  # fmt: skip
     return out
 
 
-def _fits_only(g: dict[str, Any]) -> dict[str, Any]:
+def _inside_polygons(xy: NDArray[np.float64], polygons: Sequence[NDArray[np.float64]]) -> float:
+    """Share of points inside the union of closed polygons (even–odd rule: holes subtract)."""
+    inside = np.zeros(xy.shape[0], dtype=bool)
+    for poly in polygons:
+        x0, y0 = poly[:, 0], poly[:, 1]
+        x1, y1 = np.roll(x0, -1), np.roll(y0, -1)
+        px, py = xy[:, 0:1], xy[:, 1:2]
+        crosses = (y0 > py) != (y1 > py)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x_at = x0 + (py - y0) * (x1 - x0) / (y1 - y0)
+        inside ^= (np.count_nonzero(crosses & (px < x_at), axis=1) % 2) == 1
+    return float(inside.mean())
+
+
+# --- the studies as configured, logged jobs ------------------------------------------------------
+
+
+def _method_cloud_spread(
+    v_r: float = 1.0, v_l: float = 0.95, duration: float = 1.0, dt: float = 0.01, track: float = 0.1,
+    k: float = 4.17e-6, n: int = 100_000, seed: int = 7,
+) -> dict[str, Any]:
+    """:func:`method_cloud_spread` on seed 001's constant-speed arc."""
+    return method_cloud_spread(constant_speed_trajectory(v_r, v_l, duration, dt, track), k, k, n, seed)
+
+
+def _number_type_clouds(
+    v_r: float = 1.0, v_l: float = 1.0, duration: float = 1.0, dt: float = 0.01, track: float = 0.1,
+    n: int = 1000, seed: int = 3, regime: str = "per_step", scheme: str = "seed001",
+) -> dict[str, Any]:
+    """:func:`number_type_clouds` with seed 001's error sources."""
+    t = constant_speed_trajectory(v_r, v_l, duration, dt, track)
+    return number_type_clouds(t, wn.SEED001, n, seed, regime=regime, scheme=scheme)
+
+
+def _error_sources(
+    speed: float = 1.0, duration: float = 1.0, dt: float = 0.01, track: float = 0.1,
+    n: int = 100_000, seed: int = 1,
+) -> dict[str, float]:
+    """:func:`error_sources_vs_monte_carlo` with seed 001's error sources."""
+    return error_sources_vs_monte_carlo(wn.SEED001, speed=speed, duration=duration, dt=dt, track=track,
+                                        n=n, seed=seed)  # fmt: skip
+
+
+_STRAIGHT_5M = {"name": "straight", "length": 5.0, "dt": 0.01, "track": 0.2}
+
+
+def _regime_growth(
+    trajectory: dict[str, Any] = _STRAIGHT_5M, k: float = 5e-4, n: int = 20_000, seed: int = 4,
+    n_checkpoints: int = 10,
+) -> dict[str, Any]:
+    """:func:`regime_growth` along a configured trajectory."""
+    return regime_growth(tr.from_config(trajectory), k, k, n, seed, n_checkpoints)
+
+
+def _polar_vs_cartesian(
+    trajectory: dict[str, Any] = {"name": "straight", "length": 1.0, "dt": 0.01, "track": 0.2},  # noqa: B006
+    k: float = 5e-4, n: int = 100_000, seed: int = 5,
+) -> dict[str, Any]:
+    """:func:`polar_vs_cartesian` of a per-step Monte Carlo cloud of a configured trajectory."""
+    t = tr.from_config(trajectory)
+    return polar_vs_cartesian(sp.sample_end_poses(t, k, k, n, np.random.default_rng(seed)), t.start[:2])
+
+
+def _growth_laws(
+    trajectory: dict[str, Any] = {"name": "straight", "length": 20.0, "dt": 0.01, "track": 0.2},  # noqa: B006
+    k: float = 5e-4, n_points: int = 20, n_particles: int = 20_000, seed: int = 0,
+    regime: str = "per_step",
+) -> dict[str, Any]:
+    """The fits of :func:`growth_laws` along a configured trajectory."""
+    g = growth_laws(tr.from_config(trajectory), k, k, n_points, n_particles=n_particles, seed=seed,
+                    regime=regime)  # fmt: skip
     return {m: g[m]["fits"] for m in ("method_a", "monte_carlo") if m in g}
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m pose_uncertainty.analysis.studies [--quick] [-o OUT.json]``: run every study, print JSON."""
-    p = argparse.ArgumentParser(prog="python -m pose_uncertainty.analysis.studies", description=__doc__)
-    p.add_argument("--quick", action="store_true", help="fewer particles (2e4 instead of 1e5)")
-    p.add_argument("-o", "--output", help="also write the JSON here")
-    args = p.parse_args(argv)
-    text = json.dumps(run_all(args.quick), indent=1)
-    if args.output:
-        with open(args.output, "w", encoding="utf-8") as fh:
-            fh.write(text)
-    sys.stdout.write(text + "\n")
-    return 0
+def _accuracy_vs_distance(
+    trajectory: dict[str, Any] = {"name": "straight", "length": 20.0, "dt": 0.01, "track": 0.2},  # noqa: B006
+    k: float = 5e-4, n: int = 10_000, seed: int = 12, n_checkpoints: int = 5,
+) -> list[dict[str, Any]]:
+    """:func:`coverage_vs_distance` along a configured trajectory."""
+    return coverage_vs_distance(tr.from_config(trajectory), k, k, n, seed, n_checkpoints)
 
 
-if __name__ == "__main__":  # pragma: no cover
-    raise SystemExit(main())
+#: Every study a config can run, by kind: a function of JSON-like keyword parameters (each with
+#: its default, the thesis's setting) returning JSON-like results.
+STUDIES: dict[str, Any] = {
+    "integration_vs_step": integration_vs_step,
+    "method_cloud_spread": _method_cloud_spread,
+    "number_type_drift": number_type_drift,
+    "number_type_clouds": _number_type_clouds,
+    "error_sources": _error_sources,
+    "regime_growth": _regime_growth,
+    "polar_vs_cartesian": _polar_vs_cartesian,
+    "growth_laws": _growth_laws,
+    "map_vs_sampler": map_vs_sampler,
+    "accuracy_case": accuracy_case,
+    "calibration_demo": calibration_demo,
+    "accuracy_vs_distance": _accuracy_vs_distance,
+    "expcoords_regions": expcoords_regions,
+}
+
+
+def summarize(results: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
+    """The studies section's data: every study's results by name and the numbers the text quotes.
+
+    Parameters
+    ----------
+    results : mapping name → ``{"study": kind, "results": ...}`` — the logged studies, in
+        config order
+
+    Returns
+    -------
+    dict: ``studies`` — results by name, plus ``accuracy_table`` (the ``accuracy_case``
+    studies' results in order); ``summary`` — (each only when its study is present):
+    ``accuracy`` — Method A's worst 98.89 % coverage and its case, the banana's range, the
+    rows by case; ``distance`` — first and last rows of the coverage along a path;
+    ``growth`` — in how many fits the power law has the smaller rms log residual, and the
+    median residuals; ``calibration`` — the equal-k row of each model.
+    """
+    studies: dict[str, Any] = {name: r["results"] for name, r in results.items()}
+    table = [r["results"] for r in results.values() if r["study"] == "accuracy_case"]
+    if table:
+        studies["accuracy_table"] = table
+    out: dict[str, Any] = {}
+    if table:
+        out["accuracy"] = _accuracy_summary(table)
+    dist = next((r["results"] for r in results.values() if r["study"] == "accuracy_vs_distance"), None)
+    if dist:
+        out["distance"] = {"first": dist[0], "last": dist[-1]}
+    fits = [f for r in results.values() if r["study"] == "growth_laws"
+            for method in r["results"].values() for f in method.values()]  # fmt: skip
+    if fits:
+        power = [f["power_rms_log_residual"] for f in fits]
+        expo = [f["exp_rms_log_residual"] for f in fits]
+        out["growth"] = {
+            "n_power_better": int(sum(a < b for a, b in zip(power, expo, strict=True))),
+            "median_power_residual": float(np.median(power)),
+            "median_exp_residual": float(np.median(expo)),
+            "n_fits": len(fits),
+        }
+    cal = next((r["results"] for r in results.values() if r["study"] == "calibration_demo"), None)
+    if cal:
+        out["calibration"] = {r["coords"]: r for r in cal["rows"] if r["equal"]}
+    return {"studies": studies, "summary": out}
+
+
+def _accuracy_summary(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    key = "coverage_xy_98.89"
+    worst = min(rows, key=lambda r: r["cartesian"][key])
+    ban = [r["expcoords"][key] for r in rows if "expcoords" in r]
+    return {
+        "worst_a": worst["cartesian"][key], "worst_case": worst["case"],
+        "best_a": max(r["cartesian"][key] for r in rows),
+        "banana_min": min(ban) if ban else None, "banana_max": max(ban) if ban else None,
+        "n_cases": len(rows), "by_case": {r["case"]: r for r in rows},
+    }  # fmt: skip

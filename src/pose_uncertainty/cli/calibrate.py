@@ -82,8 +82,7 @@ def _trajectory_from_args(args: argparse.Namespace) -> Trajectory:
         raise ValueError("give either --config or --trajectory, not both")
     if args.config:
         cfg = RunConfig.from_dict(load_config_file(args.config))
-        tp = dict(cfg.trajectory)
-        return trajectories.build(tp.pop("name"), **tp)
+        return trajectories.from_config(cfg.trajectory)
     if args.trajectory:
         return trajectories.build(args.trajectory, **_parse_params(args.param))
     raise ValueError(
@@ -102,8 +101,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
             log = open_run(path)
             if log.end_poses is None or len(log.end_poses) == 0:
                 raise ValueError(f"{path}: the run log holds no Monte Carlo end poses")
-            tp = dict(log.config.trajectory)
-            traj = trajectories.build(tp.pop("name"), **tp)
+            traj = trajectories.from_config(log.config.trajectory)
             poses = log.end_poses
         else:
             traj = _trajectory_from_args(args)

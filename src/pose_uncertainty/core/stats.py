@@ -9,17 +9,31 @@ figure), named in :data:`COVERAGE_LEVELS`.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.special import gammaln
 
-from .validation import check_finite, check_last_axis, check_nonnegative, check_probability
+from .validation import (
+    check_finite,
+    check_last_axis,
+    check_nonnegative,
+    check_positive_int,
+    check_probability,
+)
 
 __all__ = [
     "COVERAGE_LEVELS",
     "PR_1SIGMA",
     "PR_2SIGMA",
     "PR_3SIGMA",
+    "along_across",
+    "fit_growth",
     "fraction_inside_ellipse",
+    "hdr_region",
+    "hellinger",
+    "hellinger_noise_floor",
     "k_to_pr",
     "mahalanobis_sq",
     "mean_cov",
@@ -98,3 +112,160 @@ def fraction_inside_ellipse(
     """
     k = pr_to_k(pr)
     return float(np.mean(mahalanobis_sq(xy, center, cov_xy) <= k))
+
+
+# --- highest-density regions of gridded distributions -------------------------------------------
+
+
+def hdr_region(mass: ArrayLike, pr: float, total: float | None = None) -> tuple[float, float]:
+    """The Pr highest-density region of a distribution given as mass per cell.
+
+    The one convention of the package: cells are taken from the most probable
+    down until their mass reaches ``pr · total``; the region is every cell of
+    mass ≥ ``level``, the mass of the last cell taken, and its size counts that
+    last cell only in proportion to the mass still needed (so the size is
+    continuous in ``pr``).
+
+    Parameters
+    ----------
+    mass : array_like, any shape — probability mass per cell (≥ 0); equal-sized cells
+    pr : float in (0, 1)
+    total : float, optional — the probability of the whole distribution in the
+        units of ``mass``: default the mass on the cells (a relative map); 1 for a
+        map that lost mass off its grid, then the region is ``nan`` when the cells
+        hold less than ``pr``.
+
+    Returns
+    -------
+    level : float — mass-per-cell threshold of the region (``nan`` if unreachable)
+    n_cells : float — its size in cells, fractional (multiply by the cell area for m²)
+    """
+    m = np.sort(check_nonnegative("mass", mass).ravel())[::-1]
+    p = float(check_probability("pr", pr))
+    cum = np.cumsum(m)
+    if cum.size == 0 or cum[-1] <= 0:
+        raise ValueError("mass must have a positive total (allowed: a distribution), got total 0")
+    need = p * (cum[-1] if total is None else float(total))
+    if need > cum[-1] * (1 + 1e-12):
+        return float("nan"), float("nan")
+    k = min(int(np.searchsorted(cum, need)), m.size - 1)
+    before = cum[k - 1] if k > 0 else 0.0
+    frac = min(1.0, (need - before) / m[k]) if m[k] > 0 else 1.0
+    return float(m[k]), float(k + frac)
+
+
+def hellinger(p: ArrayLike, q: ArrayLike) -> float:
+    """Hellinger distance ``√(1 − Σ √(p̃_i q̃_i))`` between two distributions given per cell.
+
+    The one convention of the package: ``p`` and ``q`` (non-negative, same shape:
+    cell probabilities, masses or counts) are each normalised to sum 1 over the
+    compared cells first, so the distance compares the two distributions *on those
+    cells* (by shape); the mass either puts off the cells is a separate measure,
+    reported beside it (a map's ``lost_mass``, a sampler's share on the grid, a
+    model's mass on the stated grid). 0 for identical, 1 for disjoint. Its sampling
+    floor is :func:`hellinger_noise_floor`.
+    """
+    a = check_nonnegative("p", p)
+    b = check_nonnegative("q", q)
+    if a.shape != b.shape:
+        raise ValueError(f"p and q must have the same shape, got {a.shape} and {b.shape}")
+    sa, sb = float(a.sum()), float(b.sum())
+    if sa <= 0 or sb <= 0:
+        raise ValueError(f"p and q must have positive total mass, got {sa} and {sb}")
+    bc = float(np.sum(np.sqrt(a / sa * (b / sb))))
+    return math.sqrt(max(0.0, 1.0 - bc))
+
+
+def hellinger_noise_floor(p: ArrayLike, n: int) -> float:
+    """Expected Hellinger distance between ``p`` and a histogram of ``n`` samples drawn from it.
+
+    With ``X_i ~ Poisson(λ_i = n p_i)``: ``E[H²] = ½ Σ E[(√(X_i/n) − √p_i)²]
+    = Σ (λ_i − √λ_i E√X_i)/n``; ``E√X`` by direct summation for ``λ ≤ 50`` and
+    by its asymptotic series above. Returns ``√E[H²]``. A map that is the exact
+    density of the sampler sits at this value; anything above it is model or
+    discretisation error.
+    """
+    w = check_nonnegative("p", p).ravel()
+    n = check_positive_int("n", n)
+    w = w / w.sum()
+    lam = n * w[w > 0]
+    small = lam <= 50.0
+    e_sqrt = np.empty_like(lam)
+    big = lam[~small]
+    e_sqrt[~small] = np.sqrt(big) * (1 - 1 / (8 * big) - 7 / (128 * big**2))
+    if np.any(small):
+        ls = lam[small][:, None]
+        k = np.arange(0, 151)[None, :]
+        logpmf = k * np.log(ls) - ls - gammaln(k + 1)
+        e_sqrt[small] = np.sum(np.sqrt(k) * np.exp(logpmf), axis=1)
+    eh2 = float(np.sum(lam - np.sqrt(lam) * e_sqrt)) / n
+    return math.sqrt(max(0.0, eh2))
+
+
+# --- the path frame -----------------------------------------------------------------------------
+
+
+def along_across(cov_xy: ArrayLike, heading: ArrayLike) -> NDArray[np.float64]:
+    """Standard deviations along and across a heading of planar covariances.
+
+    The one convention of the package for "along / across the path": the frame
+    of the *nominal* heading θ, ``along = (cos θ, sin θ)``, ``across = (−sin θ, cos θ)``.
+
+    Parameters
+    ----------
+    cov_xy : array_like, shape (..., 2, 2) [m²]
+    heading : array_like, shape (...) [rad]
+
+    Returns
+    -------
+    ndarray, shape (..., 2) — ``(σ_along, σ_across)`` [m]
+    """
+    C = check_finite("cov_xy", cov_xy)
+    if C.shape[-2:] != (2, 2):
+        raise ValueError(f"cov_xy must have shape (..., 2, 2), got shape {C.shape}")
+    th = check_finite("heading", heading)
+    c, s = np.cos(th), np.sin(th)
+    sxx, syy, sxy = C[..., 0, 0], C[..., 1, 1], C[..., 0, 1]
+    along = c * c * sxx + 2 * c * s * sxy + s * s * syy
+    across = s * s * sxx - 2 * c * s * sxy + c * c * syy
+    return np.sqrt(np.maximum(np.stack([along, across], axis=-1), 0.0))
+
+
+# --- growth laws --------------------------------------------------------------------------------
+
+
+def fit_growth(distance: ArrayLike, value: ArrayLike) -> dict[str, float]:
+    """Fit ``value = a·s^p`` (log-log) and ``value = a·e^{c s}`` (semi-log) by least squares.
+
+    Points with a non-positive distance or value are left out.
+
+    Returns
+    -------
+    dict: ``power_exponent`` p, ``power_rms_log_residual``, ``exp_rate`` c [1/unit
+    of s], ``exp_rms_log_residual`` — rms residuals of ``ln value``, so the smaller
+    one is the better law; ``local_exponent_end`` — d ln v / d ln s over the last
+    fifth of the range (p when fewer than two points lie there).
+
+    Raises
+    ------
+    ValueError — fewer than 3 usable points.
+    """
+    s = np.asarray(distance, dtype=float)
+    v = np.asarray(value, dtype=float)
+    ok = (s > 0) & (v > 0) & np.isfinite(s) & np.isfinite(v)
+    s, v = s[ok], v[ok]
+    if s.size < 3:
+        raise ValueError(f"need at least 3 positive points to fit a growth law, got {s.size}")
+    order = np.argsort(s)
+    s, lv = s[order], np.log(v[order])
+    p, a = np.polyfit(np.log(s), lv, 1)
+    c, b = np.polyfit(s, lv, 1)
+    tail = s >= s[0] + 0.8 * (s[-1] - s[0])
+    local = float(np.polyfit(np.log(s[tail]), lv[tail], 1)[0]) if tail.sum() >= 2 else float(p)
+    return {
+        "power_exponent": float(p),
+        "power_rms_log_residual": float(np.sqrt(np.mean((lv - a - p * np.log(s)) ** 2))),
+        "exp_rate": float(c),
+        "exp_rms_log_residual": float(np.sqrt(np.mean((lv - b - c * s) ** 2))),
+        "local_exponent_end": local,
+    }

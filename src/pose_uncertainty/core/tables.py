@@ -1,4 +1,4 @@
-"""Flat tables of numbers as CSV: one row per run, one column per measure.
+"""Flat tables of numbers as CSV (one row per run, one column per measure), and plain values.
 
 The one table format of the package: :func:`write_table` writes rows (mappings
 of column to value) with floats in ``repr`` (round-trip exact) and missing
@@ -14,7 +14,20 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-__all__ = ["read_table", "write_table"]
+import numpy as np
+
+__all__ = ["jsonable", "read_table", "write_table"]
+
+
+def jsonable(value: Any) -> Any:
+    """Tuples, numpy scalars and arrays → JSON lists and Python numbers (mappings recursively)."""
+    if isinstance(value, Mapping):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple | np.ndarray):
+        return [jsonable(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
 
 
 def _cell(value: Any) -> Any:

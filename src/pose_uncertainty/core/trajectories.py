@@ -26,7 +26,7 @@ the travel of every segment is exact.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -52,6 +52,7 @@ __all__ = [
     "build",
     "circle",
     "direct",
+    "from_config",
     "from_segments",
     "right_angles",
     "rotation",
@@ -377,3 +378,14 @@ def build(name: str, **params: Any) -> Trajectory:
         return BUILDERS[name](**params)
     except TypeError as exc:
         raise ValueError(f"bad parameters for trajectory {name!r}: {exc}") from exc
+
+
+def from_config(params: Mapping[str, Any]) -> Trajectory:
+    """Build a trajectory from its configuration mapping: ``{"name": <builder>, **parameters}``.
+
+    The one route from a configuration (a run's ``trajectory`` key, a study's
+    parameters, a logged run) to a :class:`Trajectory`.
+    """
+    if not isinstance(params, Mapping) or "name" not in params:
+        raise ValueError(f"trajectory must be a mapping with a 'name' key (e.g. {{name: straight}}), got {params!r}")
+    return build(str(params["name"]), **{k: v for k, v in params.items() if k != "name"})

@@ -27,38 +27,37 @@ same computation; :meth:`RunConfig.units` gives the unit of each key.
 
 from __future__ import annotations
 
-import functools
-import hashlib
+import contextlib
+import dataclasses
 import inspect
 import math
-import os
 import re
-import subprocess
 import time
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ..analysis import accuracy, measures
+from ..core import trajectories
+from ..core.grids import Grid
+from ..core.stats import PR_3SIGMA
+from ..core.tables import jsonable
+from ..methods import covariance, expcoords, maps, motion_models, sampling
+from ..methods.maps import ProbabilityMap
+from .provenance import provenance
+
 __all__ = [
-    "DEFAULT_PR",
     "MapConfig",
-    "MapRecord",
     "MonteCarloConfig",
     "RunConfig",
     "RunResult",
-    "environment_lock_sha256",
     "execute",
-    "git_commit",
     "map_kind",
-    "provenance",
 ]
 
-#: ``Pr = 1 − e^{−4.5}`` ⇔ ellipse radius ``r = 3`` (SPEC §2.1), the thesis's 98.89 %.
-DEFAULT_PR: float = 1.0 - math.exp(-4.5)
 
 _NAME_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$")
 
@@ -199,7 +198,9 @@ class MapConfig:
         15–20× the cost for 3), ``diffusion_compensation``, ``max_cells``,
         ``n_nodes_max``, and ``size`` [m]: None = a grid that grows with the
         spread, a number = a fixed square grid of that side centred between the
-        start and the noiseless end).
+        start and the noiseless end). Every map also has ``n_sampler`` [1]
+        (default :data:`MAP_SAMPLES`): draws of the model's own sampler along the
+        same controls, logged with the map and compared with it (0: none).
     """
 
     name: str
@@ -226,19 +227,11 @@ class MapConfig:
 
     def to_dict(self) -> dict[str, Any]:
         """Plain mapping with every parameter."""
-        return {"name": self.name, "model": self.model, **_plain(self.params)}
+        return {"name": self.name, "model": self.model, **jsonable(self.params)}
 
 
-def _plain(value: Any) -> Any:
-    """Convert tuples/numpy scalars/arrays to JSON-friendly lists and Python numbers."""
-    if isinstance(value, Mapping):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, list | tuple | np.ndarray):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
-
+#: Default number of draws of a map's own motion-model sampler (its Monte Carlo truth).
+MAP_SAMPLES: int = 20_000
 
 #: Parameters of the map builders that the run supplies itself (not configurable).
 _MAP_SUPPLIED = ("model", "start", "control", "controls", "dt", "grid", "odometry", "workers")
@@ -251,11 +244,13 @@ def map_kind(n_steps: int) -> str:
 
 def _map_defaults(model: str, kind: str) -> dict[str, Any]:
     """Every configurable parameter of a map builder with its default."""
-    from ..methods import maps
-
-    defaults: dict[str, Any] = {"alphas": [0.05] * (6 if model == "velocity" else 4)}
+    defaults: dict[str, Any] = {
+        "alphas": [0.05] * (6 if model == "velocity" else 4),
+        # draws of the model's own sampler along the run's controls (the map's Monte Carlo truth)
+        "n_sampler": MAP_SAMPLES,
+    }
     if kind == "single":
-        fns: tuple[Any, ...] = (maps.single_step_map, maps.MapGrid.centered)
+        fns: tuple[Any, ...] = (maps.single_step_map, Grid.centered)
     else:
         fns = (maps.multi_step_map,)
         defaults["size"] = None  # None: the growing grid; a number: a fixed square grid [m]
@@ -270,8 +265,6 @@ def _map_defaults(model: str, kind: str) -> dict[str, Any]:
 
 def _map_params(where: str, model: str, params: dict[str, Any], n_steps: int) -> dict[str, Any]:
     """Validate a map's parameters against its builder and fill in the builder's defaults."""
-    from ..methods import maps
-
     kind = map_kind(n_steps)
     defaults = _map_defaults(model, kind)
     unknown = sorted(set(params) - set(defaults))
@@ -280,7 +273,8 @@ def _map_params(where: str, model: str, params: dict[str, Any], n_steps: int) ->
             f"unknown config key(s) {', '.join(repr(f'{where}.{k}') for k in unknown)} "
             f"(allowed for a {kind}-step {model} map: name, model, {', '.join(sorted(defaults))})"
         )
-    full = _plain({**defaults, **params})
+    full = jsonable({**defaults, **params})
+    full["n_sampler"] = _int(f"{where}.n_sampler", full["n_sampler"])
     try:
         maps.check_alphas(full["alphas"], 6 if model == "velocity" else 4)
     except ValueError as exc:
@@ -294,8 +288,6 @@ def _trajectory_params(data: Any) -> tuple[dict[str, Any], int]:
         raise _fail("trajectory", "a mapping with a 'name' key", data)
     if "name" not in data:
         raise ValueError("config key 'trajectory.name' is missing (e.g. straight, circle)")
-    from ..core import trajectories
-
     name = data["name"]
     if name not in trajectories.BUILDERS:
         raise _fail("trajectory.name", f"one of {tuple(trajectories.BUILDERS)}", name)
@@ -312,7 +304,7 @@ def _trajectory_params(data: Any) -> tuple[dict[str, Any], int]:
             f"unknown config key(s) {', '.join(repr('trajectory.' + k) for k in unknown)} "
             f"(allowed for trajectory {name!r}: {', '.join(sorted(defaults))})"
         )
-    full = {"name": name, **_plain({**defaults, **params})}
+    full = {"name": name, **jsonable({**defaults, **params})}
     try:
         traj = builder(**{k: v for k, v in full.items() if k != "name"})
     except ValueError as exc:
@@ -351,7 +343,7 @@ class RunConfig:
     k_r: float = 5e-4
     k_l: float = 5e-4
     cov0: tuple[tuple[float, float, float], ...] | None = None
-    pr: float = DEFAULT_PR
+    pr: float = PR_3SIGMA
     n_ellipses: int = 10
     seed: int = 0
     monte_carlo: MonteCarloConfig = field(default_factory=MonteCarloConfig)
@@ -399,7 +391,7 @@ class RunConfig:
             if not np.array_equal(arr, arr.T) or np.linalg.eigvalsh(arr).min() < -1e-15:
                 raise _fail("cov0", "symmetric positive semi-definite", cov0_raw)
             cov0 = tuple((float(r[0]), float(r[1]), float(r[2])) for r in arr)
-        pr = _float("pr", data.get("pr", DEFAULT_PR))
+        pr = _float("pr", data.get("pr", PR_3SIGMA))
         if not 0.0 < pr < 1.0:
             raise _fail("pr", "a probability in (0, 1)", data.get("pr"))
         n_ell = _int("n_ellipses", data.get("n_ellipses", 10), minimum=1)
@@ -438,7 +430,7 @@ class RunConfig:
         return {
             "name": self.name,
             "seed": self.seed,
-            "trajectory": _plain(self.trajectory),
+            "trajectory": jsonable(self.trajectory),
             "k_r": self.k_r,
             "k_l": self.k_l,
             "cov0": None if self.cov0 is None else [list(r) for r in self.cov0],
@@ -487,92 +479,6 @@ class RunConfig:
 
 
 @dataclass(frozen=True, eq=False)
-class MapRecord:
-    """A probability map over a discretised ``(x, y, θ)`` grid, as computed and logged.
-
-    Holds the data of ``pose_uncertainty.methods.maps.ProbabilityMap`` plus the map's
-    name and parameters; :meth:`to_probability_map` gives the full object back.
-
-    Attributes
-    ----------
-    name : str
-    model : str — ``"velocity"`` or ``"odometry"``
-    x : ndarray, shape (nx,) — cell centres [m]
-    y : ndarray, shape (ny,) — cell centres [m]
-    theta : ndarray, shape (nθ,) — cell centres [rad]
-    values : ndarray, shape (nx, ny, nθ) — probability mass per cell [1]
-    lost_mass : float — probability outside the grid [1]
-    params : dict — the map's configuration parameters
-    info : dict — the map builder's diagnostics (JSON-compatible)
-    center : ndarray, shape (3,) — the noiseless end pose the map is about [m, m, rad]
-    """
-
-    name: str
-    model: str
-    x: NDArray[np.float64]
-    y: NDArray[np.float64]
-    theta: NDArray[np.float64]
-    values: NDArray[np.float64]
-    lost_mass: float = 0.0
-    params: dict[str, Any] = field(default_factory=dict)
-    info: dict[str, Any] = field(default_factory=dict)
-    center: NDArray[np.float64] = field(default_factory=lambda: np.full(3, np.nan))
-
-    def __post_init__(self) -> None:
-        for key in ("x", "y", "theta", "values", "center"):
-            object.__setattr__(self, key, np.ascontiguousarray(getattr(self, key), np.float64))
-        shape = (self.x.size, self.y.size, self.theta.size)
-        if self.values.shape != shape:
-            raise ValueError(
-                f"map values must have shape {shape} (nx, ny, ntheta), got {self.values.shape}"
-            )
-
-    @property
-    def resolution(self) -> float:
-        """Cell side [m] (along x; the grids are square)."""
-        if self.x.size > 1:
-            return float(self.x[1] - self.x[0])
-        return float(self.y[1] - self.y[0]) if self.y.size > 1 else 0.01
-
-    def marginal_xy(self) -> NDArray[np.float64]:
-        """Mass per ``(x, y)`` cell with θ summed out [1], shape (nx, ny)."""
-        return self.values.sum(axis=2)
-
-    def to_probability_map(self) -> Any:
-        """The equivalent ``pose_uncertainty.methods.maps.ProbabilityMap`` (without its grid object)."""
-        from ..methods import maps
-
-        return maps.ProbabilityMap(
-            self.x,
-            self.y,
-            self.theta,
-            self.values,
-            self.lost_mass,
-            self.model,
-            None,
-            dict(self.info),
-        )
-
-    @classmethod
-    def from_probability_map(
-        cls, name: str, pm: Any, params: dict[str, Any], center: Any = None
-    ) -> MapRecord:
-        """Wrap a ``ProbabilityMap`` with its name, parameters and noiseless end pose."""
-        return cls(
-            center=np.full(3, np.nan) if center is None else np.asarray(center, np.float64),
-            name=name,
-            model=str(pm.model),
-            x=pm.x,
-            y=pm.y,
-            theta=pm.theta,
-            values=pm.values,
-            lost_mass=float(pm.lost_mass),
-            params=_plain(params),
-            info=_plain(dict(getattr(pm, "info", {}) or {})),
-        )
-
-
-@dataclass(frozen=True, eq=False)
 class RunResult:
     """The outcome of one run.
 
@@ -584,9 +490,13 @@ class RunResult:
     covs : ndarray, shape (N+1, 3, 3) — pose covariance by Method A [m², m·rad, rad²]
     end_poses : ndarray, shape (n, 3) or None — Monte Carlo end poses
     checkpoints : dict of int to ndarray, shape (n, 3) — Monte Carlo clouds at steps
-    maps : tuple of MapRecord
-    metrics : dict of str to float — deterministic metrics (units in ``metric_units``)
-    metric_units : dict of str to str
+    maps : tuple of ProbabilityMap — each with its name, parameters and centre
+    map_samplers : dict of str to ndarray, shape (n, 3) — per map name, the draws of its
+        model's own sampler along the run's controls
+    metrics : dict of str to float — every measure of the run
+        (:mod:`pose_uncertainty.analysis.measures`), deterministic
+    metric_units : dict of str to str — unit of each metric
+    metric_definitions : dict of str to str — definition of each metric
     timings : dict of str to float — wall-clock durations [s]; NOT deterministic
     provenance : dict of str to str — package version, environment.lock sha256, git commit
     """
@@ -597,9 +507,11 @@ class RunResult:
     covs: NDArray[np.float64]
     end_poses: NDArray[np.float64] | None = None
     checkpoints: dict[int, NDArray[np.float64]] = field(default_factory=dict)
-    maps: tuple[MapRecord, ...] = ()
+    maps: tuple[ProbabilityMap, ...] = ()
+    map_samplers: dict[str, NDArray[np.float64]] = field(default_factory=dict)
     metrics: dict[str, float] = field(default_factory=dict)
     metric_units: dict[str, str] = field(default_factory=dict)
+    metric_definitions: dict[str, str] = field(default_factory=dict)
     timings: dict[str, float] = field(default_factory=dict)
     provenance: dict[str, str] = field(default_factory=dict)
 
@@ -615,90 +527,11 @@ class RunResult:
         return sorted({int(m) for m in marks if m > 0})
 
 
-# --- provenance ----------------------------------------------------------------------------
-
-
-_REPO_ROOT = Path(__file__).resolve().parents[3]
-
-
-@functools.lru_cache(maxsize=1)
-def environment_lock_sha256() -> str | None:
-    """sha256 (hex) of the ``environment.lock`` the package was built from, or None.
-
-    Looked up, in order: ``$POSE_UNCERTAINTY_ENVIRONMENT_LOCK`` (a path); an
-    ``environment.lock`` shipped inside the package; the repository root of a
-    source checkout or editable install (``src/pose_uncertainty/../../``); the
-    current directory and its parents.
-    """
-    candidates: list[Path] = []
-    env = os.environ.get("POSE_UNCERTAINTY_ENVIRONMENT_LOCK")
-    if env:
-        candidates.append(Path(env))
-    candidates.append(Path(__file__).resolve().parent / "environment.lock")
-    candidates.append(_REPO_ROOT / "environment.lock")
-    cwd = Path.cwd()
-    candidates.extend(d / "environment.lock" for d in (cwd, *cwd.parents))
-    for path in candidates:
-        if path.is_file():
-            return hashlib.sha256(path.read_bytes()).hexdigest()
-    return None
-
-
-@functools.lru_cache(maxsize=1)
-def git_commit() -> tuple[str, bool] | None:
-    """``(commit, dirty)`` of the git work tree holding this package, or None.
-
-    Runs ``git rev-parse HEAD`` (and ``git status --porcelain --untracked-files=no``)
-    in the package's own directory, so the commit is that of the code, not of the
-    caller's current directory; None when git or the repository is unavailable.
-    """
-    here = Path(__file__).resolve().parent
-    try:
-        head = subprocess.run(
-            ["git", "rev-parse", "HEAD"],
-            cwd=here,
-            capture_output=True,
-            text=True,
-            timeout=10,
-            check=False,
-        )
-        if head.returncode != 0:
-            return None
-        status = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"],
-            cwd=here,
-            capture_output=True,
-            text=True,
-            timeout=10,
-            check=False,
-        )
-    except (OSError, subprocess.SubprocessError):
-        return None
-    return head.stdout.strip(), bool(status.stdout.strip())
-
-
-def provenance() -> dict[str, str]:
-    """Package version, sha256 of ``environment.lock``, git commit and numpy version.
-
-    Values are strings; an unknown value is ``"unknown"``.
-    """
-    from .. import __version__
-
-    git = git_commit()
-    return {
-        "package_version": __version__,
-        "environment_lock_sha256": environment_lock_sha256() or "unknown",
-        "git_commit": git[0] if git else "unknown",
-        "git_dirty": ("true" if git[1] else "false") if git else "unknown",
-        "numpy_version": np.__version__,
-    }
-
-
 # --- execution ------------------------------------------------------------------------------
 
 
 def execute(config: RunConfig) -> RunResult:
-    """Compute one run: trajectory, covariance, Monte Carlo, maps and metrics.
+    """Compute one run: trajectory, covariance, Monte Carlo, maps and every measure.
 
     Parameters
     ----------
@@ -710,132 +543,148 @@ def execute(config: RunConfig) -> RunResult:
         Everything but ``timings`` is a deterministic function of ``config``
         (including its seed), the package version and the environment.
     """
-    from ..core import stats, trajectories
-    from ..methods import covariance, sampling
-
     timings: dict[str, float] = {}
     t_all = time.perf_counter()
-
-    t0 = time.perf_counter()
-    tp = dict(config.trajectory)
-    traj = trajectories.build(tp.pop("name"), **tp)
-    timings["trajectory_s"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    cov0 = None if config.cov0 is None else np.array(config.cov0)
-    cres = covariance.propagate(traj, config.k_r, config.k_l, cov0=cov0)
-    timings["covariance_s"] = time.perf_counter() - t0
+    with _timed(timings, "trajectory_s"):
+        traj = trajectories.from_config(config.trajectory)
+    with _timed(timings, "covariance_s"):
+        cres = covariance.propagate(traj, config.k_r, config.k_l, cov0=_cov0(config))
     poses = np.ascontiguousarray(cres.poses, dtype=np.float64)
     covs = np.ascontiguousarray(cres.covs, dtype=np.float64)
-    times = np.ascontiguousarray(traj.times, dtype=np.float64)
-
-    rng = np.random.default_rng(config.seed)
-    end_poses = None
+    end_poses: NDArray[np.float64] | None = None
     checkpoints: dict[int, NDArray[np.float64]] = {}
-    mc = config.monte_carlo
-    if mc.n_particles > 0:
-        t0 = time.perf_counter()
-        if not mc.checkpoints:
-            # the sampler's fast path: end poses only, shape (n, 3)
-            out = sampling.sample_end_poses(
-                traj, config.k_r, config.k_l, mc.n_particles, rng,
-                regime=mc.regime, method=mc.method, cov0=config.cov0,
-            )  # fmt: skip
-            end_poses = np.ascontiguousarray(out, dtype=np.float64)
-        else:
-            steps = [*mc.checkpoints, traj.n_steps]
-            out = sampling.sample_end_poses(
-                traj, config.k_r, config.k_l, mc.n_particles, rng,
-                regime=mc.regime, method=mc.method, checkpoints=steps, cov0=config.cov0,
-            )  # (n, C, 3): the clouds at the checkpoints, then at the end  # fmt: skip
-            end_poses = np.ascontiguousarray(out[:, -1, :], dtype=np.float64)
-            checkpoints = {
-                step: np.ascontiguousarray(out[:, j, :], dtype=np.float64)
-                for j, step in enumerate(mc.checkpoints)
-            }
-        timings["monte_carlo_s"] = time.perf_counter() - t0
-
-    maps: list[MapRecord] = []
-    for mcfg in config.maps:
-        t0 = time.perf_counter()
-        maps.append(_compute_map(mcfg, traj))
-        timings[f"map_{mcfg.name}_s"] = time.perf_counter() - t0
-
-    metrics, units = _metrics(config, traj, poses, covs, end_poses, maps, covariance, stats)
-    if end_poses is not None and end_poses.shape[0] >= 10:
-        t0 = time.perf_counter()
-        acc, acc_units = _accuracy_metrics(config, traj, poses, covs, end_poses)
-        metrics.update(acc)
-        units.update(acc_units)
-        timings["accuracy_s"] = time.perf_counter() - t0
+    if config.monte_carlo.n_particles > 0:
+        with _timed(timings, "monte_carlo_s"):
+            end_poses, checkpoints = _monte_carlo(config, traj)
+    maps, samplers = [], {}
+    for i, mcfg in enumerate(config.maps):
+        with _timed(timings, f"map_{mcfg.name}_s"):
+            maps.append(_compute_map(mcfg, traj))
+            samplers[mcfg.name] = _map_sampler(config, mcfg, traj, i)
+    with _timed(timings, "measures_s"):
+        metrics = _measures(config, traj, poses, covs, end_poses, maps, samplers)
     timings["total_s"] = time.perf_counter() - t_all
     return RunResult(
-        config=config,
-        times=times,
-        poses=poses,
-        covs=covs,
-        end_poses=end_poses,
-        checkpoints=checkpoints,
-        maps=tuple(maps),
-        metrics=metrics,
-        metric_units=units,
-        timings=timings,
-        provenance=provenance(),
-    )
+        config=config, times=np.ascontiguousarray(traj.times, dtype=np.float64), poses=poses,
+        covs=covs, end_poses=end_poses, checkpoints=checkpoints, maps=tuple(maps),
+        map_samplers=samplers, metrics=metrics,
+        metric_units={k: measures.describe(k)[0] for k in metrics},
+        metric_definitions={k: measures.describe(k)[1] for k in metrics},
+        timings=timings, provenance=provenance(),
+    )  # fmt: skip
 
 
-def _compute_map(mcfg: MapConfig, traj: Any) -> MapRecord:
-    """Compute one probability map with ``pose_uncertainty.methods.maps``.
+@contextlib.contextmanager
+def _timed(timings: dict[str, float], key: str) -> Iterator[None]:
+    """Record the wall-clock duration of the block in ``timings[key]`` [s]."""
+    t0 = time.perf_counter()
+    try:
+        yield
+    finally:
+        timings[key] = time.perf_counter() - t0
+
+
+def _cov0(config: RunConfig) -> NDArray[np.float64] | None:
+    return None if config.cov0 is None else np.array(config.cov0, dtype=np.float64)
+
+
+def _monte_carlo(
+    config: RunConfig, traj: trajectories.Trajectory
+) -> tuple[NDArray[np.float64], dict[int, NDArray[np.float64]]]:
+    """Monte Carlo end poses (n, 3) and the clouds at the checkpoint steps."""
+    mc = config.monte_carlo
+    rng = np.random.default_rng(config.seed)
+    steps = [*mc.checkpoints, traj.n_steps] if mc.checkpoints else None
+    out = sampling.sample_end_poses(
+        traj, config.k_r, config.k_l, mc.n_particles, rng,
+        regime=mc.regime, method=mc.method, cov0=config.cov0, checkpoints=steps,
+    )  # fmt: skip
+    if steps is None:  # the sampler's fast path: end poses only, (n, 3)
+        return np.ascontiguousarray(out, dtype=np.float64), {}
+    # (n, C, 3): the clouds at the checkpoints, then at the end
+    clouds = {s: np.ascontiguousarray(out[:, j, :], dtype=np.float64) for j, s in enumerate(mc.checkpoints)}
+    return np.ascontiguousarray(out[:, -1, :], dtype=np.float64), clouds
+
+
+def _compute_map(mcfg: MapConfig, traj: trajectories.Trajectory) -> ProbabilityMap:
+    """Compute one probability map with :mod:`pose_uncertainty.methods.maps`.
 
     A one-step trajectory gives the single-step map of its control ``(V, ω)``
     over ``dt`` from the start pose, on a grid centred on the noiseless
     (exact-arc) end pose; a longer one the multi-step map along all its controls
-    (on a growing grid unless ``size`` is set).
+    (on a growing grid unless ``size`` is set). The map's centre is that end pose.
     """
-    from ..methods import maps as maps_mod
-
-    params = dict(mcfg.params)
+    params = {k: v for k, v in mcfg.params.items() if k != "n_sampler"}
     end = np.asarray(traj.poses[-1], dtype=np.float64)
     if map_kind(traj.n_steps) == "single":
         grid_kw = {k: params.pop(k) for k in ("size", "resolution", "theta_resolution")}
-        grid = maps_mod.MapGrid.centered(end, **grid_kw)
-        pm = maps_mod.single_step_map(
-            mcfg.model, traj.start, traj.controls[0], traj.dt, grid=grid, **params
-        )
+        grid = Grid.centered(end, **grid_kw)
+        pm = maps.single_step_map(mcfg.model, traj.start, traj.controls[0], traj.dt, grid=grid, **params)
     else:
         size = params.pop("size")
-        grid = None
+        fixed = None
         if size is not None:
             # a fixed grid must hold the start: centre it between the start and the end
             mid = (np.asarray(traj.start, dtype=np.float64) + end) / 2.0
-            grid = maps_mod.MapGrid.centered(
-                (mid[0], mid[1], end[2]), size, params["resolution"], params["theta_resolution"]
-            )
-        pm = maps_mod.multi_step_map(
-            mcfg.model, traj.controls, traj.dt, start=traj.start, grid=grid, **params
-        )
-    return MapRecord.from_probability_map(mcfg.name, pm, mcfg.params, center=end)
+            fixed = Grid.centered((mid[0], mid[1], end[2]), size, params["resolution"], params["theta_resolution"])
+        pm = maps.multi_step_map(mcfg.model, traj.controls, traj.dt, start=traj.start, grid=fixed, **params)
+    return dataclasses.replace(pm, name=mcfg.name, params=jsonable(mcfg.params), info=jsonable(pm.info), center=end)
+
+
+def _map_sampler(
+    config: RunConfig, mcfg: MapConfig, traj: trajectories.Trajectory, index: int
+) -> NDArray[np.float64]:
+    """Draws of the map's own motion-model sampler along the run's controls, shape (n, 3).
+
+    Seeded from the run's seed and the map's index (``default_rng([seed, 2, index])``).
+    """
+    n = int(mcfg.params["n_sampler"])
+    if n == 0:
+        return np.zeros((0, 3))
+    p = mcfg.params
+    rng = np.random.default_rng([config.seed, 2, index])
+    out = motion_models.sample_controls(
+        mcfg.model, traj.start, traj.controls, traj.dt, p["alphas"], n, rng,
+        noise=p.get("noise", "normal"), scaling=p.get("scaling", "squared"),
+    )  # fmt: skip
+    return np.ascontiguousarray(out, dtype=np.float64)
+
+
+def _measures(
+    config: RunConfig,
+    traj: trajectories.Trajectory,
+    poses: NDArray[np.float64],
+    covs: NDArray[np.float64],
+    end_poses: NDArray[np.float64] | None,
+    maps_: list[ProbabilityMap],
+    samplers: dict[str, NDArray[np.float64]],
+) -> dict[str, float]:
+    """Every measure of the run (:mod:`pose_uncertainty.analysis.measures`), computed once here."""
+    out = measures.run_measures(traj.length, traj.duration, poses[-1])
+    out.update(measures.gaussian_measures(poses[-1], covs[-1], config.pr))
+    if end_poses is not None and end_poses.shape[0] >= 3:
+        out.update(measures.cloud_measures(end_poses, poses[-1], covs[-1], config.pr))
+    for mp in maps_:
+        out.update(measures.map_measures(mp, config.pr, samplers.get(mp.name)))
+    if end_poses is not None and end_poses.shape[0] >= 10:
+        out.update(_accuracy_metrics(config, traj, poses, covs, end_poses))
+    return out
 
 
 def _accuracy_metrics(
     config: RunConfig,
-    traj: Any,
+    traj: trajectories.Trajectory,
     poses: NDArray[np.float64],
     covs: NDArray[np.float64],
     end_poses: NDArray[np.float64],
-) -> tuple[dict[str, float], dict[str, str]]:
+) -> dict[str, float]:
     """How wrong each Gaussian method is against this run's Monte Carlo cloud.
 
     Method A (Cartesian Gaussian) and the exponential-coordinates Gaussian
-    (the banana) of the same wheel-noise model, against the end-pose cloud:
-    coverage of their Pr-regions for Pr ∈ {0.5, 0.9, 0.9889}, Hellinger and KL
-    to the Monte Carlo histogram on one stated grid (60 × 60 bins over the
-    cloud), mean log-likelihood and NEES (:func:`pose_uncertainty.analysis.accuracy.compare_methods`).
-    Deterministic: its own generator is derived from the run's seed.
+    (the banana) of the same wheel-noise model, against the end-pose cloud
+    (:func:`pose_uncertainty.analysis.accuracy.compare_methods`). Deterministic:
+    its own generator is derived from the run's seed.
     """
-    from ..analysis import accuracy
-    from ..methods import expcoords
-
     cov0 = None
     if config.cov0 is not None:
         # world-frame Σ_0 → body-frame exponential coordinates at the start pose (first order):
@@ -845,83 +694,7 @@ def _accuracy_metrics(
         cov0 = T.T @ np.asarray(config.cov0, dtype=np.float64) @ T
     E = expcoords.propagate(traj, config.k_r, config.k_l, cov0=cov0)
     res = accuracy.compare_methods(
-        end_poses,
-        (poses[-1], covs[-1]),
-        (E.poses[-1], E.covs[-1]),
-        np.random.default_rng([config.seed, 1]),
-        n_threshold=50_000,
-    )
-    flat = accuracy.flatten(res)
-
-    def unit(key: str) -> str:
-        if "_kl" in key or "loglik" in key or "log_lik" in key:
-            return "nat"
-        if key.startswith("accuracy_grid_") and key.rsplit("_", 1)[-1] in ("dx", "dy", "min", "max"):
-            return "m"
-        return "1"
-
-    return flat, {k: unit(k) for k in flat}
-
-
-def _metrics(
-    config: RunConfig,
-    traj: Any,
-    poses: NDArray[np.float64],
-    covs: NDArray[np.float64],
-    end_poses: NDArray[np.float64] | None,
-    maps: list[MapRecord],
-    covariance: Any,
-    stats: Any,
-) -> tuple[dict[str, float], dict[str, str]]:
-    """Deterministic metrics of a run and their units."""
-    m: dict[str, float] = {}
-    u: dict[str, str] = {}
-
-    def put(key: str, value: float, unit: str) -> None:
-        m[key] = float(value)
-        u[key] = unit
-
-    end, cov_end = poses[-1], covs[-1]
-    put("duration", traj.duration, "s")
-    put("path_length", traj.length, "m")
-    put("end_x", end[0], "m")
-    put("end_y", end[1], "m")
-    put("end_theta", end[2], "rad")
-    put("end_sigma_x", math.sqrt(max(cov_end[0, 0], 0.0)), "m")
-    put("end_sigma_y", math.sqrt(max(cov_end[1, 1], 0.0)), "m")
-    put("end_sigma_theta", math.sqrt(max(cov_end[2, 2], 0.0)), "rad")
-    alpha, a_major, a_minor = covariance.ellipse(cov_end[:2, :2], config.pr)
-    put("ellipse_major", a_major, "m")
-    put("ellipse_minor", a_minor, "m")
-    put("ellipse_angle", alpha, "rad")
-    if end_poses is not None and end_poses.shape[0] > 0:
-        inside = stats.fraction_inside_ellipse(
-            end_poses[:, :2], end[:2], cov_end[:2, :2], config.pr
-        )
-        put("mc_coverage", inside, "1 (fraction of particles inside the Pr-ellipse)")
-        put("mc_coverage_minus_pr", inside - config.pr, "1")
-        mean = end_poses.mean(axis=0)
-        put("mc_mean_offset", math.hypot(mean[0] - end[0], mean[1] - end[1]), "m")
-        if end_poses.shape[0] > 1:
-            cov_mc = np.cov(end_poses[:, :2].T)
-            norm = np.linalg.norm(cov_end[:2, :2])
-            if norm > 0:
-                rel = float(np.linalg.norm(cov_mc - cov_end[:2, :2]) / norm)
-                put("mc_cov_xy_rel_error", rel, "1")
-    # maps are centred on the noiseless exact-arc end pose (the trajectory's)
-    end_exact = traj.poses[-1]
-    for mp in maps:
-        marg = mp.marginal_xy()
-        i, j = np.unravel_index(int(np.argmax(marg)), marg.shape)
-        put(
-            f"map_{mp.name}_peak_offset",
-            math.hypot(mp.x[i] - end_exact[0], mp.y[j] - end_exact[1]),
-            "m",
-        )
-        total = float(marg.sum())
-        if total > 0:
-            mx = float(marg.sum(axis=1) @ mp.x) / total
-            my = float(marg.sum(axis=0) @ mp.y) / total
-            put(f"map_{mp.name}_mean_offset", math.hypot(mx - end_exact[0], my - end_exact[1]), "m")
-        put(f"map_{mp.name}_lost_mass", mp.lost_mass, "1")
-    return m, u
+        end_poses, (poses[-1], covs[-1]), (E.poses[-1], E.covs[-1]),
+        np.random.default_rng([config.seed, 1]), n_threshold=50_000,
+    )  # fmt: skip
+    return accuracy.flatten(res)

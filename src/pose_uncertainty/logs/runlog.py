@@ -20,7 +20,8 @@ topic                              schema                              content
 ``/monte_carlo/checkpoints``       foxglove.PointCloud                 clouds at checkpoint steps
 ``/maps/<name>/grid``              foxglove.Grid                       θ-marginal mass + grey RGBA
 ``/maps/<name>/volume``            pose_uncertainty.ProbabilityMap3D   the full (x, y, θ) array
-``/metrics``                       pose_uncertainty.Metrics            deterministic metrics
+``/maps/<name>/sampler``           foxglove.PointCloud                 the map's own sampler's draws
+``/metrics``                       pose_uncertainty.Metrics            every measure: value, unit, definition
 ``/timings``                       pose_uncertainty.Metrics            wall-clock timings (opt-in)
 =================================  ==================================  ==========================
 
@@ -83,7 +84,9 @@ from numpy.typing import NDArray
 
 from .. import __version__
 from ..methods import covariance
-from .run import MapRecord, RunConfig, RunResult
+from ..methods.maps import ProbabilityMap
+from .provenance import PROVENANCE_KEYS
+from .run import RunConfig, RunResult, execute
 
 __all__ = [
     "FORMAT",
@@ -101,7 +104,7 @@ __all__ = [
 ]
 
 FORMAT = "pose-uncertainty-runlog"
-FORMAT_VERSION = "1"
+FORMAT_VERSION = "2"
 LIBRARY = f"pose-uncertainty/{__version__}"
 METADATA_NAME = "pose_uncertainty.run"
 WORLD, BASE = "world", "base_link"
@@ -211,6 +214,7 @@ def _our_schemas() -> dict[str, Any]:
             ("name", F.TYPE_STRING, one, None),
             ("value", F.TYPE_DOUBLE, one, None),
             ("unit", F.TYPE_STRING, one, None),
+            ("definition", F.TYPE_STRING, one, None),
         ],
     )
     message("Metrics", [ts, ("metrics", F.TYPE_MESSAGE, many, ".pose_uncertainty.Metric")])
@@ -294,7 +298,7 @@ def _cloud(poses: NDArray[np.float64], t_ns: int) -> Any:
     return msg
 
 
-def _grid(mp: MapRecord, t_ns: int) -> Any:
+def _grid(mp: ProbabilityMap, t_ns: int) -> Any:
     """foxglove.Grid: θ-marginal mass per cell (float64, exact) and a grey RGBA, darker = more probable."""
     marg = mp.marginal_xy()  # (nx, ny) [1]
     nx, ny = marg.shape
@@ -334,7 +338,7 @@ def _grid(mp: MapRecord, t_ns: int) -> Any:
     return msg
 
 
-def _volume(mp: MapRecord, t_ns: int) -> Any:
+def _volume(mp: ProbabilityMap, t_ns: int) -> Any:
     msg = ProbabilityMap3D(
         frame_id=WORLD,
         name=mp.name,
@@ -353,11 +357,16 @@ def _volume(mp: MapRecord, t_ns: int) -> Any:
     return msg
 
 
-def _metrics_msg(values: dict[str, float], units: dict[str, str], t_ns: int) -> Any:
+def _metrics_msg(
+    values: dict[str, float], units: dict[str, str], t_ns: int, definitions: dict[str, str] | None = None
+) -> Any:
     msg = Metrics()
     _stamp(msg, t_ns)
+    defs = definitions or {}
     for key in sorted(values):
-        msg.metrics.add(name=key, value=float(values[key]), unit=units.get(key, ""))
+        msg.metrics.add(
+            name=key, value=float(values[key]), unit=units.get(key, ""), definition=defs.get(key, "")
+        )
     return msg
 
 
@@ -513,7 +522,14 @@ def _write_stream(stream: Any, result: RunResult, include_timings: bool) -> None
     for mp in result.maps:
         log.put(f"/maps/{mp.name}/grid", _grid(mp, t_end), t_end)
         log.put(f"/maps/{mp.name}/volume", _volume(mp, t_end), t_end)
-    log.put(T_METRICS, _metrics_msg(result.metrics, result.metric_units, t_end), t_end)
+        sampler = result.map_samplers.get(mp.name)
+        if sampler is not None and len(sampler):
+            log.put(f"/maps/{mp.name}/sampler", _cloud(sampler, t_end), t_end)
+    log.put(
+        T_METRICS,
+        _metrics_msg(result.metrics, result.metric_units, t_end, result.metric_definitions),
+        t_end,
+    )
     if include_timings:
         units = {k: "s" for k in result.timings}
         log.put(T_TIMINGS, _metrics_msg(result.timings, units, t_end), t_end)
@@ -862,7 +878,7 @@ def _assemble(p: Path, records: list[Any], *, partial: bool, problem: str | None
             raise RunLogError(f"{p}: checkpoint cloud at {t_ns} ns matches no logged step")
         checkpoints[step_of_ns[t_ns]] = cloud(msg)
 
-    maps: list[MapRecord] = []
+    maps: list[ProbabilityMap] = []
     for name in json.loads(meta.get("maps", "[]")):
         vols = decode(f"/maps/{name}/volume", "pose_uncertainty.ProbabilityMap3D")
         if not vols:
@@ -873,7 +889,7 @@ def _assemble(p: Path, records: list[Any], *, partial: bool, problem: str | None
         if values.size != int(np.prod(shape)):
             raise RunLogError(f"{p}: map {name!r} holds {values.size} values, shape says {shape}")
         maps.append(
-            MapRecord(
+            ProbabilityMap(
                 name=v.name,
                 model=v.model,
                 x=np.array(v.x, dtype=np.float64),
@@ -889,25 +905,26 @@ def _assemble(p: Path, records: list[Any], *, partial: bool, problem: str | None
             )
         )
 
-    def metric_dicts(topic: str) -> tuple[dict[str, float], dict[str, str]]:
+    samplers: dict[str, NDArray[np.float64]] = {}
+    for mp in maps:
+        msgs = decode(f"/maps/{mp.name}/sampler", TOPICS[T_END])
+        if msgs:
+            samplers[mp.name] = cloud(msgs[-1])
+
+    def metric_dicts(topic: str) -> tuple[dict[str, float], dict[str, str], dict[str, str]]:
         msgs = decode(topic, TOPICS[topic])
         if not msgs:
-            return {}, {}
+            return {}, {}, {}
+        last = msgs[-1].metrics
         return (
-            {m.name: float(m.value) for m in msgs[-1].metrics},
-            {m.name: m.unit for m in msgs[-1].metrics},
+            {m.name: float(m.value) for m in last},
+            {m.name: m.unit for m in last},
+            {m.name: m.definition for m in last},
         )
 
-    metrics, units = metric_dicts(T_METRICS)
-    timings, _ = metric_dicts(T_TIMINGS)
-    prov_keys = (
-        "package_version",
-        "environment_lock_sha256",
-        "git_commit",
-        "git_dirty",
-        "numpy_version",
-    )
-    provenance = {k: meta[k] for k in prov_keys if k in meta}
+    metrics, units, definitions = metric_dicts(T_METRICS)
+    timings, _, _ = metric_dicts(T_TIMINGS)
+    provenance = {k: meta[k] for k in PROVENANCE_KEYS if k in meta}
     return RunLog(
         config=config,
         times=times,
@@ -916,8 +933,10 @@ def _assemble(p: Path, records: list[Any], *, partial: bool, problem: str | None
         end_poses=end_poses,
         checkpoints=checkpoints,
         maps=tuple(maps),
+        map_samplers=samplers,
         metrics=metrics,
         metric_units=units,
+        metric_definitions=definitions,
         timings=timings,
         provenance=provenance,
         path=p,
@@ -962,13 +981,7 @@ def format_summary(log: RunLog) -> str:
     lines.append(
         f"written by {log.library}; format {log.metadata.get('format')} v{log.metadata.get('format_version')}"
     )
-    for key in (
-        "package_version",
-        "environment_lock_sha256",
-        "git_commit",
-        "git_dirty",
-        "numpy_version",
-    ):
+    for key in PROVENANCE_KEYS:
         if key in log.provenance:
             lines.append(f"  {key}: {log.provenance[key]}")
     lines.append("config")
@@ -1051,6 +1064,9 @@ def compare_results(logged: RunResult, fresh: RunResult) -> list[str]:
                     out.append(d)
             if (a.lost_mass, a.model, a.params, a.info) != (b.lost_mass, b.model, b.params, b.info):
                 out.append(f"map {a.name}: model/lost_mass/params/info differ")
+            d = _diff(f"map {a.name} sampler", logged.map_samplers.get(a.name), fresh.map_samplers.get(a.name))
+            if d:
+                out.append(d)
     if sorted(logged.metrics) != sorted(fresh.metrics):
         out.append(f"metrics: keys {sorted(logged.metrics)} != {sorted(fresh.metrics)}")
     else:
@@ -1073,8 +1089,6 @@ def verify_run(log: RunLog) -> list[str]:
     agree and the log has no timings, the bytes of a fresh log are compared
     too, which also covers the display-only topics (ellipse polylines, grids).
     """
-    from .run import execute
-
     if log.partial:
         return ["the log is partial; a partial log cannot be verified"]
     fresh = execute(log.config)

@@ -37,6 +37,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from jsonschema import Draft202012Validator
+from jsonschema.exceptions import best_match, relevance
+
+from ..core import trajectories
+from .run import RunConfig, execute
+from .runlog import write_run
+
 __all__ = [
     "ConfigError",
     "Run",
@@ -233,9 +240,6 @@ def validate_config(config: Mapping[str, Any], schema: Mapping[str, Any]) -> dic
         runs are not valid run configurations; the message names the key, the
         value and what is allowed.
     """
-    from jsonschema import Draft202012Validator
-    from jsonschema.exceptions import best_match
-
     Draft202012Validator.check_schema(schema)
     validator = Draft202012Validator(schema)
     err = best_match(validator.iter_errors(config), key=_relevance)
@@ -248,8 +252,6 @@ def validate_config(config: Mapping[str, Any], schema: Mapping[str, Any]) -> dic
 
 
 def _relevance(error: Any) -> Any:
-    from jsonschema.exceptions import relevance
-
     # prefer the deepest error, as best_match does
     return relevance(error)
 
@@ -342,8 +344,6 @@ def expand_set(name: str, spec: Mapping[str, Any], defaults: Mapping[str, Any] |
     ConfigError naming ``experiment_sets.<name>...`` keys for unequal axis
     lengths, id clashes and invalid run configurations.
     """
-    from .run import RunConfig
-
     where = f"experiment_sets.{name}"
     base = _deep_merge(defaults or {}, spec.get("base", {}) or {})
     axes: list[list[tuple[dict[str, Any], list[str]]]] = []
@@ -414,10 +414,7 @@ def expand_all(config: Mapping[str, Any]) -> dict[str, list[Run]]:
 
 def n_steps(config: Mapping[str, Any]) -> int:
     """Number of steps of a run configuration's trajectory (builds the trajectory)."""
-    from ..core import trajectories
-
-    tp = {k: v for k, v in config["trajectory"].items() if k != "name"}
-    return trajectories.build(config["trajectory"]["name"], **tp).n_steps
+    return trajectories.from_config(config["trajectory"]).n_steps
 
 
 # --- running -----------------------------------------------------------------------------
@@ -436,9 +433,6 @@ def simulate(config: Mapping[str, Any], out: str | Path, timings_out: str | Path
     -------
     Path — ``out``
     """
-    from .run import RunConfig, execute
-    from .runlog import write_run
-
     result = execute(RunConfig.from_dict(config))
     Path(out).parent.mkdir(parents=True, exist_ok=True)
     path = write_run(out, result)

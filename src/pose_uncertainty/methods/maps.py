@@ -46,8 +46,10 @@ import numpy as np
 import scipy.fft as sfft
 from numpy.typing import ArrayLike, NDArray
 
+from ..core.grids import Grid
 from ..core.kinematics import wrap_angle
 from ..core.noise import cdf, check_noise, check_scaling, noise_reach, prob, prob_cell
+from ..core.stats import hdr_region
 from ..core.validation import (
     check_choice,
     check_finite,
@@ -55,7 +57,6 @@ from ..core.validation import (
     check_nonnegative,
     check_positive,
     check_positive_int,
-    check_probability,
 )
 from .motion_models import (
     check_alphas,
@@ -72,12 +73,7 @@ from .motion_models import (
 __all__ = [
     "EXACT_RADIUS",
     "MODELS",
-    "MapGrid",
     "ProbabilityMap",
-    "hellinger",
-    "hellinger_noise_floor",
-    "histogram",
-    "histogram_xy",
     "multi_step_map",
     "single_step_map",
 ]
@@ -93,129 +89,12 @@ AnyArray = NDArray[Any]  # index and mask arrays
 # ============================================================================= grid
 
 
-@dataclass(frozen=True)
-class MapGrid:
-    """A regular ``(x, y, θ)`` grid: square cells of ``resolution`` [m], headings on the full circle.
-
-    Attributes
-    ----------
-    x0, y0 : float [m]
-        Centre of the first cell along x and y.
-    nx, ny : int
-        Number of cells along x and y.
-    resolution : float [m], > 0
-        Cell side.
-    ntheta : int
-        Number of heading cells; their width is ``2π/ntheta``.
-    theta0 : float [rad]
-        Centre of the first heading cell, in ``[−π, −π + 2π/ntheta)``.
-    """
-
-    x0: float
-    y0: float
-    nx: int
-    ny: int
-    resolution: float
-    ntheta: int
-    theta0: float = -math.pi
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "resolution", float(check_positive("resolution", self.resolution)))
-        object.__setattr__(self, "nx", check_positive_int("nx", self.nx))
-        object.__setattr__(self, "ny", check_positive_int("ny", self.ny))
-        object.__setattr__(self, "ntheta", check_positive_int("ntheta", self.ntheta))
-        x0 = float(check_finite("x0", self.x0))
-        y0 = float(check_finite("y0", self.y0))
-        ht = 2.0 * math.pi / self.ntheta
-        t0 = float(check_finite("theta0", self.theta0))
-        t0 = -math.pi + math.fmod(math.fmod(t0 + math.pi, ht) + ht, ht)
-        object.__setattr__(self, "x0", x0)
-        object.__setattr__(self, "y0", y0)
-        object.__setattr__(self, "theta0", t0)
-
-    @classmethod
-    def centered(
-        cls,
-        center: ArrayLike = (0.0, 0.0, 0.0),
-        size: float = 1.0,
-        resolution: float = 0.01,
-        theta_resolution: float = math.radians(2.0),
-    ) -> MapGrid:
-        """Square grid of side about ``size`` [m] whose middle cell is centred on ``center``.
-
-        The number of cells per side is ``round(size/resolution)`` made odd, so
-        ``center`` (the noiseless end pose) is a cell centre; the default is the
-        thesis map, 1 m × 1 m at 1 cm (101 × 101 cells). Heading cells are at most
-        ``theta_resolution`` wide (default 2° → 180 cells), one centred on ``center[2]``.
-        """
-        c = check_finite("center", check_last_axis("center", center, 3))
-        side = float(check_positive("size", size))
-        h = float(check_positive("resolution", resolution))
-        htr = float(check_positive("theta_resolution", theta_resolution))
-        n = max(1, round(side / h))
-        n += 1 - n % 2
-        nt = max(1, math.ceil(2.0 * math.pi / htr - 1e-9))
-        half = (n - 1) / 2 * h
-        return cls(float(c[0]) - half, float(c[1]) - half, n, n, h, nt, float(c[2]))
-
-    @property
-    def theta_resolution(self) -> float:
-        """Heading cell width [rad]."""
-        return 2.0 * math.pi / self.ntheta
-
-    @property
-    def x(self) -> Array:
-        """Cell-centre x, shape (nx,) [m]."""
-        return np.asarray(self.x0 + self.resolution * np.arange(self.nx), dtype=np.float64)
-
-    @property
-    def y(self) -> Array:
-        """Cell-centre y, shape (ny,) [m]."""
-        return np.asarray(self.y0 + self.resolution * np.arange(self.ny), dtype=np.float64)
-
-    @property
-    def theta(self) -> Array:
-        """Cell-centre heading, shape (ntheta,) [rad], ascending in ``[−π, π)``."""
-        return np.asarray(
-            self.theta0 + self.theta_resolution * np.arange(self.ntheta), dtype=np.float64
-        )
-
-    @property
-    def shape(self) -> tuple[int, int, int]:
-        """``(nx, ny, ntheta)``."""
-        return self.nx, self.ny, self.ntheta
-
-    @property
-    def cell_volume(self) -> float:
-        """``h² · h_θ`` [m²·rad]."""
-        return self.resolution**2 * self.theta_resolution
-
-    def contains(self, pose: ArrayLike) -> bool:
-        """Whether the position of ``pose`` (shape (3,) or (2,)) lies inside the grid's cells."""
-        p = np.asarray(pose, dtype=np.float64)
-        h = self.resolution
-        return bool(
-            self.x0 - h / 2 <= p[0] < self.x0 + (self.nx - 0.5) * h
-            and self.y0 - h / 2 <= p[1] < self.y0 + (self.ny - 0.5) * h
-        )
-
-    def extent(self) -> tuple[float, float, float, float]:
-        """``(x_min, x_max, y_min, y_max)`` of the cell walls [m]."""
-        h = self.resolution
-        return (
-            self.x0 - h / 2,
-            self.x0 + (self.nx - 0.5) * h,
-            self.y0 - h / 2,
-            self.y0 + (self.ny - 0.5) * h,
-        )
-
-
 # ============================================================================= map
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ProbabilityMap:
-    """Probability mass per cell of an ``(x, y, θ)`` grid.
+    """Probability mass per cell of an ``(x, y, θ)`` grid — computed, logged and read back.
 
     Attributes
     ----------
@@ -232,10 +111,17 @@ class ProbabilityMap:
         step, estimated as ``1 − Σ p·ΔV``); 0 for Thrun's (relative) map.
     model : str
         ``"velocity"`` or ``"odometry"``.
-    grid : MapGrid, optional
-        The grid the map lives on.
+    grid : Grid, optional
+        The grid the map lives on (None for a map read back from a log).
     info : dict
-        Diagnostics (kernel sums, grid growth, settings).
+        Diagnostics (kernel sums, grid growth, settings), JSON-compatible.
+    name : str
+        The map's name in its run ("" for a map not made by a run).
+    params : dict
+        The map's configuration parameters in its run.
+    center : ndarray, shape (3,)
+        The noiseless end pose the map is about [m, m, rad] (``nan`` if unknown):
+        the reference point of every distance measured on the map.
     """
 
     x: Array
@@ -244,11 +130,24 @@ class ProbabilityMap:
     values: Array
     lost_mass: float
     model: str
-    grid: MapGrid | None = None
+    grid: Grid | None = None
     info: dict[str, Any] = field(default_factory=dict)
+    name: str = ""
+    params: dict[str, Any] = field(default_factory=dict)
+    center: Array = field(default_factory=lambda: np.full(3, np.nan))
 
     #: Units of the axes and of the values.
     UNITS: ClassVar[dict[str, str]] = {"x": "m", "y": "m", "theta": "rad", "values": "probability"}
+
+    def __post_init__(self) -> None:
+        for key in ("x", "y", "theta", "values", "center"):
+            object.__setattr__(self, key, np.ascontiguousarray(getattr(self, key), np.float64))
+        shape = (self.x.size, self.y.size, self.theta.size)
+        if self.values.shape != shape:
+            raise ValueError(
+                f"map values must have shape {shape} (nx, ny, ntheta), got {self.values.shape}"
+            )
+        object.__setattr__(self, "lost_mass", float(self.lost_mass))
 
     @property
     def resolution(self) -> float:
@@ -275,29 +174,51 @@ class ProbabilityMap:
         i, j = np.unravel_index(int(np.argmax(self.marginal_xy())), (self.x.size, self.y.size))
         return np.array([self.x[i], self.y[j]])
 
-    def credible_area(self, pr: float) -> float:
-        """Area [m²] of the smallest set of ``(x, y)`` cells holding probability ``pr``.
+    @classmethod
+    def from_density_xy(cls, x: ArrayLike, y: ArrayLike, density: ArrayLike, model: str = "density") -> ProbabilityMap:
+        """A planar map (one heading cell) from a density [1/m²] on cell centres ``x`` (nx,), ``y`` (ny,).
 
-        Cells of the θ-marginal are taken from the most probable down; the last
-        cell counts in proportion to the mass still needed. ``pr`` is a fraction
-        of the whole distribution (lost mass included).
+        The mass of a cell is the density at its centre times the cell area;
+        ``lost_mass`` is what that leaves of 1 (clipped at 0).
+        """
+        xx, yy = check_finite("x", x), check_finite("y", y)
+        d = check_nonnegative("density", density)
+        if d.shape != (xx.size, yy.size) or xx.size < 2 or yy.size < 2:
+            raise ValueError(
+                f"density must have shape (nx, ny) = ({xx.size}, {yy.size}) with at least 2 cells "
+                f"per axis, got {d.shape}"
+            )
+        mass = d * float((xx[1] - xx[0]) * (yy[1] - yy[0]))
+        lost = max(0.0, 1.0 - float(mass.sum()))
+        return cls(xx, yy, np.zeros(1), mass[:, :, None], lost, model)
+
+    def region_xy(self, pr: float) -> tuple[float, float]:
+        """The planar Pr highest-density region: ``(level, area)``.
+
+        :func:`pose_uncertainty.core.stats.hdr_region` of the θ-marginal with
+        ``pr`` a fraction of the whole distribution (lost mass included): ``level``
+        is the mass-per-cell threshold (region = cells of mass ≥ level) and
+        ``area`` [m²] counts the last cell in proportion; both ``nan`` when the
+        grid holds less than ``pr``.
+        """
+        level, n_cells = hdr_region(self.marginal_xy(), pr, total=1.0)
+        return level, n_cells * self.resolution**2
+
+    def credible_area(self, pr: float) -> float:
+        """Area [m²] of the planar Pr highest-density region (:meth:`region_xy`).
 
         Raises
         ------
         ValueError
             If ``pr`` is not in (0, 1) or the grid holds less than ``pr``.
         """
-        p = float(check_probability("pr", pr))
-        m = np.sort(self.marginal_xy().ravel())[::-1]
-        c = np.cumsum(m)
-        if c[-1] < p:
+        area = self.region_xy(pr)[1]
+        if not math.isfinite(area):
+            held = float(self.values.sum())
             raise ValueError(
-                f"pr must not exceed the mass held by the grid (allowed: (0, {c[-1]:.6g}]), got {p}"
+                f"pr must not exceed the mass held by the grid (allowed: (0, {held:.6g}]), got {pr}"
             )
-        k = int(np.searchsorted(c, p))
-        before = c[k - 1] if k > 0 else 0.0
-        frac = (p - before) / m[k] if m[k] > 0 else 1.0
-        return (k + frac) * self.resolution**2
+        return area
 
     def _weights(self) -> Array:
         v = self.values
@@ -331,92 +252,6 @@ class ProbabilityMap:
 
 
 # ============================================================================= helpers
-
-
-def hellinger(p: ArrayLike, q: ArrayLike) -> float:
-    """Hellinger distance ``√(1 − Σ √(p̃ q̃))`` between two arrays of the same shape.
-
-    Both are normalised to sum 1 first (so maps with lost mass compare by shape).
-    0 for identical distributions, 1 for disjoint supports.
-    """
-    a = check_nonnegative("p", p)
-    b = check_nonnegative("q", q)
-    if a.shape != b.shape:
-        raise ValueError(f"p and q must have the same shape, got {a.shape} and {b.shape}")
-    sa, sb = a.sum(), b.sum()
-    if sa <= 0 or sb <= 0:
-        raise ValueError(f"p and q must have positive total mass, got {sa} and {sb}")
-    bc = float(np.sum(np.sqrt(a / sa * (b / sb))))
-    return math.sqrt(max(0.0, 1.0 - bc))
-
-
-def hellinger_noise_floor(p: ArrayLike, n: int) -> float:
-    """Expected Hellinger distance between ``p`` and a histogram of ``n`` samples drawn from it.
-
-    With ``X_i ~ Poisson(λ_i = n p_i)``: ``E[H²] = ½ Σ E[(√(X_i/n) − √p_i)²]
-    = Σ (λ_i − √λ_i E√X_i)/n``; ``E√X`` by direct summation for ``λ ≤ 50`` and
-    by its asymptotic series above. Returns ``√E[H²]``. A map that is the exact
-    density of the sampler sits at this value; anything above it is model or
-    discretisation error.
-    """
-    w = check_nonnegative("p", p).ravel()
-    n = check_positive_int("n", n)
-    w = w / w.sum()
-    lam = n * w[w > 0]
-    small = lam <= 50.0
-    e_sqrt = np.empty_like(lam)
-    big = lam[~small]
-    e_sqrt[~small] = np.sqrt(big) * (1 - 1 / (8 * big) - 7 / (128 * big**2))
-    if np.any(small):
-        ls = lam[small][:, None]
-        k = np.arange(0, 151)[None, :]
-        from scipy.special import gammaln
-
-        logpmf = k * np.log(ls) - ls - gammaln(k + 1)
-        e_sqrt[small] = np.sum(np.sqrt(k) * np.exp(logpmf), axis=1)
-    eh2 = float(np.sum(lam - np.sqrt(lam) * e_sqrt)) / n
-    return math.sqrt(max(0.0, eh2))
-
-
-def _cell_index(values: Array, origin: float, h: float, n: int) -> tuple[AnyArray, AnyArray]:
-    idx = np.floor((values - origin) / h + 0.5).astype(np.int64)
-    ok = (idx >= 0) & (idx < n)
-    return idx, ok
-
-
-def histogram_xy(samples: ArrayLike, grid: MapGrid) -> Array:
-    """Fraction of ``samples`` (shape (n, 2+)) in each ``(x, y)`` cell, shape (nx, ny).
-
-    Samples outside the grid are not counted, so the sum is the fraction inside.
-    """
-    s = check_finite("samples", samples)
-    if s.ndim != 2 or s.shape[1] < 2:
-        raise ValueError(f"samples must have shape (n, 2) or (n, 3), got shape {s.shape}")
-    ix, okx = _cell_index(s[:, 0], grid.x0, grid.resolution, grid.nx)
-    iy, oky = _cell_index(s[:, 1], grid.y0, grid.resolution, grid.ny)
-    ok = okx & oky
-    flat = np.bincount(ix[ok] * grid.ny + iy[ok], minlength=grid.nx * grid.ny)
-    return flat.reshape(grid.nx, grid.ny) / s.shape[0]
-
-
-def histogram(samples: ArrayLike, grid: MapGrid) -> Array:
-    """Fraction of pose samples (shape (n, 3)) in each ``(x, y, θ)`` cell, shape (nx, ny, nθ).
-
-    Headings are wrapped onto the grid's circle.
-    """
-    s = check_finite("samples", check_last_axis("samples", samples, 3))
-    s = s.reshape(-1, 3)
-    ix, okx = _cell_index(s[:, 0], grid.x0, grid.resolution, grid.nx)
-    iy, oky = _cell_index(s[:, 1], grid.y0, grid.resolution, grid.ny)
-    it = np.mod(
-        np.floor((s[:, 2] - grid.theta0) / grid.theta_resolution + 0.5).astype(np.int64),
-        grid.ntheta,
-    )
-    ok = okx & oky
-    flat = np.bincount(
-        (ix[ok] * grid.ny + iy[ok]) * grid.ntheta + it[ok], minlength=int(np.prod(grid.shape))
-    )
-    return flat.reshape(grid.shape) / s.shape[0]
 
 
 def _ray_box(beta: Array, s: Array, lo: Array, hi: Array) -> tuple[Array, Array]:
@@ -587,7 +422,7 @@ def _make_step(
     return _Step(model, u, dt, alphas, noise, scaling, corrected, variance_from, odom)
 
 
-def _deposit(values: Array, grid: MapGrid, pose: Array, mass: float = 1.0) -> None:
+def _deposit(values: Array, grid: Grid, pose: Array, mass: float = 1.0) -> None:
     """Trilinear (mean-preserving) deposit of ``mass`` at ``pose`` into ``values`` (in place)."""
     h, ht = grid.resolution, grid.theta_resolution
     fx = (pose[0] - grid.x0) / h
@@ -622,7 +457,7 @@ def single_step_map(
     control: ArrayLike,
     dt: float,
     alphas: ArrayLike,
-    grid: MapGrid | None = None,
+    grid: Grid | None = None,
     noise: str = "normal",
     scaling: str = "squared",
     corrected: bool = False,
@@ -644,8 +479,8 @@ def single_step_map(
         is given.
     dt : float [s], > 0
     alphas : array_like, shape (6,) velocity or (4,) odometry, >= 0
-    grid : MapGrid, optional
-        Default :meth:`MapGrid.centered` on the noiseless end pose (1 m × 1 m, 1 cm, 2°).
+    grid : Grid, optional
+        Default :meth:`Grid.centered` on the noiseless end pose (1 m × 1 m, 1 cm, 2°).
     noise : {"normal", "triangular"}
     scaling : {"squared", "abs"}
     corrected : bool
@@ -687,7 +522,7 @@ def single_step_map(
     else:
         stp = _make_step(model, u, step_dt, a, noise, scaling, corrected, None, None)
     end = stp.noiseless(x0)
-    g = grid if grid is not None else MapGrid.centered(end)
+    g = grid if grid is not None else Grid.centered(end)
     cell = (g.resolution, g.theta_resolution)
     averaged = corrected if cell_average is None else bool(cell_average)
     info: dict[str, Any] = {"corrected": corrected, "cell_average": averaged, "noise": noise, "scaling": scaling,
@@ -998,7 +833,7 @@ def _coarsen(fine: ProbabilityMap, over: int) -> ProbabilityMap:
     h = g.resolution * over
     x0 = g.x0 - pad_x * g.resolution + (over - 1) / 2 * g.resolution
     y0 = g.y0 - pad_y * g.resolution + (over - 1) / 2 * g.resolution
-    cg = MapGrid(x0, y0, nx, ny, h, g.ntheta, g.theta0)
+    cg = Grid.square(x0, y0, nx, ny, h, g.ntheta, g.theta0)
     info = dict(fine.info, oversample=over, fine_grid=g.shape)
     return ProbabilityMap(cg.x, cg.y, cg.theta, v, fine.lost_mass, fine.model, cg, info)
 
@@ -1009,7 +844,7 @@ def multi_step_map(
     dt: ArrayLike | None = None,
     alphas: ArrayLike | None = None,
     start: ArrayLike | None = None,
-    grid: MapGrid | None = None,
+    grid: Grid | None = None,
     noise: str = "normal",
     scaling: str = "squared",
     odometry: ArrayLike | None = None,
@@ -1058,7 +893,7 @@ def multi_step_map(
         Default: the thesis's 0.05 for every constant.
     start : array_like, shape (3,), optional
         Known start pose (default the trajectory's start, else (0, 0, 0)).
-    grid : MapGrid, optional
+    grid : Grid, optional
         Fixed grid (must contain the start); mass leaving it is counted in
         ``lost_mass``. Default: a grid of ``resolution`` × ``theta_resolution`` that
         starts at the start cell and grows to hold the spread (up to ``max_cells``
@@ -1184,7 +1019,7 @@ def multi_step_map(
         h_ = float(check_positive("resolution", resolution))
         htr = float(check_positive("theta_resolution", theta_resolution))
         nt = max(1, math.ceil(2.0 * math.pi / htr - 1e-9))
-        g = MapGrid(float(x0[0]), float(x0[1]), 1, 1, h_, nt, float(x0[2]))
+        g = Grid.square(float(x0[0]), float(x0[1]), 1, 1, h_, nt, float(x0[2]))
         grow = True
     h, ht, nt = g.resolution, g.theta_resolution, g.ntheta
     belief = np.zeros(g.shape)
@@ -1239,7 +1074,7 @@ def multi_step_map(
             if any(need_lo[i] < cur_lo[i] or need_hi[i] > cur_hi[i] for i in range(2)):
                 slack = max(4, (wx + wy) // 4)
                 new_lo, new_hi = _grow_bounds(cur_lo, cur_hi, need_lo, need_hi, max_side, slack)
-                ng = MapGrid(
+                ng = Grid.square(
                     float(x0[0]) + new_lo[0] * h, float(x0[1]) + new_lo[1] * h,
                     new_hi[0] - new_lo[0] + 1, new_hi[1] - new_lo[1] + 1, h, nt, g.theta0,
                 )  # fmt: skip

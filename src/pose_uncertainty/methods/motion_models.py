@@ -100,6 +100,7 @@ __all__ = [
     "odometry_density",
     "odometry_forward",
     "odometry_variances",
+    "sample_controls",
     "sample_odometry",
     "sample_odometry_path",
     "sample_velocity",
@@ -676,3 +677,49 @@ def sample_odometry_path(
     for k in range(od.shape[0] - 1):
         x = sample_odometry(x, od[k], od[k + 1], alphas, n, rng, noise, scaling)
     return x
+
+
+# ----------------------------------------------------------------------------- a map's own truth
+
+
+def sample_controls(
+    model: str,
+    start: ArrayLike,
+    controls: ArrayLike,
+    dt: ArrayLike,
+    alphas: ArrayLike,
+    n: int,
+    rng: np.random.Generator,
+    noise: str = "normal",
+    scaling: str = "squared",
+) -> Array:
+    """End poses of a motion model's own sampler along velocity controls: what a map predicts.
+
+    One control: :func:`sample_velocity` / :func:`sample_odometry`; several: the
+    model's sampler applied step after step (:func:`sample_velocity_path` /
+    :func:`sample_odometry_path`), which is what a multi-step map predicts. The
+    odometry ``u`` is the noiseless velocity motion (seed 000's convention).
+
+    Parameters
+    ----------
+    model : {"velocity", "odometry"}
+    start : array_like, shape (3,); controls : array_like, shape (N, 2) — ``(V, ω)`` per step
+    dt : float or array_like, shape (N,) [s]; alphas : the model's error constants
+    n : int — number of draws; rng : numpy.random.Generator
+    noise, scaling : as the samplers
+
+    Returns
+    -------
+    ndarray, shape (n, 3)
+    """
+    check_choice("model", model, ("velocity", "odometry"))
+    u = check_finite("controls", check_last_axis("controls", controls, 2)).reshape(-1, 2)
+    if model == "velocity":
+        if u.shape[0] == 1:
+            return sample_velocity(start, u[0], float(_per_step_dt(dt, 1)[0]), alphas, n, rng,
+                                   noise=noise, scaling=scaling)  # fmt: skip
+        return sample_velocity_path(start, u, dt, alphas, n, rng, noise=noise, scaling=scaling)
+    od = noiseless_velocity_poses(start, u, dt)
+    if u.shape[0] == 1:
+        return sample_odometry(start, od[0], od[1], alphas, n, rng, noise=noise, scaling=scaling)
+    return sample_odometry_path(start, od, alphas, n, rng, noise=noise, scaling=scaling)

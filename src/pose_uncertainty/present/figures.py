@@ -28,8 +28,9 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from .. import __version__
-from ..logs.run import MapRecord, RunResult
+from ..logs.run import RunResult
 from ..methods import covariance
+from ..methods.maps import ProbabilityMap
 
 __all__ = [
     "FORMATS",
@@ -146,9 +147,11 @@ def cloud_figure(run: RunResult) -> Figure | None:
     ax.plot(
         pts[:, 0], pts[:, 1], color=_RED, lw=1.4, label=f"covariance ellipse, Pr = {_pct(cfg.pr)}"
     )
-    if cloud.shape[0] > 2:
-        mc_cov = np.cov(cloud[:, :2].T)
-        mpts = _polyline(mc_cov, cloud[:, :2].mean(axis=0), cfg.pr)
+    m = run.metrics
+    if all(k in m for k in ("MC_mean_x", "MC_mean_y", "MC_cov_xx", "MC_cov_xy", "MC_cov_yy")):
+        # the logged sample mean and covariance of the cloud
+        mc_cov = np.array([[m["MC_cov_xx"], m["MC_cov_xy"]], [m["MC_cov_xy"], m["MC_cov_yy"]]])
+        mpts = _polyline(mc_cov, np.array([m["MC_mean_x"], m["MC_mean_y"]]), cfg.pr)
         ax.plot(
             mpts[:, 0],
             mpts[:, 1],
@@ -162,15 +165,15 @@ def cloud_figure(run: RunResult) -> Figure | None:
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     cov_note = ""
-    if "mc_coverage" in run.metrics:
-        cov_note = f"; inside: {100.0 * run.metrics['mc_coverage']:.2f} %"
+    if "MC_coverage_pr" in run.metrics:
+        cov_note = f"; inside: {100.0 * run.metrics['MC_coverage_pr']:.2f} %"
     ax.set_title(f"{cfg.name}: end poses, {cfg.monte_carlo.regime}{cov_note}")
     ax.grid(True, lw=0.3, alpha=0.5)
     ax.legend(loc="best", fontsize="small")
     return fig
 
 
-def map_window(mp: MapRecord, center: tuple[float, float], hold: float = 0.99) -> float:
+def map_window(mp: ProbabilityMap, center: tuple[float, float], hold: float = 0.99) -> float:
     """Side [m] of the square map window around ``center``: 1 m (the thesis), or larger.
 
     The smallest square centred on ``center`` holding ``hold`` of the grid's
@@ -188,7 +191,7 @@ def map_window(mp: MapRecord, center: tuple[float, float], hold: float = 0.99) -
     return max(_MAP_WINDOW, 0.5 * np.ceil(2.0 * half / 0.5))
 
 
-def map_figure(run: RunResult, mp: MapRecord) -> Figure:
+def map_figure(run: RunResult, mp: ProbabilityMap) -> Figure:
     """Probability map (θ marginalised) around the noiseless end pose, darker = more probable.
 
     The window is 1 m × 1 m as in the thesis (larger when the map spreads
@@ -198,7 +201,7 @@ def map_figure(run: RunResult, mp: MapRecord) -> Figure:
     Parameters
     ----------
     run : RunResult — gives the run's name
-    mp : MapRecord — one of ``run.maps``
+    mp : ProbabilityMap — one of ``run.maps``
     """
     marg = mp.marginal_xy()  # (nx, ny) mass per cell [1]
     dx = dy = mp.resolution

@@ -15,32 +15,29 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..core.stats import COVERAGE_LEVELS
 from ..logs.runlog import open_run
+from ..logs.study import read_study
+from ..methods.covariance import ellipse_polyline
 from . import figures
 
 __all__ = [
-    "MAP_SAMPLES",
     "cloud_polar_figure",
     "expcoords_figure",
     "growth_figure",
     "map_cloud_figure",
-    "map_sampler_cloud",
     "render_expcoords_figure",
     "render_run_figure",
     "render_run_figures",
     "render_set_figure",
 ]
-
-#: Number of motion-model samples drawn to check a single-step map (Monte Carlo truth of Method B).
-MAP_SAMPLES: int = 20000
-
 
 def render_run_figure(log: str | os.PathLike[str], kind: str, out: str | os.PathLike[str]) -> Path:
     """Draw one figure of a run log and save it.
@@ -96,74 +93,27 @@ def _render(run: Any, log: str | os.PathLike[str], kind: str, out: str | os.Path
     return figures.save_figure(fig, out)
 
 
-def map_sampler_cloud(run: Any, mp: Any, n: int = MAP_SAMPLES) -> np.ndarray:
-    """End poses drawn from the motion model's own sampler along the run's controls (Method B's Monte Carlo).
-
-    One step: ``sample_velocity`` / ``sample_odometry``; several steps: the model's
-    sampler applied step after step (``sample_velocity_path`` / ``sample_odometry_path``),
-    which is what a multi-step map predicts. The odometry ``u`` is the noiseless
-    velocity motion, as in seed 000. The generator is seeded from the run's seed
-    (``default_rng([seed, 1])``), so the cloud is the same every time.
+def map_cloud_figure(run: Any, mp: Any) -> Figure:
+    """The map's own sampler's logged draws over the map's 39 / 86 / 98.89 % contours.
 
     Parameters
     ----------
-    run : RunResult
-    mp : MapRecord — one of ``run.maps``
-    n : int — number of samples
-
-    Returns
-    -------
-    ndarray, shape (n, 3)
-    """
-    from ..core import trajectories
-    from ..methods import motion_models as mm
-
-    p = mp.params
-    traj = run.config.trajectory
-    tr = trajectories.build(traj["name"], **{k: v for k, v in traj.items() if k != "name"})
-    start, controls, dt = tr.start, tr.controls, tr.dt
-    rng = np.random.default_rng([run.config.seed, 1])
-    noise = p.get("noise", "normal")
-    scaling = p.get("scaling", "squared")
-    if mp.model == "velocity":
-        if tr.n_steps == 1:
-            return mm.sample_velocity(start, controls[0], dt, p["alphas"], n, rng, noise=noise, scaling=scaling)
-        return mm.sample_velocity_path(start, controls, dt, p["alphas"], n, rng, noise=noise, scaling=scaling)
-    od = mm.noiseless_velocity_poses(start, controls, dt)
-    if tr.n_steps == 1:
-        return mm.sample_odometry(start, od[0], od[1], p["alphas"], n, rng, noise=noise, scaling=scaling)
-    return mm.sample_odometry_path(start, od, p["alphas"], n, rng, noise=noise, scaling=scaling)
-
-
-def _hdr_levels(mass: np.ndarray, prs: Sequence[float]) -> list[float]:
-    """Cell-mass thresholds of the highest-density regions holding each ``pr`` of ``mass``."""
-    order = np.sort(mass.ravel())[::-1]
-    cum = np.cumsum(order) / max(order.sum(), 1e-300)
-    return [float(order[min(int(np.searchsorted(cum, pr)), order.size - 1)]) for pr in prs]
-
-
-def map_cloud_figure(run: Any, mp: Any, n: int = MAP_SAMPLES) -> Figure:
-    """The motion model's sampled end poses over the map's 39 / 86 / 98.89 % contours.
-
-    Parameters
-    ----------
-    run : RunResult
-    mp : MapRecord
-    n : int — number of samples drawn by :func:`map_sampler_cloud`
+    run : RunResult — with ``map_samplers`` (logged with the run)
+    mp : ProbabilityMap — one of ``run.maps``
     """
     marg = mp.marginal_xy()
     end = run.poses[-1]
     fig = figures.new_figure((6.0, 6.0))
     ax = fig.add_subplot()
-    cloud = map_sampler_cloud(run, mp, n)
+    cloud = run.map_samplers.get(mp.name, np.zeros((0, 3)))
     if cloud.shape[0]:
         ax.scatter(cloud[:, 0], cloud[:, 1], s=1.0, color="0.35", alpha=0.3, linewidths=0, rasterized=True,
                    label=f"sampler end poses (n = {cloud.shape[0]})")
-    prs = (1.0 - math.exp(-0.5), 1.0 - math.exp(-2.0), 1.0 - math.exp(-4.5))
-    levels = _hdr_levels(marg, prs)
+    prs = tuple(COVERAGE_LEVELS.values())
+    levels = [mp.region_xy(pr)[0] for pr in prs]
     colors = ("tab:blue", "tab:purple", "red")
     for lvl, pr, col in sorted(zip(levels, prs, colors, strict=True)):
-        if marg.max() > lvl > 0:
+        if math.isfinite(lvl) and marg.max() > lvl > 0:
             ax.contour(mp.x, mp.y, marg.T, levels=[lvl], colors=[col], linewidths=1.0)
             ax.plot([], [], color=col, lw=1.0, label=f"map region {100 * pr:.2f} %")
     ax.plot(*end[:2], marker="+", color="red", ms=10, ls="none", label="noiseless end point")
@@ -179,43 +129,27 @@ def map_cloud_figure(run: Any, mp: Any, n: int = MAP_SAMPLES) -> Figure:
     return fig
 
 
-def _frame(theta: float) -> np.ndarray:
-    """Rows: unit vectors along and across a heading ``theta`` [rad]."""
-    c, s = math.cos(theta), math.sin(theta)
-    return np.array([[c, s], [-s, c]])
-
-
 def growth_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") -> Figure:
     """Uncertainty measures against path length, log-log, with reference slopes.
 
-    Draws, for every run of the set (sorted by path length): Method A's standard
-    deviations along and across the end heading and of θ, the semi-axes of the
-    Pr-ellipse, and the Monte Carlo sample's along/across standard deviations.
+    Draws, for every run of the set (sorted by path length), its logged measures:
+    Method A's standard deviations along and across the end heading and of θ, the
+    semi-axes of the Pr-ellipse, and the Monte Carlo sample's along/across standard
+    deviations (:mod:`pose_uncertainty.analysis.measures`).
 
     Parameters
     ----------
     logs : sequence of paths to run logs
     title : str
     """
+    measures = {"L": "path_length", "A: σ along": "A_sigma_along", "A: σ across": "A_sigma_across",
+                "A: σ_θ [rad]": "A_sigma_theta", "A: ellipse major": "A_ellipse_major",
+                "A: ellipse minor": "A_ellipse_minor", "MC: σ along": "MC_sigma_along",
+                "MC: σ across": "MC_sigma_across"}  # fmt: skip
     rows = []
     for p in logs:
-        run = open_run(p)
-        end = run.poses[-1]
-        R = _frame(float(end[2]))
-        cov = R @ run.covs[-1][:2, :2] @ R.T
-        row = {
-            "L": run.metrics.get("path_length", float("nan")),
-            "A: σ along": math.sqrt(max(cov[0, 0], 0.0)),
-            "A: σ across": math.sqrt(max(cov[1, 1], 0.0)),
-            "A: σ_θ [rad]": math.sqrt(max(run.covs[-1][2, 2], 0.0)),
-            "A: ellipse major": run.metrics.get("ellipse_major", float("nan")),
-            "A: ellipse minor": run.metrics.get("ellipse_minor", float("nan")),
-        }
-        if run.end_poses is not None and run.end_poses.shape[0] > 2:
-            d = (run.end_poses[:, :2] - run.end_poses[:, :2].mean(axis=0)) @ R.T
-            row["MC: σ along"] = float(d[:, 0].std(ddof=1))
-            row["MC: σ across"] = float(d[:, 1].std(ddof=1))
-        rows.append(row)
+        logged = open_run(p).metrics
+        rows.append({label: logged.get(key, math.nan) for label, key in measures.items()})
     rows.sort(key=lambda r: r["L"])
     L = np.array([r["L"] for r in rows])
     fig = figures.new_figure((6.4, 5.2))
@@ -271,8 +205,6 @@ def cloud_polar_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") 
         end, cov = run.poses[-1], run.covs[-1]
         cloud = run.end_poses if run.end_poses is not None else np.zeros((0, 3))
         ax.scatter(cloud[:, 0], cloud[:, 1], s=1.0, color="0.3", alpha=0.4, linewidths=0, rasterized=True)
-        from ..methods.covariance import ellipse_polyline
-
         pts = ellipse_polyline(cov[:2, :2], run.config.pr, end[:2], 200)
         ax.plot(pts[:, 0], pts[:, 1], color="red", lw=1.0)
         ax.set_aspect("equal", adjustable="datalim")
@@ -295,80 +227,45 @@ def cloud_polar_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") 
     return fig
 
 
-def expcoords_figure(
-    cases: Sequence[tuple[str, dict[str, Any]]] = (
-        ("straight 5 m", {"name": "straight", "length": 5.0}),
-        ("circle r = 1 m, 1 lap", {"name": "circle", "radius": 1.0, "laps": 1}),
-    ),
-    k: float = 5e-4,
-    track: float = 0.2,
-    dt: float = 0.01,
-    pr: float = 1.0 - math.exp(-4.5),
-    n: int = 5000,
-    seed: int = 6,
-) -> Figure:
-    """Monte Carlo end poses of long paths with both Gaussian methods' Pr regions drawn over them.
+def expcoords_figure(data: Mapping[str, Any]) -> Figure:
+    """Monte Carlo end positions of long paths with both Gaussian methods' Pr regions over them.
 
-    One panel per case: ``n`` per-step Monte Carlo end positions (midpoint
-    integration, ``k_r = k_l = k`` [m]), Method A's Pr-ellipse (red) and the
-    boundary of the exponential-coordinates Gaussian's planar Pr highest-density
-    region (blue, :func:`pose_uncertainty.methods.expcoords.pr_region_xy`); equal aspect,
-    metres. The legend gives the share of the cloud inside each region.
-
-    Parameters
-    ----------
-    cases : sequence of (label, trajectory parameters for :func:`trajectories.build`)
-    k : float — wheel-noise constant [m]; track : float [m]; dt : float [s]
-    pr : float in (0, 1) — region probability (default 98.89 %, radius 3)
-    n : int — Monte Carlo runs per case; seed : int
+    Draws the logged results of the ``expcoords_regions`` study
+    (:func:`pose_uncertainty.analysis.studies.expcoords_regions`), one panel per
+    case: the cloud, Method A's Pr-ellipse (red), the boundary of the
+    exponential-coordinates Gaussian's planar Pr highest-density region (blue) and
+    the nominal path; the legend gives the logged share of the cloud inside each.
     """
-    from matplotlib.path import Path as MplPath
-
-    from ..core import trajectories as tr
-    from ..methods import covariance as cv
-    from ..methods import expcoords as ec
-    from ..methods.sampling import sample_end_poses
-
+    cases = data["cases"]
+    pr, n = float(data["pr"]), int(data["n"])
     fig = figures.new_figure((5.2 * len(cases), 5.0))
-    for j, (label, params) in enumerate(cases):
-        p = dict(params)
-        t = tr.build(p.pop("name"), dt=dt, track=track, **p)
-        rng = np.random.default_rng([seed, j])
-        cloud = sample_end_poses(t, k, k, n, rng)
-        A = cv.propagate(t, k, k)
-        E = ec.propagate(t, k, k)
-        end, cov = A.poses[-1], A.covs[-1]
-        ell = cv.ellipse_polyline(cov[:2, :2], pr, end[:2], 400)
-        banana = ec.pr_region_xy(E.poses[-1], E.covs[-1], pr, rng, n_grid=240, n=50_000)
-        d = cloud[:, :2] - end[:2]
-        m2 = np.einsum("ni,ij,nj->n", d, np.linalg.inv(cov[:2, :2]), d)
-        in_ell = float(np.mean(m2 <= cv.pr_to_k(pr)))
-        in_ban = np.zeros(n, dtype=bool)
-        for poly in banana:
-            in_ban ^= MplPath(poly).contains_points(cloud[:, :2])
+    for j, case in enumerate(cases):
+        cloud, path = np.asarray(case["cloud_xy"]), np.asarray(case["path_xy"])
+        ell, end = np.asarray(case["ellipse_xy"]), case["end"]
         ax = fig.add_subplot(1, len(cases), j + 1)
         ax.scatter(cloud[:, 0], cloud[:, 1], s=1.0, color="0.3", alpha=0.35, linewidths=0,
-                   rasterized=True, label=f"Monte Carlo, {n} runs")
+                   rasterized=True, label=f"Monte Carlo, {n} runs")  # fmt: skip
         ax.plot(ell[:, 0], ell[:, 1], color="tab:red", lw=1.2,
-                label=f"Method A ellipse {100 * pr:.2f} % (holds {100 * in_ell:.1f} %)")
-        for i, poly in enumerate(banana):
+                label=f"Method A ellipse {100 * pr:.2f} % (holds {100 * case['inside_ellipse']:.1f} %)")
+        for i, poly in enumerate(case["banana_xy"]):
+            poly = np.asarray(poly)
             ax.plot(poly[:, 0], poly[:, 1], color="tab:blue", lw=1.2,
-                    label=f"exp. coords {100 * pr:.2f} % (holds {100 * float(in_ban.mean()):.1f} %)"
-                    if i == 0 else None)
-        ax.plot(t.poses[:, 0], t.poses[:, 1], color="k", lw=0.6, ls="--", label="noiseless path")
+                    label=f"exp. coords {100 * pr:.2f} % (holds {100 * case['inside_banana']:.1f} %)"
+                    if i == 0 else None)  # fmt: skip
+        ax.plot(path[:, 0], path[:, 1], color="k", lw=0.6, ls="--", label="noiseless path")
         ax.plot([end[0]], [end[1]], marker="+", color="k", ms=8)
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
-        ax.set_title(f"{label}, k = {k:g} m, b = {track:g} m", fontsize="small")
+        ax.set_title(f"{case['label']}, k = {data['k']:g} m, b = {data['track']:g} m", fontsize="small")
         ax.grid(True, lw=0.3, alpha=0.5)
         ax.legend(fontsize="x-small", loc="lower left")
     return fig
 
 
-def render_expcoords_figure(out: str | os.PathLike[str], **kwargs: Any) -> Path:
-    """Draw :func:`expcoords_figure` (keyword arguments passed on) and save it (deterministic bytes)."""
-    fig = expcoords_figure(**kwargs)
+def render_expcoords_figure(study_log: str | os.PathLike[str], out: str | os.PathLike[str]) -> Path:
+    """Draw :func:`expcoords_figure` from an ``expcoords_regions`` study log and save it."""
+    fig = expcoords_figure(read_study(study_log)["results"])
     Path(out).parent.mkdir(parents=True, exist_ok=True)
     return figures.save_figure(fig, out)
 

@@ -1,4 +1,4 @@
-"""Adapter: Monte Carlo clouds with the ellipse and the banana (pose_uncertainty.present.pipeline_figures)."""
+"""Adapter: draw a study's figure from its log (pose_uncertainty.present.pipeline_figures)."""
 
 from contextlib import redirect_stderr
 
@@ -6,4 +6,4 @@ from pose_uncertainty.present.pipeline_figures import render_expcoords_figure
 
 sm = snakemake  # noqa: F821 - injected by Snakemake
 with open(sm.log[0], "w", encoding="utf-8") as log, redirect_stderr(log):
-    render_expcoords_figure(sm.output[0])
+    render_expcoords_figure(sm.input.log, sm.output[0])

@@ -1,0 +1,50 @@
+# The studies (seed 001's, the growth laws, the accuracy cases, ...): one job and one log each,
+# with their parameters from config key `studies.runs`; collected for the report.
+
+
+rule run_study:
+    output:
+        "data/studies/{study}.json",
+    params:
+        spec=study_config,
+        source=SOURCE_RUNS,
+    log:
+        "logs/run_study/{study}.log",
+    benchmark:
+        "data/benchmarks/run_study/{study}.tsv"
+    script:
+        "../scripts/run_study.py"
+
+
+rule collect_studies:
+    input:
+        logs=study_logs,
+    output:
+        "reports/studies.json",
+    params:
+        source=SOURCE_RUNS,
+    log:
+        "logs/collect_studies.log",
+    script:
+        "../scripts/collect_studies.py"
+
+
+rule render_study_figure:
+    input:
+        log="data/studies/{study}.json",
+    output:
+        report(
+            "reports/figures/studies/{study}.png",
+            caption="../report/expcoords.rst",
+            category="studies",
+            subcategory="exponential coordinates",
+            labels={"figure": "Method A ellipse vs exp.-coordinates banana"},
+        ),
+    params:
+        source=SOURCE_PRESENT,
+    log:
+        "logs/render_study_figure/{study}.log",
+    benchmark:
+        "data/benchmarks/render_study_figure/{study}.tsv"
+    script:
+        "../scripts/render_study_figure.py"

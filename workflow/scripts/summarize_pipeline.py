@@ -1,0 +1,14 @@
+"""Adapter: provenance from every log, seeds and rule times (pose_uncertainty.logs.summary)."""
+
+from contextlib import redirect_stderr
+
+from pose_uncertainty.logs.summary import summarize_pipeline
+
+sm = snakemake  # noqa: F821 - injected by Snakemake
+with open(sm.log[0], "w", encoding="utf-8") as log, redirect_stderr(log):
+    summarize_pipeline(
+        dict(zip(sm.params.sets, sm.input.tables, strict=True)),
+        list(sm.input.studies),
+        list(sm.input.benchmarks),
+        sm.output[0],
+    )
