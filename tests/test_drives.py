@@ -84,7 +84,9 @@ def test_ackermann_mid_axle_model_equals_the_bicycle_model(rng):
     assert_allclose(ack.twist(u), dr.Tricycle(0.3).twist(ack.mid_axle(u)), rtol=1e-14, atol=1e-16)
     # and the inverses agree: the mid-axle (ΔS, ω) of the Ackermann inverse is the bicycle's
     xi = dr.Tricycle(0.3).twist(_random_u(dr.Tricycle(0.3), rng, (50,)))
-    assert_allclose(ack.mid_axle(ack.measurements(xi)), dr.Tricycle(0.3).measurements(xi), atol=1e-15)
+    assert_allclose(
+        ack.mid_axle(ack.measurements(xi)), dr.Tricycle(0.3).measurements(xi), atol=1e-15
+    )
 
 
 def test_ackermann_condition_and_rolling_front_wheels(rng):
@@ -98,7 +100,8 @@ def test_ackermann_condition_and_rolling_front_wheels(rng):
     # the inner wheel turns more than the outer one
     inner = np.where(omega > 0, om_l, om_r)
     outer = np.where(omega > 0, om_r, om_l)
-    assert np.all(np.abs(inner) > np.abs(omega)) and np.all(np.abs(outer) < np.abs(omega))
+    assert np.all(np.abs(inner) > np.abs(omega))
+    assert np.all(np.abs(outer) < np.abs(omega))
     # independent route: rigid-body velocity v + Ω × r of each front wheel is along its angle
     # and as long as its measured travel
     dS = rng.uniform(0.01, 0.1, 40)
@@ -120,7 +123,9 @@ def test_omni_forward_and_inverse_are_inverses(rng):
     sa, sb, sc = u.T
     assert_allclose(
         omni.twist(u),
-        np.stack([(sb - sc) / math.sqrt(3), (sb + sc - 2 * sa) / 3, -(sa + sb + sc) / (3 * 0.15)], -1),
+        np.stack(
+            [(sb - sc) / math.sqrt(3), (sb + sc - 2 * sa) / 3, -(sa + sb + sc) / (3 * 0.15)], -1
+        ),
         rtol=1e-14,
     )
     # independent route: each wheel at angle α drives along the clockwise tangent (sin α, −cos α);
@@ -128,7 +133,9 @@ def test_omni_forward_and_inverse_are_inverses(rng):
     for j, alpha in enumerate(np.radians([0.0, 120.0, 240.0])):
         r = 0.15 * np.array([math.cos(alpha), math.sin(alpha)])
         vx, vy = xi[:, 0] - xi[:, 2] * r[1], xi[:, 1] + xi[:, 2] * r[0]
-        assert_allclose(omni.measurements(xi)[:, j], vx * math.sin(alpha) - vy * math.cos(alpha), atol=1e-14)
+        assert_allclose(
+            omni.measurements(xi)[:, j], vx * math.sin(alpha) - vy * math.cos(alpha), atol=1e-14
+        )
 
 
 def test_synchro_drive_never_changes_heading(rng):
@@ -148,7 +155,9 @@ def test_holonomic_drives_move_sideways(drive):
     assert_allclose(path[-1], [0.0, 1.0, 0.0], atol=1e-14)
 
 
-@pytest.mark.parametrize("drive", [d for d in ALL_DRIVES if d.kind not in ("omni3", "mdof", "synchro")], ids=str)
+@pytest.mark.parametrize(
+    "drive", [d for d in ALL_DRIVES if d.kind not in ("omni3", "mdof", "synchro")], ids=str
+)
 def test_car_like_drives_refuse_sideways_motion(drive):
     with pytest.raises(ValueError, match=r"cannot move sideways|slides sideways") as e:
         drive.measurements([[0.0, 0.01, 0.0]])
@@ -194,7 +203,9 @@ def test_skid_steer_icr_jacobian_equals_finite_differences(rng):
     sk = dr.SkidSteer(0.2, chi=1.4, x_icr=0.03)
     u = rng.normal(scale=0.1, size=(10, 2))
     G = sk.icr_jacobian(u)
-    num = _numeric_jacobian(lambda q: sk.twist_icr(u, q[..., 0], q[..., 1]), np.tile([1.4, 0.03], (10, 1)))
+    num = _numeric_jacobian(
+        lambda q: sk.twist_icr(u, q[..., 0], q[..., 1]), np.tile([1.4, 0.03], (10, 1))
+    )
     assert_allclose(G, num, atol=1e-8)
     # slip does nothing on a straight
     assert_array_equal(sk.icr_jacobian([[0.1, 0.1]]), 0.0)
@@ -210,7 +221,10 @@ def test_twist_integration_without_lateral_motion_is_todays(method, rng):
     b = kin.integrate_twist(np.stack([ds, np.zeros_like(ds), dth], -1), (0.3, -0.2, 1.0), method)
     assert_array_equal(a, b)
     p = rng.normal(size=(3, 3))
-    assert_array_equal(kin.step(p, ds[:, 0], dth[:, 0], method), kin.step_twist(p, np.stack([ds[:, 0], 0 * ds[:, 0], dth[:, 0]], -1), method))
+    assert_array_equal(
+        kin.step(p, ds[:, 0], dth[:, 0], method),
+        kin.step_twist(p, np.stack([ds[:, 0], 0 * ds[:, 0], dth[:, 0]], -1), method),
+    )
 
 
 def test_exact_twist_step_is_the_se2_exponential(rng):
@@ -280,20 +294,35 @@ def test_drive_path_by_name_and_make_drive():
 @pytest.mark.parametrize(
     ("make", "match"),
     [
-        (lambda: dr.Tricycle(wheelbase=0.0), r"wheelbase must be > 0 \(allowed: \(0, inf\)\), got 0.0"),
+        (
+            lambda: dr.Tricycle(wheelbase=0.0),
+            r"wheelbase must be > 0 \(allowed: \(0, inf\)\), got 0.0",
+        ),
         (lambda: dr.Ackermann(wheelbase=0.0), r"wheelbase must be > 0"),
         (lambda: dr.TwoAxleSteering(wheelbase=-1.0), r"wheelbase must be > 0"),
-        (lambda: dr.Tricycle(max_steering=math.radians(91)), r"max_steering must be in \(0, π/2\] rad .*got 1.58"),
+        (
+            lambda: dr.Tricycle(max_steering=math.radians(91)),
+            r"max_steering must be in \(0, π/2\] rad .*got 1.58",
+        ),
         (lambda: dr.Ackermann(max_steering=-0.1), r"max_steering must be in \(0, π/2\]"),
-        (lambda: dr.Ackermann(0.1, 0.5, max_steering=1.4), r"inner wheel beyond 90° \(allowed: tan\(max_steering\)"),
+        (
+            lambda: dr.Ackermann(0.1, 0.5, max_steering=1.4),
+            r"inner wheel beyond 90° \(allowed: tan\(max_steering\)",
+        ),
         (lambda: dr.Omni3(radius=-0.1), r"radius must be > 0 \(allowed: \(0, inf\)\), got -0.1"),
         (lambda: dr.Differential(track=0.0), r"track must be > 0"),
         (lambda: dr.SkidSteer(chi=0.0), r"chi must be > 0"),
         (lambda: dr.MultiDof(wheels=((0.1, 0.1), (0.1, 0.1))), r"at least two distinct positions"),
         (lambda: dr.MultiDof(wheels=((0.1, 0.1),)), r"n >= 2 positions"),
         (lambda: dr.make_drive("hovercraft"), r"drive must be one of"),
-        (lambda: dr.make_drive("omni3", wheelbase=0.3), r"drive 'omni3' has no geometry key 'wheelbase' \(allowed: radius\)"),
-        (lambda: dr.DrivePath(dr.Tricycle(), [[0.1, 1.2]], 0.01), r"needs steering angle 68.75\d*° beyond max_steering=60°"),
+        (
+            lambda: dr.make_drive("omni3", wheelbase=0.3),
+            r"drive 'omni3' has no geometry key 'wheelbase' \(allowed: radius\)",
+        ),
+        (
+            lambda: dr.DrivePath(dr.Tricycle(), [[0.1, 1.2]], 0.01),
+            r"needs steering angle 68.75\d*° beyond max_steering=60°",
+        ),
     ],
 )
 def test_bad_geometry_gives_a_one_line_error(make, match):

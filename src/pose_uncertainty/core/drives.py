@@ -210,7 +210,9 @@ class Drive(ABC):
         Raises ValueError naming the first step the drive cannot make.
         """
 
-    def step(self, pose: ArrayLike, u: ArrayLike, method: Method = "midpoint") -> NDArray[np.float64]:
+    def step(
+        self, pose: ArrayLike, u: ArrayLike, method: Method = "midpoint"
+    ) -> NDArray[np.float64]:
         """One step ``p' = f(p, ξ(u))`` (:func:`~pose_uncertainty.core.kinematics.step_twist`)."""
         return step_twist(pose, self.twist(u), method)
 
@@ -392,7 +394,9 @@ class Tricycle(Drive):
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "wheelbase", float(check_positive("wheelbase", self.wheelbase)))
-        object.__setattr__(self, "max_steering", _check_steering_limit("max_steering", self.max_steering))
+        object.__setattr__(
+            self, "max_steering", _check_steering_limit("max_steering", self.max_steering)
+        )
 
     @property
     def channels(self) -> tuple[str, ...]:
@@ -844,4 +848,3 @@ def drive_path(drive: Drive, path: str, **params: Any) -> DrivePath:
     """:func:`follow` a path built by name (``trajectories.BUILDERS``) with keyword parameters."""
     check_choice("path", path, tuple(BUILDERS))
     return follow(drive, build(path, **params))
-
