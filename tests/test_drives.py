@@ -320,8 +320,8 @@ def test_drive_path_by_name_and_make_drive():
             r"drive 'omni3' has no geometry key 'wheelbase' \(allowed: radius\)",
         ),
         (
-            lambda: dr.DrivePath(dr.Tricycle(), [[0.1, 1.2]], 0.01),
-            r"needs steering angle 68.75\d*° beyond max_steering=60°",
+            lambda: dr.DrivePath(dr.Tricycle(), [[0.1, 0.2], [0.1, -1.2]], 0.01),
+            r"cannot make step 1, it needs steering angle -68.75\d*° beyond max_steering=60°",
         ),
     ],
 )
@@ -329,3 +329,8 @@ def test_bad_geometry_gives_a_one_line_error(make, match):
     with pytest.raises(ValueError, match=match) as e:
         make()
     assert "\n" not in str(e.value)
+
+
+def test_a_drive_without_steering_limit_takes_any_angle():
+    p = dr.DrivePath(dr.MultiDof(((0.1, 0.0), (-0.1, 0.0))), [[0.1, 0.1, 2.0, 2.0]], 0.01)
+    assert_allclose(p.twists[0], [0.1 * math.cos(2.0), 0.1 * math.sin(2.0), 0.0], atol=1e-16)

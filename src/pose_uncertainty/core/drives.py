@@ -82,7 +82,11 @@ tangent ``(sin α, −cos α)``; its contact point moves with ``v + Ω × r``::
     s_i = sin α_i v₁ − cos α_i v₂ − R Δθ
     v₁ = (s_b − s_c)/√3,  v₂ = (s_b + s_c − 2 s_a)/3,  Δθ = −(s_a + s_b + s_c)/(3R)
 
-(the thesis's equations, correct).
+(the thesis's equations, correct). The thesis then moves the robot by
+``s₀ = |(v₁, v₂)|`` in the direction ``θ + atan2(v₂, v₁)``: that is the Euler
+step. With constant wheel speeds the robot turns while it moves, and the exact
+step (the SE(2) exponential) goes ``s₀·sin(Δθ/2)/(Δθ/2)`` in the direction
+``θ + Δθ/2 + atan2(v₂, v₁)`` (``exact`` integration here).
 
 Paths
 -----
@@ -776,8 +780,9 @@ class DrivePath:
             )
         limit = self.drive.steering_limit
         angles = u[:, [k == "angle" for k in self.drive.kinds]]
-        if limit is not None and np.any(np.abs(angles) > limit * (1.0 + _TOL)):
-            self.drive._check_steering(angles)
+        if limit is not None and angles.size:
+            # per step, the angle of largest magnitude, so that the error names the step
+            self.drive._check_steering(angles[np.arange(len(u)), np.abs(angles).argmax(axis=-1)])
         start = check_finite("start", check_last_axis("start", self.start, 3))
         if start.shape != (3,):
             raise ValueError(f"start must have shape (3,), got shape {start.shape}")
