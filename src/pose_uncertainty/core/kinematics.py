@@ -1,5 +1,10 @@
 """Differential-drive kinematics (SPEC §1.1–1.2), batched over leading dimensions.
 
+Holonomic drives also move sideways: :func:`step_twist` and :func:`integrate_twist`
+take a body-frame twist increment ``(v₁, v₂, Δθ)`` per step (forward, left,
+turn) with the same four integration methods; ``v₂ = 0`` gives the numbers of
+:func:`step` and :func:`integrate` bit for bit.
+
 Conventions: SI units; a pose is ``(x, y, θ)`` with θ counter-clockwise from
 the x axis; headings along a path are kept *unwrapped* (cumulative), only
 differences of angles are wrapped to (−π, π].
@@ -20,8 +25,10 @@ __all__ = [
     "METHODS",
     "body_to_wheel",
     "integrate",
+    "integrate_twist",
     "inverse_arc",
     "step",
+    "step_twist",
     "wheel_to_body",
     "wrap_angle",
 ]
@@ -195,3 +202,87 @@ def inverse_arc(
     V = length / tt
     omega = 2.0 * half / tt
     return V + omega * b / 2.0, V - omega * b / 2.0
+
+
+# --- body-frame twists (forward, left, turn): holonomic drives move sideways ---------------
+
+#: heading offset c of each method within the step: the step translation is applied at θ + c·Δθ
+HEADING_OFFSET: dict[str, float] = {"exact": 0.5, "midpoint": 0.5, "euler": 0.0, "euler_end": 1.0}
+
+
+def _translation_twist(
+    theta: NDArray[np.float64],
+    v1: NDArray[np.float64],
+    v2: NDArray[np.float64],
+    dtheta: NDArray[np.float64],
+    method: str,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Per-step (Δx, Δy) of the body twist (v₁, v₂, Δθ) from the heading θ at the start of the step.
+
+    ``(Δx, Δy) = s(Δθ) R(θ + cΔθ) (v₁, v₂)`` with ``c`` from :data:`HEADING_OFFSET` and
+    ``s = sin(Δθ/2)/(Δθ/2)`` for ``exact`` (then the step is the SE(2) exponential
+    ``exp(v₁, v₂, Δθ)``, continuous through Δθ = 0), ``s = 1`` otherwise.
+    """
+    phi = theta + HEADING_OFFSET[method] * dtheta
+    if method == "exact":
+        scale = _sinc_half(dtheta)
+        a, b = v1 * scale, v2 * scale
+    else:
+        a, b = v1, v2
+    c, s = np.cos(phi), np.sin(phi)
+    return a * c - b * s, a * s + b * c
+
+
+def step_twist(pose: ArrayLike, twist: ArrayLike, method: Method = "midpoint") -> NDArray[np.float64]:
+    """One step ``p' = f(p, ξ)`` by a body-frame twist increment ``ξ = (v₁, v₂, Δθ)``.
+
+    Parameters
+    ----------
+    pose : array_like, shape (..., 3) — ``(x, y, θ)`` [m, m, rad]
+    twist : array_like, shape (..., 3) — travel forward and to the left in the body
+        frame at the start of the step and change of heading [m, m, rad]
+    method : {"exact", "euler", "euler_end", "midpoint"} — as :func:`step`
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+    """
+    check_choice("method", method, METHODS)
+    p = check_last_axis("pose", pose, 3)
+    xi = check_finite("twist", check_last_axis("twist", twist, 3))
+    dx, dy = _translation_twist(p[..., 2], xi[..., 0], xi[..., 1], xi[..., 2], method)
+    return np.stack([p[..., 0] + dx, p[..., 1] + dy, p[..., 2] + xi[..., 2]], axis=-1)
+
+
+def integrate_twist(
+    twists: ArrayLike, start: ArrayLike = (0.0, 0.0, 0.0), method: Method = "exact"
+) -> NDArray[np.float64]:
+    """Integrate per-step body twists into a path, vectorised with cumulative sums.
+
+    Parameters
+    ----------
+    twists : array_like, shape (..., N, 3) — per-step ``(v₁, v₂, Δθ)`` [m, m, rad]
+    start : array_like, shape (..., 3) — start pose, broadcast against the batch
+    method : {"exact", "euler", "euler_end", "midpoint"} — see :func:`step`
+
+    Returns
+    -------
+    poses : ndarray, shape (..., N+1, 3) — start pose and the pose after each step
+        (heading unwrapped); with ``v₂ = 0`` equal to :func:`integrate` of ``(v₁, Δθ)``.
+    """
+    check_choice("method", method, METHODS)
+    xi = check_finite("twists", check_last_axis("twists", twists, 3))
+    if xi.ndim < 2:
+        raise ValueError(f"twists must have shape (..., N, 3), got shape {xi.shape}")
+    p0 = check_last_axis("start", start, 3)
+    theta0 = p0[..., 2, None]
+    dth = xi[..., 2]
+    cum = np.cumsum(dth, axis=-1)
+    theta_before = theta0 + np.concatenate([np.zeros_like(cum[..., :1]), cum[..., :-1]], axis=-1)
+    dx, dy = _translation_twist(theta_before, xi[..., 0], xi[..., 1], dth, method)
+    zero = np.zeros((*dth.shape[:-1], 1))
+    x = p0[..., 0, None] + np.concatenate([zero, np.cumsum(dx, axis=-1)], axis=-1)
+    y = p0[..., 1, None] + np.concatenate([zero, np.cumsum(dy, axis=-1)], axis=-1)
+    th = theta0 + np.concatenate([zero, cum], axis=-1)
+    x, y, th = np.broadcast_arrays(x, y, th)
+    return np.stack([x, y, th], axis=-1)

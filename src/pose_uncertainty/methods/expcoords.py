@@ -67,6 +67,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..core.kinematics import integrate_twist
 from ..core.trajectories import Trajectory
 from ..core.validation import (
     check_finite,
@@ -92,6 +93,7 @@ __all__ = [
     "pr_region_xy",
     "propagate",
     "propagate_recursive",
+    "propagate_twists",
     "right_jacobian",
     "sample",
     "to_cartesian_cov",
@@ -358,6 +360,63 @@ def propagate(
     covs = 0.5 * (covs + np.swapaxes(covs, -1, -2))
     poses = np.broadcast_to(mu, covs.shape[:-3] + mu.shape).copy()
     return ExpGaussian(poses=poses, covs=covs, times=trajectory.times)
+
+
+def propagate_twists(
+    twists: ArrayLike,
+    twist_covs: ArrayLike,
+    *,
+    start: ArrayLike = (0.0, 0.0, 0.0),
+    cov0: ArrayLike | None = None,
+    times: ArrayLike | None = None,
+) -> ExpGaussian:
+    """The exponential-coordinates Gaussian of any drive: steps ``exp(δ_i + n_i)``, ``n_i ~ N(0, Q_ξ,i)``.
+
+    The body-twist-noise form of :func:`propagate`: step ``i`` is the twist
+    ``δ_i = (v₁, v₂, Δθ)`` of the drive's mean measurements and ``n_i`` its twist
+    noise (for a drive, ``Q_ξ = (∂ξ/∂u) Σ_u (∂ξ/∂u)ᵀ`` plus any noise acting on
+    the twist directly). As in the module docstring, with
+    ``Q_i = J_r(δ_i) Q_ξ,i J_r(δ_i)ᵀ``::
+
+        Σ_n = Ad_{μ_n}⁻¹ [Ad_{μ_0} Σ_0 Ad_{μ_0}ᵀ + Σ_{i<n} Ad_{μ_{i+1}} Q_i Ad_{μ_{i+1}}ᵀ] Ad_{μ_n}⁻ᵀ
+
+    For the differential drive ``Q_ξ = M Σ_Δ Mᵀ`` gives :func:`propagate`.
+
+    Parameters
+    ----------
+    twists : array_like, shape (N, 3) — mean per-step body twists [m, m, rad]
+    twist_covs : array_like, shape (B..., N, 3, 3) — covariance of the twist noise per step
+    start : array_like, shape (3,) — start pose μ_0
+    cov0 : array_like, shape (B..., 3, 3), optional — Σ_0 (default 0)
+    times : array_like, shape (N+1,), optional — [s] (default the step index)
+
+    Returns
+    -------
+    ExpGaussian with poses (B..., N+1, 3) (exact steps) and covs (B..., N+1, 3, 3)
+    """
+    xi = check_last_axis("twists", twists, 3)
+    Qxi = check_finite("twist_covs", twist_covs)
+    if xi.ndim != 2 or Qxi.shape[-3:] != (xi.shape[0], 3, 3):
+        raise ValueError(
+            f"twists must have shape (N, 3) and twist_covs (..., N, 3, 3), got {xi.shape} and {Qxi.shape}"
+        )
+    S0 = _check_cov0(cov0)
+    mu = integrate_twist(xi, start, "exact")
+    Jr = right_jacobian(xi)
+    Ad_next = adjoint(mu[1:])
+    U = Ad_next @ Jr  # (N, 3, 3): Ad_{μ_{i+1}} J_r(δ_i)
+    terms = U @ Qxi @ np.swapaxes(U, -1, -2)  # (B..., N, 3, 3)
+    P = np.zeros((*terms.shape[:-3], xi.shape[0] + 1, 3, 3))
+    np.cumsum(terms, axis=-3, out=P[..., 1:, :, :])
+    Ad_inv = _adjoint_inv(mu)
+    covs = Ad_inv @ P @ np.swapaxes(Ad_inv, -1, -2)
+    if np.any(S0):
+        T = Ad_inv @ adjoint(mu[0])
+        covs = covs + T @ S0[..., None, :, :] @ np.swapaxes(T, -1, -2)
+    covs = 0.5 * (covs + np.swapaxes(covs, -1, -2))
+    t = np.arange(xi.shape[0] + 1, dtype=np.float64) if times is None else check_finite("times", times)
+    poses = np.broadcast_to(mu, covs.shape[:-3] + mu.shape).copy()
+    return ExpGaussian(poses=poses, covs=covs, times=t)
 
 
 def propagate_recursive(

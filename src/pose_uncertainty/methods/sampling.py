@@ -35,7 +35,7 @@ from ..core.kinematics import METHODS, _translation
 from ..core.trajectories import Trajectory
 from ..core.validation import check_choice, check_finite, check_nonnegative, check_positive_int
 
-__all__ = ["REGIMES", "integrate_end", "sample_end_poses"]
+__all__ = ["REGIMES", "chunk_streams", "integrate_end", "sample_end_poses", "start_factor"]
 
 REGIMES: tuple[str, ...] = ("per_step", "per_run")
 
@@ -159,6 +159,49 @@ def _default_workers() -> int:
     return max(1, min(8, os.cpu_count() or 1))
 
 
+def start_factor(cov0: ArrayLike | None) -> NDArray[np.float64] | None:
+    """``A`` with ``A Aᵀ = Σ_0`` for a start-pose covariance (3, 3), singular allowed; None for None.
+
+    From the eigen-decomposition ``Σ_0 = V diag(w) Vᵀ``: ``A = V diag(√w)``. A
+    particle's start offset is ``A z``, ``z ~ N(0, I)``.
+    """
+    if cov0 is None:
+        return None
+    S0 = check_finite("cov0", cov0)
+    if S0.shape != (3, 3) or not np.allclose(S0, S0.T):
+        raise ValueError(f"cov0 must be a symmetric 3x3 matrix, got shape {S0.shape}")
+    w, V = np.linalg.eigh(S0)
+    if w.min() < -1e-12 * max(1.0, float(np.abs(S0).max())):
+        raise ValueError(
+            f"cov0 must be positive semi-definite (allowed: eigenvalues >= 0), got {w.tolist()}"
+        )
+    return V * np.sqrt(np.maximum(w, 0.0))  # A with A Aᵀ = Σ_0 (singular allowed)
+
+
+def chunk_streams(
+    rng: np.random.Generator, n: int, n_steps: int
+) -> tuple[int, list[int], list[np.random.Generator]]:
+    """Chunks of particles and one random stream per chunk.
+
+    The chunk size is a function of the number of steps only; one SFC64 stream
+    per chunk (the fastest of numpy's bit generators here) is spawned from the
+    caller's generator, so the draws are fixed by the seed and independent of
+    the number of threads.
+
+    Returns
+    -------
+    chunk : int — particles per chunk; starts : list of int — first particle of
+    each chunk; children : list of numpy.random.Generator — one per chunk
+    """
+    chunk = max(1, _CHUNK_ELEMENTS // n_steps)
+    starts = list(range(0, n, chunk))
+    seq = rng.bit_generator.seed_seq
+    if not isinstance(seq, np.random.SeedSequence):
+        raise TypeError("rng must be seeded from a SeedSequence (e.g. numpy.random.default_rng(seed))")
+    children = [np.random.Generator(np.random.SFC64(s)) for s in seq.spawn(len(starts))]
+    return chunk, starts, children
+
+
 def sample_end_poses(
     trajectory: Trajectory,
     k_r: float,
@@ -209,19 +252,9 @@ def sample_end_poses(
         cps = [int(c) for c in checkpoints]
         if not cps or min(cps) < 0 or max(cps) > N:
             raise ValueError(f"checkpoints must be step indices in [0, {N}], got {list(checkpoints)}")
-    start_sqrt = None
-    if cov0 is not None:
-        S0 = check_finite("cov0", cov0)
-        if S0.shape != (3, 3) or not np.allclose(S0, S0.T):
-            raise ValueError(f"cov0 must be a symmetric 3x3 matrix, got shape {S0.shape}")
-        w, V = np.linalg.eigh(S0)
-        if w.min() < -1e-12 * max(1.0, float(np.abs(S0).max())):
-            raise ValueError(
-                f"cov0 must be positive semi-definite (allowed: eigenvalues >= 0), got {w.tolist()}"
-            )
-        start_sqrt = V * np.sqrt(np.maximum(w, 0.0))  # A with A Aᵀ = Σ_0 (singular allowed)
+    start_sqrt = start_factor(cov0)
     ds_r, ds_l = trajectory.ds_r, trajectory.ds_l
-    chunk = max(1, _CHUNK_ELEMENTS // N)
+    chunk, starts, children = chunk_streams(rng, n, N)
     n_out = 1 if checkpoints is None else len(checkpoints)
     out = np.empty((n, n_out, 3))
     if regime == "per_step":
@@ -234,13 +267,6 @@ def sample_end_poses(
         eps_std_r = np.sqrt(kr / L_r) if L_r > 0 else 0.0
         eps_std_l = np.sqrt(kl / L_l) if L_l > 0 else 0.0
     start = np.asarray(trajectory.start, dtype=np.float64)
-    starts = list(range(0, n, chunk))
-    # one SFC64 stream per chunk (the fastest of numpy's bit generators here), spawned from
-    # the caller's generator: fixed by the seed, independent of the number of threads
-    seq = rng.bit_generator.seed_seq
-    if not isinstance(seq, np.random.SeedSequence):
-        raise TypeError("rng must be seeded from a SeedSequence (e.g. numpy.random.default_rng(seed))")
-    children = [np.random.Generator(np.random.SFC64(s)) for s in seq.spawn(len(starts))]
 
     def run_chunk(j: int) -> None:
         lo = starts[j]
