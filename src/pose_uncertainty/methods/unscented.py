@@ -169,11 +169,13 @@ def sigma_points(mean: ArrayLike, L: ArrayLike, lam: float) -> NDArray[np.float6
     ndarray, shape (..., 2n+1, n)
     """
     m = np.asarray(mean, dtype=np.float64)
-    S = np.sqrt(m.shape[-1] + lam) * np.swapaxes(np.asarray(L, dtype=np.float64), -1, -2)
-    batch = np.broadcast_shapes(m.shape[:-1], S.shape[:-2])
-    m = np.broadcast_to(m[..., None, :], (*batch, 1, m.shape[-1]))
-    S = np.broadcast_to(S, (*batch, *S.shape[-2:]))
-    return np.concatenate([m, m + S, m - S], axis=-2)
+    n = m.shape[-1]
+    S = np.sqrt(n + lam) * np.swapaxes(np.asarray(L, dtype=np.float64), -1, -2)  # rows = columns of L
+    out = np.empty((*np.broadcast_shapes(m.shape[:-1], S.shape[:-2]), 2 * n + 1, n))
+    out[..., 0, :] = m
+    np.add(m[..., None, :], S, out=out[..., 1 : n + 1, :])
+    np.subtract(m[..., None, :], S, out=out[..., n + 1 :, :])
+    return out
 
 
 def _augmented_sqrt(L_p: NDArray, var_r: NDArray, var_l: NDArray) -> NDArray:
@@ -205,7 +207,7 @@ def _cartesian_recombine(points: NDArray, w: SigmaWeights) -> tuple[NDArray, NDA
     d = points - mean[..., None, :]
     d[..., 2] = wrap_angle(d[..., 2])  # heading residuals wrapped
     # Σ' = Σ_i W_iᶜ d_i d_iᵀ
-    cov = np.einsum("...ia,...ib,i->...ab", d, d, w.Wc)
+    cov = np.swapaxes(d * w.Wc[:, None], -1, -2) @ d
     return mean, 0.5 * (cov + np.swapaxes(cov, -1, -2))
 
 
@@ -299,15 +301,18 @@ def propagate(
     w = sigma_weights(_N_AUG, alpha, beta, kappa)
     kr, kl, b, S0, batch = _check_batch(trajectory, k_r, k_l, track, cov0)
     n = trajectory.n_steps
-    poses = np.empty((*batch, n + 1, 3))
-    covs = np.empty((*batch, n + 1, 3, 3))
-    poses[..., 0, :] = trajectory.start
-    covs[..., 0, :, :] = S0
+    # time-major while stepping (each step writes one contiguous block), batch-major out
+    poses = np.empty((n + 1, *batch, 3))
+    covs = np.empty((n + 1, *batch, 3, 3))
+    poses[0], covs[0] = trajectory.start, S0
     for i in range(n):  # a loop over steps; every set of the batch at once
-        poses[..., i + 1, :], covs[..., i + 1, :, :] = ut_step(
-            poses[..., i, :], covs[..., i, :, :], trajectory.ds_r[i], trajectory.ds_l[i], kr, kl, b, w
+        poses[i + 1], covs[i + 1] = ut_step(
+            poses[i], covs[i], trajectory.ds_r[i], trajectory.ds_l[i], kr, kl, b, w
         )
-    return CovarianceResult(poses=poses, covs=covs, times=trajectory.times)
+    return CovarianceResult(
+        poses=np.moveaxis(poses, 0, -2).copy(), covs=np.moveaxis(covs, 0, -3).copy(),
+        times=trajectory.times,
+    )
 
 
 # --- UT on SE(2) ----------------------------------------------------------------------------
@@ -358,7 +363,7 @@ def ut_step_se2(
     rel = compose(compose(exp(-delta), exp(chi[..., :3])), exp(twist))
     rel[..., 2] = wrap_angle(rel[..., 2])
     eps = log(rel)
-    out = np.einsum("...ia,...ib,i->...ab", eps, eps, w.Wc)
+    out = np.swapaxes(eps * w.Wc[:, None], -1, -2) @ eps  # Σ_i W_iᶜ ε'_i ε'_iᵀ
     return 0.5 * (out + np.swapaxes(out, -1, -2))
 
 
@@ -413,13 +418,11 @@ def propagate_se2(
     check_choice("perturbation", perturbation, PERTURBATIONS)
     w = sigma_weights(_N_AUG, alpha, beta, kappa)
     kr, kl, b, S0, batch = _check_batch(trajectory, k_r, k_l, track, cov0)
-    mu = np.broadcast_to(_nominal_poses(trajectory, b, "exact"), (*batch, trajectory.n_steps + 1, 3))
     n = trajectory.n_steps
-    covs = np.empty((*batch, n + 1, 3, 3))
-    covs[..., 0, :, :] = S0
+    mu = np.broadcast_to(_nominal_poses(trajectory, b, "exact"), (*batch, n + 1, 3))
+    covs = np.empty((n + 1, *batch, 3, 3))  # time-major while stepping
+    covs[0] = S0
     for i in range(n):
-        root = _left_root(mu[..., i, :], covs[..., i, :, :]) if perturbation == "left" else None
-        covs[..., i + 1, :, :] = ut_step_se2(
-            covs[..., i, :, :], trajectory.ds_r[i], trajectory.ds_l[i], kr, kl, b, w, root
-        )
-    return ExpGaussian(poses=mu.copy(), covs=covs, times=trajectory.times)
+        root = _left_root(mu[..., i, :], covs[i]) if perturbation == "left" else None
+        covs[i + 1] = ut_step_se2(covs[i], trajectory.ds_r[i], trajectory.ds_l[i], kr, kl, b, w, root)
+    return ExpGaussian(poses=mu.copy(), covs=np.moveaxis(covs, 0, -3).copy(), times=trajectory.times)
