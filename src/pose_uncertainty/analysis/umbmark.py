@@ -186,6 +186,17 @@ def _model(theta: NDArray, side: float, track: float) -> NDArray:
     )
 
 
+def _solve2(A: NDArray, y: NDArray) -> NDArray:
+    """Solve 2×2 systems ``A x = y`` (batched) in closed form; NaN where ``A`` is singular."""
+    det = A[..., 0, 0] * A[..., 1, 1] - A[..., 0, 1] * A[..., 1, 0]
+    scale = np.abs(A).max(axis=(-1, -2)) ** 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv_det = np.where(np.abs(det) > 1e-14 * scale, 1.0 / det, np.nan)
+        x0 = (A[..., 1, 1] * y[..., 0] - A[..., 0, 1] * y[..., 1]) * inv_det
+        x1 = (A[..., 0, 0] * y[..., 1] - A[..., 1, 0] * y[..., 0]) * inv_det
+    return np.stack([x0, x1], axis=-1)
+
+
 def direct_fit(
     c_cw: ArrayLike,
     c_ccw: ArrayLike,
@@ -222,10 +233,10 @@ def direct_fit(
         r = m[0] - c
         J = np.stack([(m[1] - m[3]) / (2 * h), (m[2] - m[4]) / (2 * h)], axis=-1)  # (..., 4, 2)
         Jt = np.swapaxes(J, -1, -2)
-        step = -np.linalg.solve(Jt @ J, (Jt @ r[..., None]))[..., 0]
+        step = _solve2(Jt @ J, -(Jt @ r[..., None])[..., 0])
         # a wild step on bad data must not leave the valid range of the model (E > 0)
         theta = np.maximum(theta + step, 0.5 * theta)
-        if np.all(np.abs(step) < tol):
+        if not np.any(np.abs(step) >= tol):  # NaN (a singular system) counts as done
             break
     return theta[..., 0], theta[..., 1]
 
@@ -494,12 +505,13 @@ def umbmark(
     _check_settings(side, track, level, n_boot, rng)
     cw, ccw = _split(returns)
     L, b = float(side), float(track)
-    est = _estimates(lambda c: quantities(c, L, b), tuple(QUANTITIES), cw, ccw, level, n_boot, rng)
-    if not (math.isfinite(est["E_d"].value) and math.isfinite(est["E_b"].value)):
+    p = umbmark_parameters(cw.mean(axis=0), ccw.mean(axis=0), L, b)
+    if not (np.isfinite(p["E_d"]) and np.isfinite(p["E_b"])):
         raise ValueError(
-            f"the return errors are too large for UMBmark's formulas: alpha = {est['alpha'].value!r}, "
-            f"beta = {est['beta'].value!r} rad (allowed: |alpha| < pi/2 and track*|sin(beta/2)| < side)"
+            f"the return errors are too large for UMBmark's formulas: alpha = {float(p['alpha'])!r}, "
+            f"beta = {float(p['beta'])!r} rad (allowed: |alpha| < pi/2 and track*|sin(beta/2)| < side)"
         )
+    est = _estimates(lambda c: quantities(c, L, b), tuple(QUANTITIES), cw, ccw, level, n_boot, rng)
     measured = None
     if after is not None:
         a_cw, a_ccw = _split(after)
@@ -527,7 +539,7 @@ def read_returns_csv(path: str | Path) -> dict[str, NDArray[np.float64]]:
     if bad:
         raise ValueError(
             f"{path}: data row {bad[0] + 1}: column 'direction' must be 'cw' or 'ccw', "
-            f"got {d['direction'][bad[0]]!r}"
+            f"got {str(d['direction'][bad[0]])!r}"
         )
     out = {k: np.stack([d["x"], d["y"]], axis=-1)[d["direction"] == k] for k in DIRECTIONS}
     counts = {k: v.shape[0] for k, v in out.items()}
