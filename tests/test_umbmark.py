@@ -215,6 +215,7 @@ def _csv(tmp_path, text, name="r.csv"):
         ("direction,x,y\ncw,nan,0.1\n", r"line 2: column 'x': not finite: 'nan'"),
         ("direction,x,y\ncw,0.1,0.2\nleft,0.1,0.2\n", r"data row 2: column 'direction' must be 'cw' or 'ccw', got 'left'"),
         ("direction,x,y\ncw,0.1,0.2\ncw,0.1,0.2\nccw,0,0\n", r"too few runs: 2 cw and 1 ccw \(need at least 2"),
+        ("direction,x,y\ncw,0.1,0.2\n", r"too few runs: 1 cw and 0 ccw"),
         ("", r"empty file"),
     ],
 )
