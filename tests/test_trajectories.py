@@ -104,3 +104,25 @@ def test_bad_trajectory():
         tr.from_segments([])
     with pytest.raises(ValueError, match=r"radius must be > 0"):
         tr.arc(radius=0.0)
+
+
+@pytest.mark.parametrize("direction", [1, -1])
+@pytest.mark.parametrize("laps", [1, 2])
+def test_square_returns_to_its_start(direction, laps):
+    t = tr.square(side=2.0, direction=direction, laps=laps, dt=0.05, track=0.3)
+    assert_allclose(t.poses[-1], [0.0, 0.0, direction * 2 * math.pi * laps], atol=1e-12)
+    assert_allclose(t.length, 8.0 * laps)
+    # legs of 40 steps (2 m at 1 m/s), turns of 31 (π/2 at 1 rad/s, dt 0.05): the corners
+    # (2, 0) then (2, 2) for ccw (left), (2, −2) for cw (right)
+    assert t.n_steps == 4 * laps * (40 + 31)
+    assert_allclose(t.poses[40], [2.0, 0.0, 0.0], atol=1e-12)
+    assert_allclose(t.poses[40 + 31 + 40, :2], [2.0, 2.0 * direction], atol=1e-12)
+
+
+def test_square_bad_input():
+    with pytest.raises(ValueError, match=r"^direction must be 1 or -1"):
+        tr.square(direction="cw")
+    with pytest.raises(ValueError, match=r"^laps must be an integer >= 1"):
+        tr.square(laps=0)
+    with pytest.raises(ValueError, match=r"^side must be > 0"):
+        tr.square(side=-1.0)

@@ -88,6 +88,7 @@ __all__ = [
     "fit_alphas_velocity",
     "fit_k",
     "fit_variance_regression",
+    "read_csv_columns",
     "read_end_poses_csv",
     "read_motion_samples_csv",
 ]
@@ -553,10 +554,20 @@ ODOMETRY_COLUMNS: tuple[str, ...] = (
 START_COLUMNS: tuple[str, ...] = ("x0", "y0", "theta0")
 
 
-def _read_csv(
-    path: str | Path, required: Sequence[str], optional: Sequence[str] = ()
-) -> dict[str, NDArray[np.float64]]:
-    """Read numeric columns from a CSV with a header; ValueError naming file, line, column, problem."""
+def read_csv_columns(
+    path: str | Path,
+    required: Sequence[str],
+    optional: Sequence[str] = (),
+    *,
+    text: Sequence[str] = (),
+    min_rows: int = MIN_ROWS,
+) -> dict[str, NDArray[Any]]:
+    """Read columns from a CSV with a header; ValueError naming file, line, column, problem.
+
+    Columns are numeric (finite floats) except those named in ``text``, which are
+    returned as stripped, lower-cased strings. Header names are matched
+    case-insensitively; blank lines are skipped; at least ``min_rows`` data rows.
+    """
     p = Path(path)
     try:
         with p.open(newline="", encoding="utf-8") as fh:
@@ -587,7 +598,7 @@ def _read_csv(
         )
     wanted = list(required) + present_opt
     idx = {c: header.index(c) for c in wanted}
-    data: dict[str, list[float]] = {c: [] for c in wanted}
+    data: dict[str, list[Any]] = {c: [] for c in wanted}
     for line_no, row in enumerate(rows[1:], start=2):
         if not row or not any(c.strip() for c in row):
             continue  # blank line
@@ -595,25 +606,28 @@ def _read_csv(
             i = idx[c]
             if i >= len(row):
                 raise ValueError(f"{p}: line {line_no}: column {c!r} is missing (row has {len(row)} fields)")
-            text = row[i].strip()
+            field_ = row[i].strip()
+            if c in text:
+                data[c].append(field_.lower())
+                continue
             try:
-                val = float(text)
+                val = float(field_)
             except ValueError:
                 raise ValueError(
-                    f"{p}: line {line_no}: column {c!r}: not a number: {text!r}"
+                    f"{p}: line {line_no}: column {c!r}: not a number: {field_!r}"
                 ) from None
             if not math.isfinite(val):
-                raise ValueError(f"{p}: line {line_no}: column {c!r}: not finite: {text!r}")
+                raise ValueError(f"{p}: line {line_no}: column {c!r}: not finite: {field_!r}")
             data[c].append(val)
     n = len(data[wanted[0]])
-    if n < MIN_ROWS:
-        raise ValueError(f"{p}: too few data rows: {n} (need at least {MIN_ROWS})")
+    if n < min_rows:
+        raise ValueError(f"{p}: too few data rows: {n} (need at least {min_rows})")
     return {c: np.asarray(v) for c, v in data.items()}
 
 
 def read_end_poses_csv(path: str | Path) -> NDArray[np.float64]:
     """End poses from a CSV with columns ``x, y, theta``; shape (n, 3), n ≥ :data:`MIN_ROWS`."""
-    d = _read_csv(path, END_POSE_COLUMNS)
+    d = read_csv_columns(path, END_POSE_COLUMNS)
     return np.stack([d["x"], d["y"], d["theta"]], axis=-1)
 
 
@@ -626,7 +640,7 @@ def read_motion_samples_csv(path: str | Path, model: str) -> dict[str, NDArray[n
     """
     check_choice("model", model, ("velocity", "odometry"))
     required = VELOCITY_COLUMNS if model == "velocity" else ODOMETRY_COLUMNS
-    d = _read_csv(path, required, START_COLUMNS)
+    d = read_csv_columns(path, required, START_COLUMNS)
     m = d["x"].size
     out = {
         "samples": np.stack([d["x"], d["y"], d["theta"]], -1),

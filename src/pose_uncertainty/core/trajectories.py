@@ -57,6 +57,7 @@ __all__ = [
     "right_angles",
     "rotation",
     "s_curve",
+    "square",
     "straight",
 ]
 
@@ -353,6 +354,27 @@ def direct(dx: float = 2.0, dy: float = 2.0, **kw: Any) -> Trajectory:
     return from_segments(
         [Turn(heading), Line(math.hypot(dx, dy)), Turn(-heading)],
         name=kw.pop("name", "direct"),
+        **kw,
+    )
+
+
+def square(side: float = 4.0, direction: int = 1, laps: int = 1, **kw: Any) -> Trajectory:
+    """The UMBmark square (Borenstein & Feng 1996): ``4·laps`` × (straight ``side`` [m], turn 90°).
+
+    The first leg runs along the start heading; at each corner the robot turns
+    in place by +π/2 (``direction`` +1, counter-clockwise, left) or −π/2 (−1,
+    clockwise, right). After each lap the noiseless robot is back at its start
+    pose, heading included. Keywords as :func:`from_segments`. (Not in
+    :data:`BUILDERS` yet: run configs do not offer it.)
+    """
+    if direction not in (1, -1):
+        raise ValueError(f"direction must be 1 or -1 (allowed: 1 = left/ccw, -1 = right/cw), got {direction!r}")
+    if isinstance(laps, bool) or not isinstance(laps, int | np.integer) or laps < 1:
+        raise ValueError(f"laps must be an integer >= 1 (allowed: 1, 2, 3, ...), got {laps!r}")
+    side_ = float(check_positive("side", side))
+    return from_segments(
+        [Line(side_), Turn(direction * math.pi / 2)] * (4 * int(laps)),
+        name=kw.pop("name", f"square {side_:g} m {'ccw' if direction == 1 else 'cw'} x{laps}"),
         **kw,
     )
 
