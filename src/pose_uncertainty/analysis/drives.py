@@ -4,7 +4,7 @@ For a drive's path and error model, Method A (per step or per run, first
 order) and optionally the Monte Carlo cloud give the standard deviations along
 and across the nominal heading and of the heading at points evenly spaced in
 path length; a power law ``σ = a·s^p`` is fitted to each
-(:func:`.studies.fit_growth`). On a straight the differential drive's
+(:func:`pose_uncertainty.core.stats.fit_growth`). On a straight the differential drive's
 across-track spread grows as ``s^1.5`` (an integrated heading random walk) and
 its along-track spread as ``s^0.5``; a synchro drive never turns, so both of its
 spreads grow as ``s^0.5``.
@@ -17,12 +17,13 @@ from typing import Any
 import numpy as np
 
 from ..core.drives import DrivePath
+from ..core.stats import fit_growth
 from ..core.validation import check_choice, check_positive_int
 from ..methods import drive_covariance as dc
 from ..methods import drive_noise as dn
 from ..methods import drive_sampling as ds
 from ..methods.sampling import REGIMES
-from .studies import along_across, fit_growth
+from .studies import path_spreads
 
 __all__ = ["MEASURES", "drive_growth"]
 
@@ -40,7 +41,7 @@ def _checkpoints(path: DrivePath, n_points: int, skip: float) -> tuple[np.ndarra
 
 
 def _fitted(poses: np.ndarray, covs: np.ndarray, s: np.ndarray) -> dict[str, Any]:
-    aa = along_across(poses, covs)
+    aa = path_spreads(poses, covs)
     out: dict[str, Any] = {k: aa[k].tolist() for k in MEASURES}
     # a spread that stays zero (a synchro drive's heading) has no growth law
     out["fits"] = {k: fit_growth(s, aa[k]) for k in MEASURES if np.any(aa[k] > 0)}
