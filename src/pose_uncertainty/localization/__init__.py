@@ -1,0 +1,1 @@
+"""Localization: worlds, sensors and the three Bayes filters (EKF, histogram, particle)."""
