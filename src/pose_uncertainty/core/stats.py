@@ -20,6 +20,7 @@ __all__ = [
     "PR_2SIGMA",
     "PR_3SIGMA",
     "fraction_inside_ellipse",
+    "hdr_mass_level",
     "k_to_pr",
     "mahalanobis_sq",
     "mean_cov",
@@ -98,3 +99,25 @@ def fraction_inside_ellipse(
     """
     k = pr_to_k(pr)
     return float(np.mean(mahalanobis_sq(xy, center, cov_xy) <= k))
+
+
+def hdr_mass_level(masses: ArrayLike, pr: float) -> float:
+    """Cell-mass threshold of the highest-density region holding ``pr`` of a gridded distribution.
+
+    Cells sorted by mass, largest first; the region is the smallest such set whose
+    masses sum to at least ``pr`` of the total, and the level is the mass of its last
+    cell: a cell belongs to the region when its mass is ≥ the level (cells of equal
+    mass at the boundary all belong). On cells of equal area, mass order is density order.
+
+    Parameters
+    ----------
+    masses : array_like, any shape, ≥ 0 with a positive sum
+    pr : float in (0, 1)
+    """
+    v = np.sort(check_nonnegative("masses", masses).ravel())[::-1]
+    p = float(check_probability("pr", pr))
+    cum = np.cumsum(v)
+    if not cum[-1] > 0:
+        raise ValueError("masses must have a positive sum (allowed: a distribution), got 0")
+    idx = int(np.searchsorted(cum, p * cum[-1]))
+    return float(v[min(idx, v.size - 1)])

@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -65,6 +66,7 @@ __all__ = [
     "landmark_h",
     "landmark_jacobian",
     "landmark_log_likelihood",
+    "landmark_log_likelihood_ml",
     "landmark_visible",
     "sample_beam_measurements",
     "sample_landmark_measurements",
@@ -188,10 +190,8 @@ def sample_landmark_measurements(
     return out, vis
 
 
-def _loglik_chunk(
-    P: Array, z: Array, lm: Array, inv_var: tuple[float, float], const: float, dtype: type
-) -> Array:
-    """Σ_j log N(z_j; h_j(p), Q) for a chunk of particles (n, 3) and m measurements, shape (n,)."""
+def _loglik_terms(P: Array, z: Array, lm: Array, inv_var: tuple[float, float], dtype: Any) -> Array:
+    """Mahalanobis terms ``(r − r̂)²/σ_r² + wrap(φ − φ̂)²/σ_φ²`` of particles (n, 3) × measurements (m,), shape (n, m)."""
     x = P[:, 0, None].astype(dtype)
     y = P[:, 1, None].astype(dtype)
     th = wrap_angle(P[:, 2]).astype(dtype)[:, None]
@@ -208,7 +208,46 @@ def _loglik_chunk(
     e_phi *= e_phi
     e_phi *= dtype(inv_var[1])
     e_r += e_phi
-    return const - 0.5 * e_r.sum(axis=1, dtype=np.float64)
+    return e_r
+
+
+def _loglik_chunk(
+    P: Array, z: Array, lm: Array, inv_var: tuple[float, float], const: float, dtype: Any
+) -> Array:
+    """Σ_j log N(z_j; h_j(p), Q) for a chunk of particles (n, 3) and m measurements, shape (n,)."""
+    return const - 0.5 * _loglik_terms(P, z, lm, inv_var, dtype).sum(axis=1, dtype=np.float64)
+
+
+def landmark_log_likelihood_ml(
+    particles: ArrayLike, z: ArrayLike, landmarks: ArrayLike, sensor: RangeBearingSensor
+) -> tuple[Array, NDArray[np.int64]]:
+    """Log-likelihood with unknown correspondences, each hypothesis associating for itself.
+
+    For every particle ``x`` and measurement ``z_i``: ``max_j log p(z_i | x, m_j)`` over all
+    landmarks (maximum-likelihood association per hypothesis, Thrun §7.5.2 applied to
+    each particle), summed over the measurements.
+
+    Parameters
+    ----------
+    particles : (n, 3); z : (m, 2); landmarks : (L, 2) — every landmark of the world
+
+    Returns
+    -------
+    loglik : ndarray, shape (n,)
+    index : ndarray of int, shape (n, m) — the landmark each particle attributes each measurement to
+    """
+    P = check_last_axis("particles", particles, 3).reshape(-1, 3)
+    zz = check_finite("z", check_last_axis("z", z, 2)).reshape(-1, 2)
+    lm = _check_landmarks(landmarks)
+    inv = (1.0 / sensor.range_std**2, 1.0 / sensor.bearing_std**2)
+    const = -(_LOG_2PI + math.log(sensor.range_std * sensor.bearing_std))
+    out = np.full(P.shape[0], zz.shape[0] * const)
+    idx = np.zeros((P.shape[0], zz.shape[0]), dtype=np.int64)
+    for i in range(zz.shape[0]):  # one measurement against every landmark
+        terms = _loglik_terms(P, np.broadcast_to(zz[i], lm.shape), lm, inv, np.float64)
+        idx[:, i] = np.argmin(terms, axis=1)
+        out -= 0.5 * terms[np.arange(P.shape[0]), idx[:, i]]
+    return out, idx
 
 
 def landmark_log_likelihood(
@@ -357,7 +396,7 @@ def _dda_init(grid: OccupancyGrid, ox: Array, oy: Array, ang: Array) -> dict[str
     v = (oy - grid.origin[1]) / h
     dx, dy = np.cos(ang), np.sin(ang)
     i, j = np.floor(u), np.floor(v)
-    with np.errstate(divide="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore"):  # dx = 0: never crosses an x boundary
         tdx = np.where(dx != 0, 1.0 / np.abs(dx), np.inf)
         tdy = np.where(dy != 0, 1.0 / np.abs(dy), np.inf)
         tx = np.where(dx > 0, (i + 1 - u) * tdx, np.where(dx < 0, (u - i) * tdx, np.inf))

@@ -328,7 +328,8 @@ def grid_from_image(
         raise ValueError(f"image must be 2-D grey levels, got shape {v.shape}")
     p = v if negate else 1.0 - v
     cells = p[::-1, :].T  # row 0 is the top: flip, then x index first
-    return OccupancyGrid(cells > occupied_thresh, cells < free_thresh, resolution, origin)
+    return OccupancyGrid(cells > occupied_thresh, cells < free_thresh, resolution,
+                         check_finite("origin", origin))  # fmt: skip
 
 
 # ============================================================================= world
@@ -371,11 +372,12 @@ class World:
         b = self.bounds
         if b is None:
             b = self.grid.extent() if self.grid is not None else _landmark_bounds(lm)
-        b = tuple(float(v) for v in check_finite("bounds", b))
-        if len(b) != 4 or not (b[1] > b[0] and b[3] > b[2]):
+        bb = [float(v) for v in check_finite("bounds", b)]
+        if len(bb) != 4 or not (bb[1] > bb[0] and bb[3] > bb[2]):
             raise ValueError(
-                f"bounds must be [x_min, x_max, y_min, y_max] with x_max > x_min and y_max > y_min, got {list(b)}"
+                f"bounds must be [x_min, x_max, y_min, y_max] with x_max > x_min and y_max > y_min, got {bb}"
             )
+        b = (bb[0], bb[1], bb[2], bb[3])
         object.__setattr__(self, "landmarks", lm)
         object.__setattr__(self, "landmark_ids", ids.astype(np.int64))
         object.__setattr__(self, "segments", seg)
