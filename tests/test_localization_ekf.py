@@ -1,6 +1,5 @@
 """EKF localization: the linear-Gaussian limit, Jacobians, masking, NEES consistency."""
 
-import math
 
 import numpy as np
 import pytest
@@ -117,7 +116,8 @@ def test_unseen_landmarks_leave_the_belief_unchanged(rng):
     m1, c1, nis, n = E.ekf_update_landmarks(mean, cov, z, [False, False], lm, sen)
     np.testing.assert_array_equal(m1, mean)
     np.testing.assert_allclose(c1, cov, rtol=1e-15, atol=1e-18)
-    assert nis == 0.0 and n == 0
+    assert nis == 0.0
+    assert n == 0
     # one valid row equals the update with that landmark alone
     m2, c2, _, _ = E.ekf_update_landmarks(mean, cov, z, [True, False], lm, sen)
     m3, c3, _, _ = E.ekf_update_landmarks(mean, cov, z[:1], [True], lm[:1], sen)

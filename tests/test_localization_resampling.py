@@ -75,7 +75,8 @@ def test_variances_are_ordered_as_theory_says():
     strat = (overlap * (1 - overlap)).sum(axis=1)
     lo, hi = _chi2_var_band(strat + 1e-12)
     assert lo <= var["stratified"].sum() <= hi
-    assert strat.sum() < binom.sum() and (f * (1 - f)).sum() < binom.sum()
+    assert strat.sum() < binom.sum()
+    assert (f * (1 - f)).sum() < binom.sum()
 
 
 def test_selection_equals_the_seeds_loop(rng):
@@ -83,7 +84,9 @@ def test_selection_equals_the_seeds_loop(rng):
     q = R.cumulative_weights(w)
     for scheme in R.SCHEMES:
         T = R.pointers(N, rng, scheme)
-        assert np.all(np.diff(T) >= 0) and T[0] >= 0 and T[-1] < 1
+        assert np.all(np.diff(T) >= 0)
+        assert T[0] >= 0
+        assert T[-1] < 1
         np.testing.assert_array_equal(R.select(q, T), _seed_loop(q, T))
 
 

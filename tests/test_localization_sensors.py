@@ -1,5 +1,6 @@
 """Sensor models: range–bearing h and its Jacobian, likelihoods, association, ray casting, beam model."""
 
+import itertools
 import math
 
 import numpy as np
@@ -57,7 +58,7 @@ def test_ml_association_per_hypothesis_and_from_a_gaussian(rng):
     truth = np.array([0.2, 0.1, 0.4])
     z = S.landmark_h(truth, LM) + rng.normal(0, 0.01, LM.shape)
     order = np.array([2, 0, 3, 1])  # measurements in a shuffled order
-    idx, ll = S.associate(z[order], truth, np.diag([1e-3, 1e-3, 1e-4]), LM, sen)
+    idx, _ll = S.associate(z[order], truth, np.diag([1e-3, 1e-3, 1e-4]), LM, sen)
     np.testing.assert_array_equal(idx, order)
     P = truth + rng.normal(0, 0.01, (30, 3))
     ll_ml, idx_ml = S.landmark_log_likelihood_ml(P, z[order], LM, sen)
@@ -101,7 +102,8 @@ def test_ray_casting_equals_the_analytic_distance_to_boxes(rng):
                 for i0, i1, j0, j1 in blocks)  # fmt: skip
         ref[r] = min(t, 4.0)
     np.testing.assert_allclose(got, ref, atol=1e-9)
-    assert np.any(ref == 4.0) and np.any(ref < 1.0)
+    assert np.any(ref == 4.0)
+    assert np.any(ref < 1.0)
     # a ray starting inside an occupied cell has range 0
     assert S.cast_rays(g, [[-0.95, 0.55]], [0.3], 4.0).tolist() == [0.0]
 
@@ -133,7 +135,7 @@ def test_beam_sampler_draws_from_the_beam_density():
     counts = np.histogram(z[~at_max], edges)[0]
     mass = np.array([integrate.quad(lambda x: float(S.beam_probability(x, zs, sen)), a, b,
                                     points=[zs] if a < zs < b else None)[0]
-                     for a, b in zip(edges[:-1], edges[1:], strict=True)])  # fmt: skip
+                     for a, b in itertools.pairwise(edges)])  # fmt: skip
     expected = n * mass
     chi2 = float(((counts - expected) ** 2 / expected).sum())
     assert sstats.chi2.sf(chi2, len(counts) - 1) > 1e-4, chi2

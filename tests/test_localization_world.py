@@ -2,6 +2,7 @@
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -23,7 +24,8 @@ def test_world_file_yaml_and_json_give_the_same_world(tmp_path):
     (tmp_path / "w.yaml").write_text(yaml.safe_dump(ROOM))
     (tmp_path / "w.json").write_text(json.dumps(ROOM))
     a, b = W.load_world(tmp_path / "w.yaml"), W.load_world(tmp_path / "w.json")
-    assert a.name == "room" and a.landmark_ids.tolist() == [3, 7]
+    assert a.name == "room"
+    assert a.landmark_ids.tolist() == [3, 7]
     np.testing.assert_array_equal(a.landmarks, [[1, 1], [4, 2.5]])
     np.testing.assert_array_equal(a.grid.occupied, b.grid.occupied)
     assert a.bounds == a.grid.extent()
@@ -66,8 +68,10 @@ def test_image_rows_start_at_the_top_and_origin_is_the_lower_left_corner(tmp_pat
     data = {"image": {"path": name, "resolution": 0.5, "origin": [-1.0, 2.0]}}
     g = W.world_from_dict(data, tmp_path).grid
     assert g.shape == (6, 4)
-    assert g.occupied[5, 3] and g.occupied.sum() == 1  # x index 5, y index 3 (top row)
-    assert not g.free[0, 0] and not g.occupied[0, 0]  # unknown
+    assert g.occupied[5, 3]
+    assert g.occupied.sum() == 1
+    assert not g.free[0, 0]
+    assert not g.occupied[0, 0]
     assert g.extent() == (-1.0, 2.0, 2.0, 4.0)
     assert g.is_occupied([[-1 + 5.5 * 0.5, 2 + 3.5 * 0.5]]).tolist() == [True]
 
@@ -78,12 +82,14 @@ def test_free_space_samples_are_uniform_over_free_cells():
     P = W.sample_free_poses(world, n, np.random.default_rng(2))
     g = world.grid
     i, j, inside = g.cell_of(P[:, :2])
-    assert inside.all() and g.free[i, j].all()
+    assert inside.all()
+    assert g.free[i, j].all()
     # the free region is the rectangle [0.1, 4.9] × [0.1, 2.9]: mean (2.5, 1.5), sd 4.8/√12;
     # the sample mean is within 5 standard errors; headings uniform on [−π, π)
     assert abs(P[:, 0].mean() - 2.5) <= 5 * 4.8 / math.sqrt(12 * n)
     assert abs(P[:, 1].mean() - 1.5) <= 5 * 2.8 / math.sqrt(12 * n)
-    assert P[:, 2].min() >= -math.pi and P[:, 2].max() < math.pi
+    assert P[:, 2].min() >= -math.pi
+    assert P[:, 2].max() < math.pi
 
 
 def _bad(**changes):
@@ -115,7 +121,7 @@ def _bad(**changes):
     ],
 )
 def test_bad_world_files_get_one_line_errors(data, needles):
-    with pytest.raises(ValueError) as err:
+    with pytest.raises(ValueError, match=re.escape(needles[0])) as err:
         W.world_from_dict(data)
     msg = str(err.value)
     assert "\n" not in msg
@@ -154,7 +160,7 @@ def test_unreadable_world_file_is_one_line(tmp_path):
     ],
 )
 def test_bad_sensor_parameters_and_filter_options_get_one_line_errors(make, needles):
-    with pytest.raises(ValueError) as err:
+    with pytest.raises(ValueError, match=re.escape(needles[0])) as err:
         make()
     msg = str(err.value)
     assert "\n" not in msg

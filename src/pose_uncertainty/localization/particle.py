@@ -13,7 +13,12 @@ Random particles (recovery from a kidnapping or a wrong convergence)
 are replaced by poses drawn uniformly over the free space (seed 002's simple remedy).
 ``injection="augmented"`` (Augmented MCL, Thrun Table 8.3): short- and long-term averages
 of the measurement likelihood, ``w_slow += α_slow (w_avg − w_slow)``,
-``w_fast += α_fast (w_avg − w_fast)`` (kept in logarithms, ``w_avg = Σ w_i p(z|x_i)``);
+``w_fast += α_fast (w_avg − w_fast)`` (kept in logarithms, ``w_avg = Σ w_i p(z|x_i)``;
+both start at the first ``w_avg``, as in ROS AMCL — Thrun's start at 0 leaves
+``w_slow ≪ w_fast`` for ~1/α_slow corrections, which disables the injection). ``w_avg``
+is taken per measurement, ``(Σ w_i p(z|x_i))^{1/m}`` for ``m`` measurements: the number of
+landmarks seen changes from step to step and the likelihood of ``m`` measurements
+scales like a density to the power ``m``, which would otherwise drive the averages;
 each new particle is random with probability ``max(0, 1 − w_fast/w_slow)``. When
 particles are injected the filter resamples whatever the ESS (the injected ones and
 the survivors then all weigh ``1/n``).
@@ -167,6 +172,8 @@ def _n_inject(cfg: ParticleFilterConfig, log_avg: float, slow_fast: list[float],
     if cfg.injection == "none":
         return 0
     ls, lf = slow_fast
+    if ls == -math.inf:  # first correction: both averages start at w_avg (as ROS AMCL)
+        ls = lf = log_avg
     # w ← w + α (w_avg − w) in logarithms: log((1 − α) w + α w_avg)
     ls = np.logaddexp(math.log1p(-cfg.alpha_slow) + ls, math.log(cfg.alpha_slow) + log_avg)
     lf = np.logaddexp(math.log1p(-cfg.alpha_fast) + lf, math.log(cfg.alpha_fast) + log_avg)
@@ -243,7 +250,7 @@ def run_particle(
         if ll is not None:
             w, logev = pf_correct(w, ll)
             ess = effective_sample_size(w)
-            inj = _n_inject(cfg, logev, slow_fast, rng)
+            inj = _n_inject(cfg, logev / max(m, 1), slow_fast, rng)
             P, w, res = pf_resample(P, w, rng, cfg.resampling, cfg.ess_threshold, inj, world)
         rec.toc(k)
         mean, cov = weighted_mean_cov(P, w)
