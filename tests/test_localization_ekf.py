@@ -1,6 +1,8 @@
 """EKF localization: the linear-Gaussian limit, Jacobians, masking, NEES consistency."""
 
 
+import math
+
 import numpy as np
 import pytest
 
@@ -150,3 +152,21 @@ def test_averaged_nees_of_the_ekf_lies_in_its_chi2_band():
     inside = (avg >= lo) & (avg <= hi)
     assert inside.mean() >= 0.85, (inside.mean(), lo, hi, avg.min(), avg.max())
     assert lo <= avg.mean() <= hi
+
+
+@pytest.mark.parametrize("model", ["wheels", "velocity"])
+def test_batched_ekf_equals_one_run_at_a_time(model):
+    lm = np.array([[3.0, 2.0], [0.0, 4.0], [5.0, -1.0]])
+    world = W.World(lm, np.arange(3))
+    sen = S.RangeBearingSensor(range_std=0.1, bearing_std=0.05, max_range=4.5, fov=math.pi, period=0.3)
+    traj = tr.from_segments([tr.Line(1.0), tr.Arc(1.5, 1.5)], speed=0.5, dt=0.1)
+    runs = [SIM.simulate(traj, world, np.random.default_rng(s), k_r=1e-3, k_l=1e-3, landmark_sensor=sen)
+            for s in range(4)]  # fmt: skip
+    motion = Motion(model=model) if model == "wheels" else Motion(model="velocity", alphas=(0.01,) * 6)
+    cfg = E.EKFConfig(motion=motion)
+    mean, cov = E.run_ekf_batch(runs, world, sen, cfg)
+    for r, run in enumerate(runs):
+        one = E.run_ekf(run, world, sen, cfg)
+        np.testing.assert_allclose(mean[r, :, :2], one.mean[:, :2], rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(np.angle(np.exp(1j * (mean[r, :, 2] - one.mean[:, 2]))), 0, atol=1e-12)
+        np.testing.assert_allclose(cov[r], one.cov, rtol=1e-10, atol=1e-15)

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from pose_uncertainty.core import trajectories as tr
+from pose_uncertainty.core.kinematics import step
 from pose_uncertainty.localization import ekf as E
 from pose_uncertainty.localization import histogram as HF
 from pose_uncertainty.localization import particle as PF
@@ -13,7 +14,7 @@ from pose_uncertainty.localization import sensors as S
 from pose_uncertainty.localization import simulate as SIM
 from pose_uncertainty.localization import world as W
 from pose_uncertainty.localization.measures import weighted_mean_cov
-from pose_uncertainty.localization.motion import Motion
+from pose_uncertainty.localization.motion import Motion, sample_motion
 from pose_uncertainty.localization.result import Start, evaluate
 from pose_uncertainty.methods import maps as M
 
@@ -219,3 +220,16 @@ def test_weighted_moments_wrap_the_heading():
     assert abs(abs(mean[2]) - math.pi) < 1e-12
     np.testing.assert_allclose(cov[2, 2], 0.01, rtol=1e-12)
     np.testing.assert_allclose(cov[0, 0], 1.0)
+
+
+def test_wheel_sampler_is_the_midpoint_step_of_noisy_wheel_travels():
+    # vectorised sampler against kinematics.step fed with the same draws
+    _, _, run = _benign_run(n_steps=2)
+    m = Motion(k_r=2e-3, k_l=5e-4)
+    P = np.random.default_rng(1).normal(0, 0.1, (1000, 3))
+    got = sample_motion(P, m, run, 1, np.random.default_rng(2))
+    z = np.random.default_rng(2).standard_normal((2, 1000))
+    dr = run.ds_r[1] + math.sqrt(2e-3 * abs(run.ds_r[1])) * z[0]
+    dl = run.ds_l[1] + math.sqrt(5e-4 * abs(run.ds_l[1])) * z[1]
+    ref = step(P, (dr + dl) / 2, (dr - dl) / run.track, method="midpoint")
+    np.testing.assert_allclose(got, ref, rtol=1e-14, atol=1e-15)

@@ -4,6 +4,7 @@ import json
 import math
 import re
 
+import matplotlib.image as mpimg
 import numpy as np
 import pytest
 import yaml
@@ -55,8 +56,6 @@ def _write_pgm(path, pix, binary=True):
 
 @pytest.mark.parametrize("kind", ["P5", "P2", "png"])
 def test_image_rows_start_at_the_top_and_origin_is_the_lower_left_corner(tmp_path, kind):
-    import matplotlib.image as mpimg
-
     pix = np.full((4, 6), 254, dtype=np.uint8)  # white = free
     pix[0, 5] = 0  # top-right pixel black = occupied
     pix[3, 0] = 205  # bottom-left grey = unknown (occupancy 0.196..0.65)

@@ -72,6 +72,7 @@ __all__ = [
     "kf_predict",
     "kf_update",
     "run_ekf",
+    "run_ekf_batch",
     "velocity_jacobians",
 ]
 
@@ -333,3 +334,50 @@ def run_ekf(
         flags = gaussian_region_flags(shown, cov, run.true_poses[k])
         rec.record(k, shown, cov, flags, {}, nis=nis, n_measurements=z.shape[0], wrong_associations=wrong)
     return rec.result()
+
+
+def run_ekf_batch(
+    runs: Sequence[SimulatedRun],
+    world: World,
+    sensor: RangeBearingSensor,
+    config: EKFConfig | None = None,
+    start: Start | None = None,
+) -> tuple[Array, Array]:
+    """EKF localization of many runs at once (known correspondences), batched over the runs.
+
+    The runs must have the same number of steps and Δt (e.g. the seeded repetitions of
+    one experiment, for the NEES averaged over runs). Every step is one batched
+    prediction and one stacked, masked update for all runs.
+
+    Returns
+    -------
+    mean : ndarray, shape (R, N+1, 3) — θ unwrapped; cov : ndarray, shape (R, N+1, 3, 3)
+    """
+    cfg = config or EKFConfig()
+    if cfg.association != "known":
+        raise ValueError(f"association must be 'known' for the batched EKF (allowed: 'known'), got {cfg.association!r}")
+    n_steps = {r.n_steps for r in runs}
+    if len(n_steps) != 1 or len({r.dt for r in runs}) != 1:
+        raise ValueError(f"runs must share the number of steps and dt (allowed: one N, one dt), got N in {sorted(n_steps)}")
+    N, R = runs[0].n_steps, len(runs)
+    m0, c0 = (start or Start(pose=tuple(runs[0].true_poses[0]))).gaussian(world)  # type: ignore[arg-type]
+    mean, cov = np.empty((R, N + 1, 3)), np.empty((R, N + 1, 3, 3))
+    m, c = np.broadcast_to(m0, (R, 3)).copy(), np.broadcast_to(c0, (R, 3, 3)).copy()
+    z = np.stack([r.landmark_z for r in runs])  # (R, N+1, L, 2)
+    valid = np.stack([r.landmark_valid for r in runs])
+    sr, sl = np.stack([r.ds_r for r in runs]), np.stack([r.ds_l for r in runs])
+    u = np.stack([r.controls for r in runs])
+    mo = cfg.motion
+    for k in range(N + 1):
+        if k > 0:
+            if mo.model == "wheels":
+                m, c = ekf_predict_wheels(m, c, sr[:, k - 1], sl[:, k - 1], mo.k_r, mo.k_l, runs[0].track)
+            else:
+                G, Vj = velocity_jacobians(m, u[:, k - 1], runs[0].dt)
+                M = velocity_variances(u[:, k - 1], mo.alpha_array, mo.scaling)
+                m = velocity_forward(m, u[:, k - 1, 0], u[:, k - 1, 1], 0.0, runs[0].dt)
+                c = G @ c @ _T(G) + (Vj * M[:, None, :]) @ _T(Vj)
+        if valid[:, k].any():
+            m, c, _, _ = ekf_update_landmarks(m, c, z[:, k], valid[:, k], world.landmarks, sensor)
+        mean[:, k], cov[:, k] = m, c
+    return mean, cov

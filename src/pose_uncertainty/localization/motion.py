@@ -21,12 +21,12 @@ wheel-noise variances of forward driving (see there).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ..core.kinematics import step as kinematic_step
 from ..core.noise import check_noise, check_scaling
 from ..core.validation import check_choice, check_nonnegative, check_positive
 from ..methods.motion_models import check_alphas, sample_odometry, sample_velocity
@@ -90,6 +90,23 @@ def velocity_alphas_for_wheels(k_r: float, k_l: float, track: float, dt: float) 
     return (kbar / (2 * step), 0.0, 2 * kbar / (b * b * step), 0.0, 0.0, 0.0)
 
 
+def _wheel_step(P: Array, sr: float, sl: float, m: Motion, b: float, rng: np.random.Generator) -> Array:
+    """``Δs' ~ N(Δs, k|Δs|)`` per wheel and particle, then the midpoint step (as kinematics.step)."""
+    z = rng.standard_normal((2, P.shape[0]))
+    z[0] *= math.sqrt(m.k_r * abs(sr))
+    z[0] += sr  # Δs_r'
+    z[1] *= math.sqrt(m.k_l * abs(sl))
+    z[1] += sl  # Δs_l'
+    ds = (z[0] + z[1]) * 0.5
+    dth = (z[0] - z[1]) * (1.0 / b)
+    phi = P[:, 2] + 0.5 * dth
+    out = np.empty_like(P)
+    out[:, 0] = P[:, 0] + ds * np.cos(phi)
+    out[:, 1] = P[:, 1] + ds * np.sin(phi)
+    out[:, 2] = P[:, 2] + dth
+    return out
+
+
 def sample_motion(
     particles: Array, motion: Motion, run: SimulatedRun, k: int, rng: np.random.Generator
 ) -> Array:
@@ -107,12 +124,7 @@ def sample_motion(
     """
     n = particles.shape[0]
     if motion.model == "wheels":
-        sr, sl = float(run.ds_r[k]), float(run.ds_l[k])
-        z = rng.standard_normal((2, n))
-        # Δs' ~ N(Δs, k|Δs|) per wheel, then the midpoint step
-        dr = sr + np.sqrt(motion.k_r * abs(sr)) * z[0]
-        dl = sl + np.sqrt(motion.k_l * abs(sl)) * z[1]
-        return kinematic_step(particles, (dr + dl) / 2, (dr - dl) / run.track, method="midpoint")
+        return _wheel_step(particles, float(run.ds_r[k]), float(run.ds_l[k]), motion, run.track, rng)
     if motion.model == "velocity":
         return sample_velocity(particles, run.controls[k], run.dt, motion.alpha_array, n, rng,
                                motion.noise, motion.scaling)  # fmt: skip

@@ -194,14 +194,14 @@ def _loglik_terms(P: Array, z: Array, lm: Array, inv_var: tuple[float, float], d
     """Mahalanobis terms ``(r − r̂)²/σ_r² + wrap(φ − φ̂)²/σ_φ²`` of particles (n, 3) × measurements (m,), shape (n, m)."""
     x = P[:, 0, None].astype(dtype)
     y = P[:, 1, None].astype(dtype)
-    th = wrap_angle(P[:, 2]).astype(dtype)[:, None]
+    th = P[:, 2, None].astype(dtype)  # any magnitude: the error is wrapped below
     dx = lm[None, :, 0].astype(dtype) - x
     dy = lm[None, :, 1].astype(dtype) - y
     e_r = np.hypot(dx, dy)
     e_r -= z[None, :, 0].astype(dtype)  # predicted − measured range
     e_phi = np.arctan2(dy, dx, out=dx)
     e_phi -= th
-    e_phi -= z[None, :, 1].astype(dtype)  # in (−3π, 3π]: wrap by the nearest multiple of 2π
+    e_phi -= z[None, :, 1].astype(dtype)  # wrap by the nearest multiple of 2π
     e_phi -= np.rint(e_phi * dtype(1.0 / _TWO_PI)) * dtype(_TWO_PI)
     e_r *= e_r
     e_r *= dtype(inv_var[0])
