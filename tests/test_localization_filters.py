@@ -52,15 +52,21 @@ def test_particle_filter_posterior_agrees_with_the_ekf_on_a_benign_case():
     assert np.all(np.abs(corr(pf.cov[-1]) - corr(ekf.cov[-1])) <= 5 / math.sqrt(ess))
 
 
-def test_histogram_filter_posterior_agrees_with_the_particle_filter():
-    # Velocity model on both, 1 cm × 5° cells, one prediction between two corrections.
+@pytest.mark.parametrize(
+    "motion",
+    [Motion(model="velocity", alphas=(0.02, 0.0, 0.05, 0.0, 0.0, 0.0)),
+     Motion(model="odometry", alphas=(0.05, 0.02, 0.02, 0.05))],
+    ids=["velocity", "odometry"],
+)  # fmt: skip
+def test_histogram_filter_posterior_agrees_with_the_particle_filter(motion):
+    # One motion model on both (velocity or odometry), 1 cm × 5° cells, one prediction
+    # between two corrections.
     # The PF's (x, y) histogram of 2·10⁵ weighted particles is compared with the grid filter's
     # marginal by the Hellinger distance; a finite weighted sample is never at distance 0:
     # its sampling floor is that of ESS draws (hellinger_noise_floor(p, ESS), an
     # approximation for importance weights). The excess over the floor must be ≤ 0.05, the
     # target the multi-step maps meet against Monte Carlo.
     world, sen, run = _benign_run(range_std=0.1, bearing_std=0.1)
-    motion = Motion(model="velocity", alphas=(0.02, 0.0, 0.05, 0.0, 0.0, 0.0))
     start = Start(pose=(0.0, 0.0, 0.0), std=(0.03, 0.03, 0.05))
     hf = HF.run_histogram(run, world, sen, HF.HistogramFilterConfig(motion=motion, resolution=0.01, ntheta=72),
                           start, keep=[1])  # fmt: skip

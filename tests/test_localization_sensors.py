@@ -49,6 +49,7 @@ def test_landmark_log_likelihood_equals_the_scalar_formula(rng):
     got = S.landmark_log_likelihood(P, z, LM, sen, chunk=7)
     np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-9)
     # float32 terms: relative rounding ~1e-7 of each term (|terms| up to ~1e5 here)
+    np.testing.assert_array_equal(S.landmark_log_likelihood(P, z, LM, sen, chunk=7, workers=2), got)
     got32 = S.landmark_log_likelihood(P, z, LM, sen, dtype="float32")
     np.testing.assert_allclose(got32, ref, rtol=2e-6, atol=1e-3)
 

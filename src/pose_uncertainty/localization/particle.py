@@ -95,6 +95,7 @@ class ParticleFilterConfig:
         ``wrong_associations`` is then the weighted mean count of wrong ones
     dtype : {"float64", "float32"} — arithmetic of the landmark likelihood
     hdr_resolution : float [m], > 0 — cell of the particle histogram for the region coverage
+    workers : int ≥ 1 — threads of the landmark likelihood (results do not depend on it)
     """
 
     n_particles: int = 2000
@@ -108,6 +109,7 @@ class ParticleFilterConfig:
     association: str = "known"
     dtype: str = "float64"
     hdr_resolution: float = 0.1
+    workers: int = 1
 
     def __post_init__(self) -> None:
         check_positive_int("n_particles", self.n_particles)
@@ -127,6 +129,7 @@ class ParticleFilterConfig:
         check_choice("association", self.association, ASSOCIATIONS)
         check_choice("dtype", self.dtype, ("float64", "float32"))
         check_positive("hdr_resolution", self.hdr_resolution)
+        check_positive_int("workers", self.workers)
 
 
 def initial_particles(start: Start, world: World, n: int, rng: np.random.Generator) -> Array:
@@ -201,7 +204,8 @@ def _loglik(
     z, lm, _ = landmark_measurements(run, world, sensor, k, "known", np.zeros(3), np.eye(3))
     if z.shape[0] == 0:
         return None, 0, 0
-    return landmark_log_likelihood(particles, z, lm, sensor, dtype=cfg.dtype), z.shape[0], 0
+    ll = landmark_log_likelihood(particles, z, lm, sensor, dtype=cfg.dtype, workers=cfg.workers)
+    return ll, z.shape[0], 0
 
 
 def _particle_region_flags(particles: Array, w: Array, world: World, truth: Array, h: float) -> NDArray[np.bool_]:
