@@ -101,7 +101,7 @@ def fraction_inside_ellipse(
     return float(np.mean(mahalanobis_sq(xy, center, cov_xy) <= k))
 
 
-def hdr_mass_level(masses: ArrayLike, pr: float) -> float:
+def hdr_mass_level(masses: ArrayLike, pr: ArrayLike) -> NDArray[np.float64]:
     """Cell-mass threshold of the highest-density region holding ``pr`` of a gridded distribution.
 
     Cells sorted by mass, largest first; the region is the smallest such set whose
@@ -112,12 +112,16 @@ def hdr_mass_level(masses: ArrayLike, pr: float) -> float:
     Parameters
     ----------
     masses : array_like, any shape, ≥ 0 with a positive sum
-    pr : float in (0, 1)
+    pr : float or array_like in (0, 1) — one sort serves every level
+
+    Returns
+    -------
+    ndarray, shape of ``pr`` — the levels (mass per cell)
     """
     v = np.sort(check_nonnegative("masses", masses).ravel())[::-1]
-    p = float(check_probability("pr", pr))
+    p = check_probability("pr", pr)
     cum = np.cumsum(v)
     if not cum[-1] > 0:
         raise ValueError("masses must have a positive sum (allowed: a distribution), got 0")
-    idx = int(np.searchsorted(cum, p * cum[-1]))
-    return float(v[min(idx, v.size - 1)])
+    idx = np.searchsorted(cum, p * cum[-1])
+    return np.asarray(v[np.minimum(idx, v.size - 1)], dtype=np.float64)

@@ -102,7 +102,7 @@ def mass_region_flags(masses: ArrayLike, cell: tuple[int, int]) -> BoolArray:
     i, j = cell
     if not (0 <= i < v.shape[0] and 0 <= j < v.shape[1]):
         return np.zeros(len(_PRS), dtype=bool)
-    return np.array([v[i, j] >= hdr_mass_level(v, pr) and v[i, j] > 0 for pr in _PRS])
+    return (v[i, j] >= hdr_mass_level(v, np.array(_PRS))) & (v[i, j] > 0)
 
 
 def weighted_mean_cov(particles: ArrayLike, w: ArrayLike) -> tuple[Array, Array]:
