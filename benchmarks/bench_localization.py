@@ -25,6 +25,7 @@ Writes ``benchmarks/results/localization.json``.
 from __future__ import annotations
 
 import math
+import os
 import time
 from typing import Any
 
@@ -293,11 +294,13 @@ def _bench_ekf(world: W.World, sen: S.RangeBearingSensor, run: SIM.SimulatedRun)
 def main() -> None:
     """Run the localization benchmarks and write ``benchmarks/results/localization.json``."""
     world, sen, run = _room()
-    results = {
+    load = os.getloadavg()[0]  # other jobs on the machine slow every number down
+    results: dict[str, Any] = {
         "particle_filter_1e4_particles_20_landmarks_1000_steps": _bench_particle(world, sen, run),
         "histogram_filter_step_128x128x72_landmarks": _bench_histogram(),
         "ekf_1000_steps": _bench_ekf(world, sen, run),
     }
+    results["load_average_1_min"] = {"start": round(load, 2), "end": round(os.getloadavg()[0], 2)}
     path = write_results("localization", results)
     print(f"wrote {path}")
 
