@@ -10,6 +10,7 @@ figure), named in :data:`COVERAGE_LEVELS`.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -117,19 +118,22 @@ def fraction_inside_ellipse(
 # --- highest-density regions of gridded distributions -------------------------------------------
 
 
-def hdr_region(mass: ArrayLike, pr: float, total: float | None = None) -> tuple[float, float]:
+def hdr_region(
+    mass: ArrayLike, pr: ArrayLike, total: float | None = None
+) -> tuple[Any, Any]:
     """The Pr highest-density region of a distribution given as mass per cell.
 
     The one convention of the package: cells are taken from the most probable
     down until their mass reaches ``pr · total``; the region is every cell of
-    mass ≥ ``level``, the mass of the last cell taken, and its size counts that
-    last cell only in proportion to the mass still needed (so the size is
-    continuous in ``pr``).
+    mass ≥ ``level``, the mass of the last cell taken (cells of equal mass at the
+    boundary all belong; on cells of equal area mass order is density order), and
+    its size counts that last cell only in proportion to the mass still needed (so
+    the size is continuous in ``pr``).
 
     Parameters
     ----------
     mass : array_like, any shape — probability mass per cell (≥ 0); equal-sized cells
-    pr : float in (0, 1)
+    pr : float or array_like in (0, 1) — one sort serves every level
     total : float, optional — the probability of the whole distribution in the
         units of ``mass``: default the mass on the cells (a relative map); 1 for a
         map that lost mass off its grid, then the region is ``nan`` when the cells
@@ -137,21 +141,24 @@ def hdr_region(mass: ArrayLike, pr: float, total: float | None = None) -> tuple[
 
     Returns
     -------
-    level : float — mass-per-cell threshold of the region (``nan`` if unreachable)
-    n_cells : float — its size in cells, fractional (multiply by the cell area for m²)
+    level : float, or ndarray of the shape of ``pr`` — mass-per-cell threshold (``nan`` if unreachable)
+    n_cells : the same — the region's size in cells, fractional (times the cell area: m²)
     """
     m = np.sort(check_nonnegative("mass", mass).ravel())[::-1]
-    p = float(check_probability("pr", pr))
+    p = check_probability("pr", pr)
     cum = np.cumsum(m)
     if cum.size == 0 or cum[-1] <= 0:
         raise ValueError("mass must have a positive total (allowed: a distribution), got total 0")
     need = p * (cum[-1] if total is None else float(total))
-    if need > cum[-1] * (1 + 1e-12):
-        return float("nan"), float("nan")
-    k = min(int(np.searchsorted(cum, need)), m.size - 1)
-    before = cum[k - 1] if k > 0 else 0.0
-    frac = min(1.0, (need - before) / m[k]) if m[k] > 0 else 1.0
-    return float(m[k]), float(k + frac)
+    k = np.minimum(np.searchsorted(cum, need), m.size - 1)
+    before = np.where(k > 0, cum[k - 1], 0.0)
+    frac = np.where(m[k] > 0, np.minimum(1.0, (need - before) / np.where(m[k] > 0, m[k], 1.0)), 1.0)
+    reach = need <= cum[-1] * (1 + 1e-12)
+    level = np.where(reach, m[k], np.nan)
+    n_cells = np.where(reach, k + frac, np.nan)
+    if level.ndim == 0:
+        return float(level), float(n_cells)
+    return level, n_cells
 
 
 def hellinger(p: ArrayLike, q: ArrayLike) -> float:

@@ -73,8 +73,11 @@ from .motion_models import (
 __all__ = [
     "EXACT_RADIUS",
     "MODELS",
+    "GridTransition",
     "ProbabilityMap",
+    "grid_transition",
     "multi_step_map",
+    "predict_on_grid",
     "single_step_map",
 ]
 
@@ -838,6 +841,239 @@ def _coarsen(fine: ProbabilityMap, over: int) -> ProbabilityMap:
     return ProbabilityMap(cg.x, cg.y, cg.theta, v, fine.lost_mass, fine.model, cg, info)
 
 
+def _kernel_windows(kern: _Kernel, thetas: Array, h: float) -> tuple[AnyArray, AnyArray, int, int]:
+    """Window of a step's kernel per source heading [cells]: offsets ``ax, ay`` (nθ,), sizes ``wx, wy``."""
+    # kernel windows per source heading (cells), from the control box perimeter (+1 for CIC)
+    px, py = _rotated_cells(kern, thetas, h, kern.perimeter)
+    ax = np.floor(px.min(axis=1)).astype(np.int64) - 2
+    ay = np.floor(py.min(axis=1)).astype(np.int64) - 2
+    wx = int((np.floor(px.max(axis=1)).astype(np.int64) + 4 - ax).max()) + 1
+    wy = int((np.floor(py.max(axis=1)).astype(np.int64) + 4 - ay).max()) + 1
+    return ax, ay, wx, wy
+
+
+def _drop_negligible_slices(belief: Array) -> tuple[float, AnyArray]:
+    """Zero the heading slices holding < 1e-14 (in place): (mass dropped, indices of the others)."""
+    mass_k = belief.sum(axis=(0, 1))
+    tiny = mass_k < 1e-14
+    dropped = 0.0
+    if np.any(tiny & (mass_k != 0.0)):
+        dropped = float(mass_k[tiny].sum())
+        belief[:, :, tiny] = 0.0
+    return dropped, np.flatnonzero(~tiny)
+
+
+def _source_window(
+    kern: _Kernel,
+    k: int,
+    fxy: tuple[Array, Array],
+    thetas: Array,
+    h: float,
+    windows: tuple[AnyArray, AnyArray, int, int],
+) -> Array:
+    """Kernel of source heading ``k`` on its window: mass per (x, y, heading offset), shape (wx, wy, mp).
+
+    ``fxy``: the nodes' world offsets [cells] for this heading (:func:`_rotated_cells`).
+    """
+    ax, ay, wx, wy = windows
+    # heading offsets carried by the position nodes (CIC); the heading-only noise
+    # (γΔt or δrot2) is applied afterwards as a circular convolution along θ
+    t_parts, mp = kern.head_parts, kern.head_mp
+    # position kernel of source heading k: trilinear deposit of the nodes
+    fx, fy = fxy
+    c_, s_ = math.cos(thetas[k]), math.sin(thetas[k])
+    wdx = (np.abs(c_ * kern.step_a[:, 0] - s_ * kern.step_a[:, 1])
+           + np.abs(c_ * kern.step_b[:, 0] - s_ * kern.step_b[:, 1])) / h  # fmt: skip
+    wdy = (np.abs(s_ * kern.step_a[:, 0] + c_ * kern.step_a[:, 1])
+           + np.abs(s_ * kern.step_b[:, 0] + c_ * kern.step_b[:, 1])) / h  # fmt: skip
+    x_parts = _axis_parts(fx, np.minimum(wdx, 1.0), kern.weight)
+    y_parts = _axis_parts(fy, np.minimum(wdy, 1.0), kern.weight)
+    lo_x = min(int(np.min(p_[0])) for p_ in x_parts)
+    hi_x = max(int(np.max(p_[0])) for p_ in x_parts)
+    lo_y = min(int(np.min(p_[0])) for p_ in y_parts)
+    hi_y = max(int(np.max(p_[0])) for p_ in y_parts)
+    if lo_x < ax[k] or lo_y < ay[k] or hi_x >= ax[k] + wx or hi_y >= ay[k] + wy:
+        raise RuntimeError("kernel node outside its window (internal error)")
+    win = np.zeros(wx * wy * mp)
+    for jx, wxx in x_parts:
+        for jy, wyy in y_parts:
+            wxy = kern.weight * wxx * wyy
+            for jt, wtt in t_parts:
+                flat = ((jx - ax[k]) * wy + (jy - ay[k])) * mp + jt
+                win += np.bincount(flat, wxy * wtt, minlength=win.size)
+    return win.reshape(wx, wy, mp)
+
+
+def _heading_noise(new: Array, kern: _Kernel, workers: int) -> Array:
+    """Heading-only noise: circular convolution along θ with the CIC-deposited γΔt / δrot2."""
+    nt = new.shape[2]
+    g_circ = np.zeros(nt)
+    np.add.at(g_circ, (kern.head_lo + np.arange(kern.head_kernel.size)) % nt, kern.head_kernel)
+    return np.asarray(sfft.irfft(
+        sfft.rfft(new, axis=2, workers=workers) * sfft.rfft(g_circ), n=nt, axis=2,
+        workers=workers,
+    ))  # fmt: skip
+
+
+def _convolve_step(
+    belief: Array,
+    g: Grid,
+    kern: _Kernel,
+    active: AnyArray,
+    windows: tuple[AnyArray, AnyArray, int, int],
+    thetas: Array,
+    workers: int,
+) -> tuple[Array, float, float]:
+    """One prediction step on a fixed grid: (new belief, round-off clipped, mass lost off the grid).
+
+    Every active source-heading slice is convolved (2-D FFT) with its kernel
+    window, the kernels of all destination headings accumulated in the Fourier domain.
+    ``thetas`` (nθ,) are the source headings of the belief's slices [rad].
+    """
+    ax, ay, wx, wy = windows
+    nx, ny, nt = g.nx, g.ny, g.ntheta
+    h, m_lo_p, mp = g.resolution, kern.head_m_lo, kern.head_mp
+    # FFT sizes: linear convolution of every slice with its shifted window, no wrap-around
+    sx0, sy0 = min(int(ax.min()), 0), min(int(ay.min()), 0)
+    ex, ey = max(int((ax + wx - 1).max()), 0), max(int((ay + wy - 1).max()), 0)
+    Px = sfft.next_fast_len(nx + ex - sx0, real=True)
+    Py = sfft.next_fast_len(ny + ey - sy0, real=True)
+    fold = mp > nt
+    M = nt if fold else mp
+    acc = np.zeros((nt, Px, Py // 2 + 1), dtype=np.complex128)
+    hit = np.zeros(nt, dtype=bool)
+    fx_all, fy_all = _rotated_cells(kern, thetas, h)
+    mass_before = float(belief.sum())
+    for k in active:
+        win3 = _source_window(kern, int(k), (fx_all[k], fy_all[k]), thetas, h, windows)
+        if fold:  # heading offsets wrap round the circle: fold them onto nθ shifts
+            kernel = np.zeros((wx, wy, nt))
+            for j in range(mp):
+                kernel[:, :, (m_lo_p + j) % nt] += win3[:, :, j]
+            dest = (k + np.arange(nt)) % nt
+        else:
+            kernel, dest = win3, (k + m_lo_p + np.arange(M)) % nt
+        # 2-D FFT of the window placed at its offset, in two passes so that the
+        # rows outside the window are never transformed
+        ox_, oy_ = int(ax[k]) - sx0, int(ay[k]) - sy0
+        rows = np.zeros((M, wx, Py))
+        rows[:, :, oy_ : oy_ + wy] = np.moveaxis(kernel, 2, 0)
+        khat_y = sfft.rfft(rows, axis=2, workers=workers)
+        cols = np.zeros((M, Px, Py // 2 + 1), dtype=np.complex128)
+        cols[:, ox_ : ox_ + wx, :] = khat_y
+        khat = sfft.fft(cols, axis=1, workers=workers, overwrite_x=True)
+        khat *= sfft.rfft2(belief[:, :, k], s=(Px, Py), workers=workers)[None]
+        acc[dest] += khat
+        hit[dest] = True
+    touched = np.flatnonzero(hit)
+    out = sfft.irfft2(acc[touched], s=(Px, Py), workers=workers)
+    new = np.zeros((nx, ny, nt))
+    new[:, :, touched] = np.moveaxis(out[:, -sx0 : -sx0 + nx, -sy0 : -sy0 + ny], 0, 2)
+    new = _heading_noise(new, kern, workers)
+    neg = new < 0.0
+    roundoff = float(-new[neg].sum())
+    new = np.where(neg, 0.0, new)
+    lost_step = max(0.0, mass_before - float(new.sum()))
+    return np.ascontiguousarray(new), roundoff, lost_step
+
+
+@dataclass(frozen=True, eq=False)
+class GridTransition:
+    """The transition of one motion step on the cells of one grid (build with :func:`grid_transition`).
+
+    Attributes
+    ----------
+    grid : Grid — the grid it was built for (cell sizes and headings must match at use)
+    heading_variance_mismatch : float [rad²] — see :func:`multi_step_map`
+    """
+
+    grid: Grid
+    kernel: _Kernel
+    windows: tuple[AnyArray, AnyArray, int, int]
+
+    @property
+    def heading_variance_mismatch(self) -> float:
+        """Discrete − continuous heading variance of the step [rad²]."""
+        return float(self.kernel.heading_variance_mismatch)
+
+
+def grid_transition(
+    model: str,
+    grid: Grid,
+    control: ArrayLike | None = None,
+    dt: float = 1.0,
+    alphas: ArrayLike | None = None,
+    *,
+    odometry: ArrayLike | None = None,
+    noise: str = "normal",
+    scaling: str = "squared",
+    n_nodes_max: int = 1500,
+    diffusion_compensation: bool = True,
+) -> GridTransition:
+    """The kernel of one step of :func:`multi_step_map` on ``grid``, for :func:`predict_on_grid`.
+
+    Parameters
+    ----------
+    model : {"velocity", "odometry"}
+    grid : Grid
+    control : array_like, shape (2,) — ``(V, ω)`` [m/s, rad/s] (velocity model)
+    dt : float [s], > 0 (velocity model)
+    alphas : array_like, shape (6,) or (4,), >= 0 — default 0.05 each
+    odometry : array_like, shape (2, 3) — odometry poses ``(x̄, x̄')`` (odometry model)
+    noise, scaling, n_nodes_max, diffusion_compensation : as :func:`multi_step_map`
+    """
+    check_choice("model", model, MODELS)
+    n_alpha = 6 if model == "velocity" else 4
+    a = _noise_args(model, noise, scaling, np.full(n_alpha, 0.05) if alphas is None else alphas)
+    step_dt = float(check_positive("dt", dt))
+    if model == "velocity":
+        if control is None:
+            raise ValueError("control must be given for the velocity model (allowed: (V, omega)), got None")
+        u = check_finite("control", control)
+        if u.shape != (2,):
+            raise ValueError(f"control must have shape (2,) (allowed: (V, omega)), got shape {u.shape}")
+        stp = _make_step(model, u, step_dt, a, noise, scaling, True, None, None)
+    else:
+        od = check_finite("odometry", np.zeros((0,)) if odometry is None else odometry)
+        if od.shape != (2, 3):
+            raise ValueError(f"odometry must have shape (2, 3) (allowed: two poses), got shape {od.shape}")
+        stp = _make_step(model, None, step_dt, a, noise, scaling, True, None, (od[0], od[1]))
+    kern = _quadrature_kernel(stp, grid.resolution, grid.theta_resolution, n_nodes_max,
+                              diffusion_compensation)  # fmt: skip
+    return GridTransition(grid, kern, _kernel_windows(kern, grid.theta, grid.resolution))
+
+
+def predict_on_grid(
+    belief: ArrayLike, transition: GridTransition, workers: int = -1
+) -> tuple[Array, dict[str, float]]:
+    """One histogram-filter prediction step on a fixed grid (the step of :func:`multi_step_map`).
+
+    Parameters
+    ----------
+    belief : array_like, shape (nx, ny, nθ) — probability mass per cell of ``transition.grid``
+    transition : GridTransition
+    workers : int — FFT threads
+
+    Returns
+    -------
+    belief' : ndarray, shape (nx, ny, nθ) — sums to ``Σ belief − lost_mass``
+    info : dict — ``lost_mass`` (left the grid, including negligible heading slices
+        dropped), ``roundoff`` (negative round-off clipped), ``negligible_slices``
+    """
+    g = transition.grid
+    b = check_nonnegative("belief", belief)
+    if b.shape != g.shape:
+        raise ValueError(f"belief must have the grid's shape {g.shape}, got shape {b.shape}")
+    b = b.copy()
+    dropped, active = _drop_negligible_slices(b)
+    if active.size == 0:
+        return np.zeros(g.shape), {"lost_mass": dropped, "roundoff": 0.0, "negligible_slices": dropped}
+    new, roundoff, lost = _convolve_step(
+        b, g, transition.kernel, active, transition.windows, g.theta, workers
+    )
+    return new, {"lost_mass": lost + dropped, "roundoff": roundoff, "negligible_slices": dropped}
+
+
 def multi_step_map(
     model: str,
     controls: Any,
@@ -1035,29 +1271,15 @@ def multi_step_map(
 
     for stp in steps:
         kern = _quadrature_kernel(stp, h, ht, n_nodes_max, diffusion_compensation)
-        # kernel windows per source heading (cells), from the control box perimeter (+1 for CIC)
-        px, py = _rotated_cells(kern, thetas, h, kern.perimeter)
-        ax = np.floor(px.min(axis=1)).astype(np.int64) - 2
-        ay = np.floor(py.min(axis=1)).astype(np.int64) - 2
-        wx = int((np.floor(px.max(axis=1)).astype(np.int64) + 4 - ax).max()) + 1
-        wy = int((np.floor(py.max(axis=1)).astype(np.int64) + 4 - ay).max()) + 1
-        # heading offsets carried by the position nodes (CIC); the heading-only noise
-        # (γΔt or δrot2) is applied afterwards as a circular convolution along θ
-        t_parts, m_lo_p, mp = kern.head_parts, kern.head_m_lo, kern.head_mp
+        ax, ay, wx, wy = _kernel_windows(kern, thetas, h)
         mismatch.append(kern.heading_variance_mismatch)
-        m_lo_g, gk = kern.head_lo, kern.head_kernel
 
-        # grow the grid to hold support + kernel reach
         # heading slices holding less than 1e-14 are not propagated: their mass is
         # counted as lost (reported as ``negligible_slices`` in ``info``)
-        mass_k = belief.sum(axis=(0, 1))
-        tiny = mass_k < 1e-14
-        if np.any(tiny & (mass_k != 0.0)):
-            dropped = float(mass_k[tiny].sum())
-            negligible += dropped
-            lost_total += dropped
-            belief[:, :, tiny] = 0.0
-        active = np.flatnonzero(~tiny)
+        dropped, active = _drop_negligible_slices(belief)
+        negligible += dropped
+        lost_total += dropped
+        # grow the grid to hold support + kernel reach
         if grow and active.size:
             thr = 1e-14 * float(belief.max())
             sx = np.flatnonzero((belief[:, :, active] > thr).any(axis=(1, 2)))
@@ -1089,84 +1311,15 @@ def multi_step_map(
                 lost_total += before - float(nb.sum())
                 belief, g = nb, ng
                 growths += 1
-        nx, ny = g.nx, g.ny
 
-        # FFT sizes: linear convolution of every slice with its shifted window, no wrap-around
-        sx0 = min(int(ax.min()), 0)
-        sy0 = min(int(ay.min()), 0)
-        ex = max(int((ax + wx - 1).max()), 0)
-        ey = max(int((ay + wy - 1).max()), 0)
-        Px = sfft.next_fast_len(nx + ex - sx0, real=True)
-        Py = sfft.next_fast_len(ny + ey - sy0, real=True)
-        fold = mp > nt
-        M = nt if fold else mp
-        acc = np.zeros((nt, Px, Py // 2 + 1), dtype=np.complex128)
-        hit = np.zeros(nt, dtype=bool)
-        fx_all, fy_all = _rotated_cells(kern, thetas, h)
-        mass_before = float(belief.sum())
-        for k in active:
-            # position kernel of source heading k: trilinear deposit of the nodes
-            fx, fy = fx_all[k], fy_all[k]
-            c_, s_ = math.cos(thetas[k]), math.sin(thetas[k])
-            wdx = (np.abs(c_ * kern.step_a[:, 0] - s_ * kern.step_a[:, 1])
-                   + np.abs(c_ * kern.step_b[:, 0] - s_ * kern.step_b[:, 1])) / h  # fmt: skip
-            wdy = (np.abs(s_ * kern.step_a[:, 0] + c_ * kern.step_a[:, 1])
-                   + np.abs(s_ * kern.step_b[:, 0] + c_ * kern.step_b[:, 1])) / h  # fmt: skip
-            x_parts = _axis_parts(fx, np.minimum(wdx, 1.0), kern.weight)
-            y_parts = _axis_parts(fy, np.minimum(wdy, 1.0), kern.weight)
-            lo_x = min(int(np.min(p_[0])) for p_ in x_parts)
-            hi_x = max(int(np.max(p_[0])) for p_ in x_parts)
-            lo_y = min(int(np.min(p_[0])) for p_ in y_parts)
-            hi_y = max(int(np.max(p_[0])) for p_ in y_parts)
-            if lo_x < ax[k] or lo_y < ay[k] or hi_x >= ax[k] + wx or hi_y >= ay[k] + wy:
-                raise RuntimeError("kernel node outside its window (internal error)")
-            win = np.zeros(wx * wy * mp)
-            for jx, wxx in x_parts:
-                for jy, wyy in y_parts:
-                    wxy = kern.weight * wxx * wyy
-                    for jt, wtt in t_parts:
-                        flat = ((jx - ax[k]) * wy + (jy - ay[k])) * mp + jt
-                        win += np.bincount(flat, wxy * wtt, minlength=win.size)
-            win3 = win.reshape(wx, wy, mp)
-            if fold:  # heading offsets wrap round the circle: fold them onto nθ shifts
-                kernel = np.zeros((wx, wy, nt))
-                for j in range(mp):
-                    kernel[:, :, (m_lo_p + j) % nt] += win3[:, :, j]
-                dest = (k + np.arange(nt)) % nt
-            else:
-                kernel, dest = win3, (k + m_lo_p + np.arange(M)) % nt
-            # 2-D FFT of the window placed at its offset, in two passes so that the
-            # rows outside the window are never transformed
-            ox_, oy_ = int(ax[k]) - sx0, int(ay[k]) - sy0
-            rows = np.zeros((M, wx, Py))
-            rows[:, :, oy_ : oy_ + wy] = np.moveaxis(kernel, 2, 0)
-            khat_y = sfft.rfft(rows, axis=2, workers=workers)
-            cols = np.zeros((M, Px, Py // 2 + 1), dtype=np.complex128)
-            cols[:, ox_ : ox_ + wx, :] = khat_y
-            khat = sfft.fft(cols, axis=1, workers=workers, overwrite_x=True)
-            bhat = sfft.rfft2(belief[:, :, k], s=(Px, Py), workers=workers)
-            khat *= bhat[None]
-            acc[dest] += khat
-            hit[dest] = True
-        touched = np.flatnonzero(hit)
-        out = sfft.irfft2(acc[touched], s=(Px, Py), workers=workers)
-        new = np.zeros((nx, ny, nt))
-        new[:, :, touched] = np.moveaxis(out[:, -sx0 : -sx0 + nx, -sy0 : -sy0 + ny], 0, 2)
-        # heading-only noise: circular convolution along θ with the CIC-deposited γΔt / δrot2
-        g_circ = np.zeros(nt)
-        np.add.at(g_circ, (m_lo_g + np.arange(gk.size)) % nt, gk)
-        new = sfft.irfft(
-            sfft.rfft(new, axis=2, workers=workers) * sfft.rfft(g_circ), n=nt, axis=2,
-            workers=workers,
+        # ``thetas`` are the headings of the first grid: a grown grid re-normalises theta0,
+        # which can relabel the slices by one cell (see core.grids.Grid); the kernels keep the first
+        belief, step_roundoff, lost_step = _convolve_step(
+            belief, g, kern, active, (ax, ay, wx, wy), thetas, workers
         )
-        neg = new < 0.0
-        roundoff += float(-new[neg].sum())
-        new = np.where(neg, 0.0, new)
-        kept = float(new.sum())
-        lost_step = max(0.0, mass_before - kept)
+        roundoff += step_roundoff
         lost_per_step.append(lost_step)
         lost_total += lost_step
-        belief = np.ascontiguousarray(new)
 
     info = {
         "lost_per_step": lost_per_step,

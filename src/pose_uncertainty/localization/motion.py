@@ -1,0 +1,132 @@
+"""The motion model a filter predicts with, and the samplers of the particle filter.
+
+Three models of one step ``k → k+1`` of a :class:`~pose_uncertainty.localization.simulate.SimulatedRun`,
+all driven by the same measured wheel travels:
+
+``"wheels"``
+    Method A's noise model (SPEC §2.2): ``Δs_r' ~ N(Δs_r, k_r|Δs_r|)``,
+    ``Δs_l' ~ N(Δs_l, k_l|Δs_l|)``, then the midpoint step. The simulator's
+    ``per_step`` truth is drawn from this model (with exact arcs), so it is the
+    right model there; the EKF linearises it (:func:`~pose_uncertainty.localization.ekf.ekf_predict_wheels`).
+``"velocity"``
+    Thrun's velocity model with ``u = (V, ω)`` = measured travels / Δt, six α's
+    (:func:`pose_uncertainty.methods.motion_models.sample_velocity`).
+``"odometry"``
+    Thrun's odometry model with ``u`` = the dead-reckoned odometry poses ``k → k+1``,
+    four α's (:func:`pose_uncertainty.methods.motion_models.sample_odometry`).
+
+:func:`velocity_alphas_for_wheels` gives velocity-model constants that match the
+wheel-noise variances of forward driving (see there).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..core.noise import check_noise, check_scaling
+from ..core.validation import check_choice, check_nonnegative, check_positive
+from ..methods.motion_models import check_alphas, sample_odometry, sample_velocity
+from .simulate import SimulatedRun
+
+__all__ = ["MOTION_MODELS", "Motion", "sample_motion", "velocity_alphas_for_wheels"]
+
+MOTION_MODELS: tuple[str, ...] = ("wheels", "velocity", "odometry")
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Motion:
+    """Motion model and its error constants.
+
+    Attributes
+    ----------
+    model : {"wheels", "velocity", "odometry"}
+    k_r, k_l : float [m], ≥ 0 — wheel-noise constants ("wheels")
+    alphas : tuple of 6 (velocity) or 4 (odometry) floats ≥ 0; default 0.05 each
+    noise : {"normal", "triangular"}; scaling : {"squared", "abs"} — velocity/odometry models
+    """
+
+    model: str = "wheels"
+    k_r: float = 5e-4
+    k_l: float = 5e-4
+    alphas: tuple[float, ...] | None = None
+    noise: str = "normal"
+    scaling: str = "squared"
+
+    def __post_init__(self) -> None:
+        check_choice("motion.model", self.model, MOTION_MODELS)
+        object.__setattr__(self, "k_r", float(check_nonnegative("k_r", self.k_r)))
+        object.__setattr__(self, "k_l", float(check_nonnegative("k_l", self.k_l)))
+        check_noise(self.noise)
+        check_scaling(self.scaling)
+        if self.model != "wheels":
+            n = 6 if self.model == "velocity" else 4
+            a = np.full(n, 0.05) if self.alphas is None else check_alphas(self.alphas, n)
+            object.__setattr__(self, "alphas", tuple(float(v) for v in a))
+
+    @property
+    def alpha_array(self) -> Array:
+        """The α's as an array (velocity: 6, odometry: 4)."""
+        return np.asarray(self.alphas, dtype=np.float64)
+
+
+def velocity_alphas_for_wheels(k_r: float, k_l: float, track: float, dt: float) -> tuple[float, ...]:
+    """Velocity-model constants (``scaling="abs"``) with the wheel model's variances, forward driving.
+
+    With both wheels rolling forwards, ``Var Δs = (k_r|Δs_r| + k_l|Δs_l|)/4 ≈ k̄|Δs|/2`` and
+    ``Var Δθ = (k_r|Δs_r| + k_l|Δs_l|)/b² ≈ 2k̄|Δs|/b²`` (``k̄ = (k_r+k_l)/2``), so with
+    ``σ_V² = α1|V|``, ``σ_ω² = α3|V|``: ``α1 = k̄/(2Δt)``, ``α3 = 2k̄/(b²Δt)``; the others 0.
+    Approximate: it drops the V–ω correlation ``(k_r|Δs_r| − k_l|Δs_l|)/(2bΔt²)`` and
+    rotation in place.
+    """
+    kbar = (float(check_nonnegative("k_r", k_r)) + float(check_nonnegative("k_l", k_l))) / 2
+    b = float(check_positive("track", track))
+    step = float(check_positive("dt", dt))
+    return (kbar / (2 * step), 0.0, 2 * kbar / (b * b * step), 0.0, 0.0, 0.0)
+
+
+def _wheel_step(P: Array, sr: float, sl: float, m: Motion, b: float, rng: np.random.Generator) -> Array:
+    """``Δs' ~ N(Δs, k|Δs|)`` per wheel and particle, then the midpoint step (as kinematics.step)."""
+    z = rng.standard_normal((2, P.shape[0]))
+    z[0] *= math.sqrt(m.k_r * abs(sr))
+    z[0] += sr  # Δs_r'
+    z[1] *= math.sqrt(m.k_l * abs(sl))
+    z[1] += sl  # Δs_l'
+    ds = (z[0] + z[1]) * 0.5
+    dth = (z[0] - z[1]) * (1.0 / b)
+    phi = P[:, 2] + 0.5 * dth
+    out = np.empty_like(P)
+    out[:, 0] = P[:, 0] + ds * np.cos(phi)
+    out[:, 1] = P[:, 1] + ds * np.sin(phi)
+    out[:, 2] = P[:, 2] + dth
+    return out
+
+
+def sample_motion(
+    particles: Array, motion: Motion, run: SimulatedRun, k: int, rng: np.random.Generator
+) -> Array:
+    """Move every particle by step ``k → k+1`` of ``run`` under ``motion``'s noise.
+
+    Parameters
+    ----------
+    particles : ndarray, shape (n, 3)
+    motion : Motion; run : SimulatedRun; k : int in [0, N)
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    ndarray, shape (n, 3) — headings unwrapped
+    """
+    n = particles.shape[0]
+    if motion.model == "wheels":
+        return _wheel_step(particles, float(run.ds_r[k]), float(run.ds_l[k]), motion, run.track, rng)
+    if motion.model == "velocity":
+        return sample_velocity(particles, run.controls[k], run.dt, motion.alpha_array, n, rng,
+                               motion.noise, motion.scaling)  # fmt: skip
+    return sample_odometry(particles, run.odometry[k], run.odometry[k + 1], motion.alpha_array, n,
+                           rng, motion.noise, motion.scaling)  # fmt: skip
