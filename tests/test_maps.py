@@ -67,26 +67,6 @@ def test_map_statistics_of_a_known_gaussian():
         assert_allclose(m.credible_area(pr), area, rtol=0.01)
 
 
-def test_hellinger_properties():
-    p = np.array([0.2, 0.3, 0.5, 0.0])
-    q = np.array([0.0, 0.0, 0.0, 1.0])
-    assert stats.hellinger(p, p) == 0.0
-    assert_allclose(stats.hellinger(p, q), 1.0)
-    r = np.array([0.25, 0.25, 0.25, 0.25])
-    assert_allclose(stats.hellinger(p, r), stats.hellinger(r, p))
-    with pytest.raises(ValueError, match="same shape"):
-        stats.hellinger(p, p[:3])
-
-
-def test_noise_floor_predicts_the_distance_of_a_histogram_from_its_own_distribution():
-    rng = np.random.default_rng(1)
-    p = rng.dirichlet(np.full(400, 0.5))
-    n = 20_000
-    hs = [stats.hellinger(p, rng.multinomial(n, p) / n) for _ in range(40)]
-    # mean of 40 draws of H²: relative s.e. ≈ √(2/400)/√40 ≈ 1 %; allow 5 %
-    assert_allclose(np.mean(np.square(hs)), stats.hellinger_noise_floor(p, n) ** 2, rtol=0.05)
-
-
 # ----------------------------------------------------------------------------- single step
 
 

@@ -27,6 +27,20 @@ __all__ = ["Grid"]
 Array = NDArray[np.float64]
 
 
+def _first_heading(theta0: float, ntheta: int) -> float:
+    """The centre in ``[−π, −π + h_θ)`` of the heading cell of ``theta0`` (idempotent).
+
+    A remainder within rounding of a whole cell counts as 0, so that normalising
+    an already normalised ``theta0`` (e.g. ``−π + h_θ·k`` computed in floating point)
+    never moves the heading labels by one cell.
+    """
+    ht = 2.0 * math.pi / ntheta
+    r = math.fmod(math.fmod(theta0 + math.pi, ht) + ht, ht)
+    if r > ht * (1.0 - 1e-9):
+        r = 0.0
+    return -math.pi + r
+
+
 @dataclass(frozen=True)
 class Grid:
     """A regular ``(x, y[, θ])`` grid.
@@ -63,9 +77,7 @@ class Grid:
         set_(self, "ntheta", check_positive_int("ntheta", self.ntheta))
         set_(self, "x0", float(check_finite("x0", self.x0)))
         set_(self, "y0", float(check_finite("y0", self.y0)))
-        ht = 2.0 * math.pi / self.ntheta
-        t0 = float(check_finite("theta0", self.theta0))
-        set_(self, "theta0", -math.pi + math.fmod(math.fmod(t0 + math.pi, ht) + ht, ht))
+        set_(self, "theta0", _first_heading(float(check_finite("theta0", self.theta0)), self.ntheta))
 
     # --- construction -----------------------------------------------------------------------
 
