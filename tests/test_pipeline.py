@@ -22,12 +22,13 @@ import pytest
 import yaml
 
 from pose_uncertainty.analysis.claims import VERDICTS, evaluate_claims
+from pose_uncertainty.core.schema import load_schema
 from pose_uncertainty.core.tables import read_table
 from pose_uncertainty.logs import sweep
 
 REPO = Path(__file__).resolve().parents[1]
 SNAKEMAKE = Path(sys.executable).with_name("snakemake")
-SCHEMA = sweep.load_schema(REPO / "workflow/schemas/config.schema.yaml")
+SCHEMA = load_schema(REPO / "workflow/schemas/config.schema.yaml")
 
 
 def _config(name: str = "config.yaml") -> dict:

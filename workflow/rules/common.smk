@@ -5,6 +5,7 @@ from importlib import resources as _resources
 from pose_uncertainty.logs import sweep as _sweep
 from pose_uncertainty.logs import study as _study
 from pose_uncertainty.logs.provenance import source_sha256
+from pose_uncertainty.core.schema import load_schema
 
 # A config file given on the command line (--configfile config/quick.yaml) REPLACES
 # config/config.yaml instead of deep-merging into it (whose sets would otherwise leak in);
@@ -15,7 +16,7 @@ if workflow.overwrite_configfiles:
     config.clear()
     config.update(_copy.deepcopy(workflow.config_settings.overwrite_config))
 
-_SCHEMA = _sweep.load_schema(workflow.source_path("../schemas/config.schema.yaml"))
+_SCHEMA = load_schema(workflow.source_path("../schemas/config.schema.yaml"))
 try:
     _validated = _sweep.validate_config(config, _SCHEMA)
 except _sweep.ConfigError as _exc:

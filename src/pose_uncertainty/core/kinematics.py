@@ -27,6 +27,7 @@ __all__ = [
     "integrate",
     "integrate_twist",
     "inverse_arc",
+    "sinc",
     "step",
     "step_twist",
     "wheel_to_body",
@@ -82,6 +83,19 @@ def body_to_wheel(
     v = check_finite("V", V)
     w = check_finite("omega", omega)
     return v + w * b / 2.0, v - w * b / 2.0
+
+
+def sinc(u: ArrayLike) -> NDArray[np.float64]:
+    """``sin u / u``, 1 at ``u = 0`` (numpy's normalised ``np.sinc(u/π)``)."""
+    return np.sinc(np.asarray(u, dtype=np.float64) / np.pi)
+
+
+def dsinc(u: ArrayLike) -> NDArray[np.float64]:
+    """Derivative of ``sin u / u`` with respect to ``u`` (``−u/3`` near 0)."""
+    v = np.asarray(u, dtype=np.float64)
+    small = np.abs(v) < 1e-4
+    safe = np.where(small, 1.0, v)
+    return np.where(small, -v / 3.0, (safe * np.cos(safe) - np.sin(safe)) / (safe * safe))
 
 
 def _sinc_half(dtheta: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -18,6 +18,7 @@ __all__ = [
     "check_finite",
     "check_last_axis",
     "check_nonnegative",
+    "check_pose_cov",
     "check_positive",
     "check_positive_int",
     "check_probability",
@@ -99,3 +100,25 @@ def check_last_axis(name: str, value: ArrayLike, n: int) -> NDArray[np.float64]:
     if arr.ndim == 0 or arr.shape[-1] != n:
         raise ValueError(f"{name} must have shape (..., {n}), got shape {arr.shape}")
     return arr
+
+
+def check_pose_cov(name: str, value: ArrayLike | None) -> NDArray[np.float64]:
+    """A pose covariance, shape (..., 3, 3) over (x [m], y [m], θ [rad]): symmetric, PSD.
+
+    ``None`` is the zero covariance (a known pose). Raises ValueError naming
+    ``name``, the problem and what is allowed.
+    """
+    if value is None:
+        return np.zeros((3, 3))
+    S = check_finite(name, value)
+    if S.shape[-2:] != (3, 3):
+        raise ValueError(f"{name} must have shape (..., 3, 3), got shape {S.shape}")
+    if not np.allclose(S, np.swapaxes(S, -1, -2)):
+        raise ValueError(f"{name} must be symmetric (allowed: symmetric positive semi-definite 3x3)")
+    eig = np.linalg.eigvalsh(S)
+    if np.any(eig < -1e-12 * max(1.0, float(np.abs(S).max()))):
+        raise ValueError(
+            f"{name} must be positive semi-definite (allowed: symmetric, eigenvalues >= 0), "
+            f"got eigenvalues {eig.tolist()}"
+        )
+    return S

@@ -43,11 +43,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..core.kinematics import wrap_angle
+from ..core.kinematics import dsinc, sinc, wrap_angle
 from ..core.noise import check_scaling
 from ..core.validation import check_choice, check_finite, check_last_axis, check_positive
 from ..methods.covariance import step as covariance_step
-from ..methods.motion_models import _dsinc, _sinc, velocity_forward, velocity_variances
+from ..methods.motion_models import velocity_forward, velocity_variances
 from .measures import gaussian_region_flags
 from .motion import Motion
 from .result import (
@@ -189,7 +189,7 @@ def velocity_jacobians(mean: ArrayLike, control: ArrayLike, dt: float) -> tuple[
     step = float(check_positive("dt", dt))
     Vv, w = u[..., 0], u[..., 1]
     half = w * step / 2.0
-    s, ds = _sinc(half), _dsinc(half)
+    s, ds = sinc(half), dsinc(half)
     phi = p[..., 2] + half
     c, sn = np.cos(phi), np.sin(phi)
     chord = Vv * step * s

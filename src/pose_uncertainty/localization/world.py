@@ -40,11 +40,10 @@ from typing import Any
 import matplotlib.image as mpimg
 import numpy as np
 import yaml
-from jsonschema import Draft202012Validator
-from jsonschema.exceptions import best_match
 from numpy.typing import ArrayLike, NDArray
 
 from ..core.grids import Grid
+from ..core.schema import first_error
 from ..core.validation import check_finite, check_last_axis, check_positive, check_positive_int
 
 __all__ = [
@@ -426,46 +425,14 @@ def sample_free_poses(world: World, n: int, rng: np.random.Generator) -> Array:
 # ============================================================================= files
 
 
-def _allowed(error: Any) -> str:
-    """What the failing schema keyword allows, in words."""
-    kw, val, sch = error.validator, error.validator_value, error.schema
-    if kw == "type":
-        return f"type {val}"
-    if kw in ("minimum", "exclusiveMinimum", "maximum", "exclusiveMaximum"):
-        syms = (("minimum", ">="), ("exclusiveMinimum", ">"), ("maximum", "<="), ("exclusiveMaximum", "<"))
-        return " and ".join(f"{s} {sch[k]}" for k, s in syms if k in sch)
-    if kw == "additionalProperties":
-        return "only the keys " + ", ".join(sorted(sch.get("properties", {})))
-    if kw == "required":
-        return "the keys " + ", ".join(val) + " are required"
-    if kw in ("minItems", "maxItems"):
-        return f"{sch.get('minItems', 0)} to {sch.get('maxItems', 'any number of')} items"
-    return f"{kw} {json.dumps(val, default=str)}"
-
-
-def _schema_error(error: Any) -> str:
-    """One line naming the key, the bad value and what the world schema allows."""
-    path = "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in error.absolute_path)
-    value = error.instance
-    if error.validator == "additionalProperties" and isinstance(value, Mapping):
-        extra = sorted(set(value) - set(error.schema.get("properties", {})))
-        path, value = f"{path}.{extra[0]}", value[extra[0]]
-    elif error.validator == "required" and isinstance(value, Mapping):
-        missing = [k for k in error.validator_value if k not in value]
-        return f"world key {(path + '.' + missing[0]).lstrip('.')!r} is missing; allowed: {_allowed(error)}"
-    shown = json.dumps(value, default=str)
-    shown = shown if len(shown) <= 80 else shown[:77] + "..."
-    return f"world key {path.lstrip('.') or '<root>'!r} has bad value {shown}; allowed: {_allowed(error)}"
-
-
 def _validate(data: Any) -> None:
     if not isinstance(data, Mapping):
         raise ValueError(  # noqa: TRY004 - a bad world file is a ValueError like every bad input
             f"world file must hold a mapping (allowed: YAML/JSON object), got {type(data).__name__}"
         )
-    err = best_match(Draft202012Validator(WORLD_SCHEMA).iter_errors(data))
-    if err is not None:
-        raise ValueError(_schema_error(err))
+    problem = first_error(WORLD_SCHEMA, data, what="world")
+    if problem is not None:
+        raise ValueError(problem)
     if "walls" in data and "image" in data:
         raise ValueError("world keys 'walls' and 'image' are exclusive (allowed: one grid source), got both")
     b = data.get("bounds")

@@ -32,15 +32,13 @@ import itertools
 import json
 import math
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from jsonschema import Draft202012Validator
-from jsonschema.exceptions import best_match, relevance
-
 from ..core import trajectories
+from ..core.schema import first_error
 from .run import RunConfig, execute
 from .runlog import write_run
 
@@ -49,9 +47,7 @@ __all__ = [
     "Run",
     "expand_all",
     "expand_set",
-    "format_schema_error",
     "label_value",
-    "load_schema",
     "n_steps",
     "run_label",
     "simulate",
@@ -113,78 +109,6 @@ class Run:
 # --- schema validation ------------------------------------------------------------------
 
 
-def load_schema(path: str | Path) -> dict[str, Any]:
-    """Load a JSON Schema written as YAML (or JSON)."""
-    import yaml
-
-    with open(path, encoding="utf-8") as fh:
-        return yaml.safe_load(fh)
-
-
-def _dotted(path: Sequence[Any]) -> str:
-    out = ""
-    for part in path:
-        if isinstance(part, int):
-            out += f"[{part}]"
-        else:
-            out += ("." if out else "") + str(part)
-    return out or "<config>"
-
-
-def _allowed(error: Any) -> str:
-    """Describe what the failing schema keyword allows."""
-    kw, val, sch = error.validator, error.validator_value, error.schema
-    if kw == "enum":
-        return "one of " + ", ".join(json.dumps(v) for v in val)
-    if kw == "const":
-        return json.dumps(val)
-    if kw == "type":
-        return f"type {val}"
-    if kw in ("minimum", "exclusiveMinimum", "maximum", "exclusiveMaximum"):
-        parts = []
-        for k, sym in (("minimum", ">="), ("exclusiveMinimum", ">"), ("maximum", "<="), ("exclusiveMaximum", "<")):
-            if k in sch:
-                parts.append(f"{sym} {sch[k]}")
-        return " and ".join(parts)
-    if kw == "additionalProperties":
-        props = sorted(sch.get("properties", {}))
-        return "only the keys " + ", ".join(props) if props else "no further keys"
-    if kw == "required":
-        return "the keys " + ", ".join(val) + " are required"
-    if kw == "pattern":
-        return f"strings matching {val}"
-    if kw == "propertyNames":
-        return "key names as described in the schema"
-    if kw in ("minItems", "maxItems", "minProperties", "maxProperties", "minLength"):
-        return f"{kw} {val}"
-    return f"{kw}: {json.dumps(val, default=str)}"
-
-
-def format_schema_error(error: Any) -> str:
-    """One line naming the key, the bad value and what the schema allows."""
-    path = list(error.absolute_path)
-    value = error.instance
-    if error.validator == "additionalProperties" and isinstance(value, Mapping):
-        allowed_keys = set(error.schema.get("properties", {}))
-        pattern = error.schema.get("patternProperties", {})
-        extra = sorted(
-            k for k in value if k not in allowed_keys and not any(re.search(p, k) for p in pattern)
-        )
-        key = _dotted([*path, extra[0]]) if extra else _dotted(path)
-        return (
-            f"config key {key!r} is not allowed (value {json.dumps(value.get(extra[0]) if extra else value, default=str)}); "
-            f"allowed: {_allowed(error)}"
-        )
-    if error.validator == "required":
-        missing = [k for k in error.validator_value if isinstance(value, Mapping) and k not in value]
-        key = _dotted([*path, missing[0]]) if missing else _dotted(path)
-        return f"config key {key!r} is missing; allowed: {_allowed(error)}"
-    shown = json.dumps(value, default=str)
-    if len(shown) > 120:
-        shown = shown[:117] + "..."
-    return f"config key {_dotted(path)!r} has bad value {shown}; allowed: {_allowed(error)}"
-
-
 def _resolve(schema: Mapping[str, Any], root: Mapping[str, Any]) -> Mapping[str, Any]:
     ref = schema.get("$ref")
     if isinstance(ref, str) and ref.startswith("#/"):
@@ -240,20 +164,13 @@ def validate_config(config: Mapping[str, Any], schema: Mapping[str, Any]) -> dic
         runs are not valid run configurations; the message names the key, the
         value and what is allowed.
     """
-    Draft202012Validator.check_schema(schema)
-    validator = Draft202012Validator(schema)
-    err = best_match(validator.iter_errors(config), key=_relevance)
-    if err is not None:
-        raise ConfigError(format_schema_error(err))
+    problem = first_error(schema, config)
+    if problem is not None:
+        raise ConfigError(problem)
     filled = copy.deepcopy(dict(config))
     _fill_defaults(schema, filled)
     expand_all(filled)  # raises ConfigError for bad runs
     return filled
-
-
-def _relevance(error: Any) -> Any:
-    # prefer the deepest error, as best_match does
-    return relevance(error)
 
 
 # --- expansion ---------------------------------------------------------------------------

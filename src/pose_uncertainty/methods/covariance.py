@@ -36,6 +36,7 @@ from ..core.validation import (
     check_finite,
     check_last_axis,
     check_nonnegative,
+    check_pose_cov,
     check_positive,
     check_positive_int,
 )
@@ -174,22 +175,6 @@ def step(
     return new_pose, new_cov
 
 
-def _check_cov0(cov0: ArrayLike | None) -> NDArray[np.float64]:
-    if cov0 is None:
-        return np.zeros((3, 3))
-    S0 = check_finite("cov0", cov0)
-    if S0.shape[-2:] != (3, 3):
-        raise ValueError(f"cov0 must have shape (..., 3, 3), got shape {S0.shape}")
-    if not np.allclose(S0, np.swapaxes(S0, -1, -2)):
-        raise ValueError("cov0 must be symmetric (allowed: symmetric positive semi-definite 3x3)")
-    if np.any(np.linalg.eigvalsh(S0) < -1e-12 * max(1.0, float(np.abs(S0).max()))):
-        raise ValueError(
-            "cov0 must be positive semi-definite (allowed: symmetric, eigenvalues >= 0), "
-            f"got eigenvalues {np.linalg.eigvalsh(S0).tolist()}"
-        )
-    return S0
-
-
 def _check_travels(ds_r: ArrayLike, ds_l: ArrayLike) -> tuple[NDArray, NDArray]:
     sr = check_finite("ds_r", ds_r)
     sl = check_finite("ds_l", ds_l)
@@ -218,7 +203,7 @@ def _check_inputs(
         check_positive("track", track),
         check_nonnegative("k_r", k_r),
         check_nonnegative("k_l", k_l),
-        _check_cov0(cov0),
+        check_pose_cov("cov0", cov0),
         check_last_axis("start", start, 3),
     )
 

@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..core.drives import Drive, DrivePath
 from ..core.kinematics import HEADING_OFFSET, METHODS, Method, step_twist
-from ..core.validation import check_choice, check_finite, check_last_axis
+from ..core.validation import check_choice, check_finite, check_last_axis, check_pose_cov
 from . import drive_noise as dn
 from .covariance import CovarianceResult
 from .expcoords import ExpGaussian, propagate_twists
@@ -119,15 +119,6 @@ def step_jacobians(
     return J_p, J_xi @ drive.twist_jacobian(u)
 
 
-def _check_cov0(cov0: ArrayLike | None) -> NDArray[np.float64]:
-    if cov0 is None:
-        return np.zeros((3, 3))
-    S0 = check_finite("cov0", cov0)
-    if S0.shape[-2:] != (3, 3):
-        raise ValueError(f"cov0 must have shape (..., 3, 3), got shape {S0.shape}")
-    return S0
-
-
 def _check_sequence(
     drive: Drive, u: ArrayLike, cov: ArrayLike, name: str, d: int
 ) -> tuple[NDArray, NDArray]:
@@ -176,7 +167,7 @@ def propagate(
     check_choice("method", method, METHODS)
     a, Su = _check_sequence(drive, u, meas_cov, "meas_cov", drive.n_channels)
     Qx = None if twist_cov is None else _check_sequence(drive, a, twist_cov, "twist_cov", 3)[1]
-    S0 = _check_cov0(cov0)
+    S0 = check_pose_cov("cov0", cov0)
     p0 = check_finite("start", check_last_axis("start", start, 3))
     shapes = [a.shape[:-2], Su.shape[:-3], S0.shape[:-2], p0.shape[:-1]]
     batch = np.broadcast_shapes(*shapes, *([] if Qx is None else [Qx.shape[:-3]]))
@@ -245,7 +236,7 @@ def propagate_per_run(
     check_choice("method", method, METHODS)
     a = check_finite("u", check_last_axis("u", u, drive.n_channels))
     T, var = sensitivity
-    S0 = _check_cov0(cov0)
+    S0 = check_pose_cov("cov0", cov0)
     n = a.shape[-2]
     xi = drive.twist(a)
     poses = np.empty((n + 1, 3))

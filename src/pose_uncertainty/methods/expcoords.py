@@ -67,12 +67,13 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..core.kinematics import integrate_twist
+from ..core.kinematics import integrate_twist, sinc
 from ..core.trajectories import Trajectory
 from ..core.validation import (
     check_finite,
     check_last_axis,
     check_nonnegative,
+    check_pose_cov,
     check_positive_int,
     check_probability,
 )
@@ -102,14 +103,9 @@ __all__ = [
 _SMALL = 1e-4  # below |w| < _SMALL the series of the sinc-like functions are used
 
 
-def _sinc(w: NDArray) -> NDArray:
-    """sin(w)/w, 1 at w = 0."""
-    return np.sinc(w / np.pi)
-
-
 def _cosc(w: NDArray) -> NDArray:
     """(1 − cos w)/w = (w/2)·sinc²(w/2), 0 at w = 0."""
-    return 0.5 * w * _sinc(0.5 * w) ** 2
+    return 0.5 * w * sinc(0.5 * w) ** 2
 
 
 def _half_cot(w: NDArray) -> NDArray:
@@ -143,7 +139,7 @@ def exp(xi: ArrayLike) -> NDArray[np.float64]:
     """
     x = check_last_axis("xi", xi, 3)
     v1, v2, w = x[..., 0], x[..., 1], x[..., 2]
-    s, c = _sinc(w), _cosc(w)
+    s, c = sinc(w), _cosc(w)
     return np.stack([s * v1 - c * v2, c * v1 + s * v2, w], axis=-1)
 
 
@@ -249,9 +245,9 @@ def right_jacobian(xi: ArrayLike) -> NDArray[np.float64]:
     """
     x = check_last_axis("xi", xi, 3)
     r1, r2, w = x[..., 0], x[..., 1], x[..., 2]
-    s = _sinc(w)
+    s = sinc(w)
     c = _cosc(w)
-    c2 = 0.5 * _sinc(0.5 * w) ** 2  # (1 − cos w)/w²
+    c2 = 0.5 * sinc(0.5 * w) ** 2  # (1 − cos w)/w²
     d2 = _w_minus_sin_over_w2(w)  # (w − sin w)/w²
     one, zero = np.ones_like(w), np.zeros_like(w)
     return np.stack(
@@ -301,15 +297,6 @@ def _check_k(k_r: ArrayLike, k_l: ArrayLike) -> tuple[NDArray, NDArray]:
     return kr, kl
 
 
-def _check_cov0(cov0: ArrayLike | None) -> NDArray:
-    if cov0 is None:
-        return np.zeros((3, 3))
-    S0 = check_finite("cov0", cov0)
-    if S0.shape[-2:] != (3, 3):
-        raise ValueError(f"cov0 must have shape (..., 3, 3), got shape {S0.shape}")
-    return S0
-
-
 def propagate(
     trajectory: Trajectory,
     k_r: ArrayLike,
@@ -334,7 +321,7 @@ def propagate(
     ExpGaussian with poses (N+1, 3) broadcast to (B..., N+1, 3) and covs (B..., N+1, 3, 3)
     """
     kr, kl = _check_k(k_r, k_l)
-    S0 = _check_cov0(cov0)
+    S0 = check_pose_cov("cov0", cov0)
     mu = trajectory.poses  # exact arcs, unwrapped heading
     _, Br, Bl = _step_noise(trajectory)
     Ad_next = adjoint(mu[1:])  # (N, 3, 3)
@@ -400,7 +387,7 @@ def propagate_twists(
         raise ValueError(
             f"twists must have shape (N, 3) and twist_covs (..., N, 3, 3), got {xi.shape} and {Qxi.shape}"
         )
-    S0 = _check_cov0(cov0)
+    S0 = check_pose_cov("cov0", cov0)
     mu = integrate_twist(xi, start, "exact")
     Jr = right_jacobian(xi)
     Ad_next = adjoint(mu[1:])
@@ -428,7 +415,7 @@ def propagate_recursive(
     (scalar constants).
     """
     kr, kl = (float(v) for v in _check_k(k_r, k_l))
-    S = _check_cov0(cov0).astype(float)
+    S = check_pose_cov("cov0", cov0).astype(float)
     delta, Br, Bl = _step_noise(trajectory)
     A = adjoint(exp(-delta))
     n = trajectory.n_steps
@@ -541,7 +528,7 @@ def logpdf_pose(points: ArrayLike, mean_pose: ArrayLike, cov: ArrayLike) -> NDAr
     z = np.linalg.solve(L, eps.reshape(-1, 3).T).T.reshape(eps.shape)
     logdet = 2.0 * np.log(np.diag(L)).sum()
     with np.errstate(divide="ignore"):
-        log_jac = 2.0 * np.log(np.abs(_sinc(0.5 * eps[..., 2])))
+        log_jac = 2.0 * np.log(np.abs(sinc(0.5 * eps[..., 2])))
     return -0.5 * (z**2).sum(axis=-1) - 0.5 * logdet - 1.5 * np.log(2.0 * np.pi) - log_jac
 
 
@@ -569,7 +556,7 @@ def _conditional_means(mean_pose: NDArray, S: NDArray, w: NDArray) -> tuple[NDAr
     s_ww = S[2, 2]
     s_vw = S[:2, 2]
     m = (s_vw / s_ww)[None, :] * w[:, None] if s_ww > 0 else np.zeros((w.size, 2))
-    s, c = _sinc(w), _cosc(w)
+    s, c = sinc(w), _cosc(w)
     V = np.stack([np.stack([s, -c], -1), np.stack([c, s], -1)], -2)  # (q, 2, 2)
     th = mean_pose[2]
     R = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])

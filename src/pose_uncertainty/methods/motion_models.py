@@ -78,7 +78,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..core.kinematics import wrap_angle
+from ..core.kinematics import dsinc, sinc, wrap_angle
 from ..core.noise import check_noise, check_scaling, prob, prob_cell, sample, scaled_variance
 from ..core.validation import (
     check_choice,
@@ -155,18 +155,6 @@ def _local(x_t: Array, x_prev: Array) -> tuple[Array, Array, Array]:
     return dx * c + dy * s, -dx * s + dy * c, x_t[..., 2] - x_prev[..., 2]
 
 
-def _sinc(u: ArrayLike) -> Array:
-    """``sin u / u`` (1 at u = 0)."""
-    return np.sinc(np.asarray(u, dtype=np.float64) / np.pi)
-
-
-def _dsinc(u: Array) -> Array:
-    """Derivative of ``sin u / u`` with respect to ``u`` (``−u/3`` near 0)."""
-    small = np.abs(u) < 1e-4
-    safe = np.where(small, 1.0, u)
-    return np.where(small, -u / 3.0, (safe * np.cos(safe) - np.sin(safe)) / (safe * safe))
-
-
 def _check_cell(cell: tuple[float, float] | None) -> tuple[float, float] | None:
     if cell is None:
         return None
@@ -216,7 +204,7 @@ def velocity_inverse(x_t: ArrayLike, x_prev: ArrayLike, dt: float) -> tuple[Arra
     forward = np.abs(beta) <= np.pi / 2
     h = np.where(forward, beta, beta - np.pi * np.sign(beta))  # Δφ/2 ∈ [−π/2, π/2]
     phi = 2.0 * h
-    V_hat = np.where(forward, 1.0, -1.0) * chord / (step * _sinc(h))  # sinc h ≥ 2/π here
+    V_hat = np.where(forward, 1.0, -1.0) * chord / (step * sinc(h))  # sinc h ≥ 2/π here
     gamma_hat = wrap_angle(dth - phi) / step
     return V_hat, phi / step, gamma_hat
 
@@ -243,7 +231,7 @@ def velocity_forward(
     xp = _pose("x_prev", x_prev)
     V_, w_, g_ = (np.asarray(a, dtype=np.float64) for a in (V, omega, gamma))
     phi = w_ * dt
-    chord = V_ * dt * _sinc(phi / 2.0)
+    chord = V_ * dt * sinc(phi / 2.0)
     head = xp[..., 2] + phi / 2.0
     return np.stack(
         [
@@ -258,7 +246,7 @@ def velocity_forward(
 def velocity_jacobian_det(V_hat: ArrayLike, omega_hat: ArrayLike, dt: float) -> Array:
     """``|det ∂(x', y', θ')/∂(V̂, ω̂, γ̂)| = |V̂| Δt⁴ sinc²(ω̂Δt/2) / 2``."""
     V_ = np.asarray(V_hat, dtype=np.float64)
-    s = _sinc(np.asarray(omega_hat, dtype=np.float64) * dt / 2.0)
+    s = sinc(np.asarray(omega_hat, dtype=np.float64) * dt / 2.0)
     return np.abs(V_) * dt**4 * s * s / 2.0
 
 
@@ -276,7 +264,7 @@ def velocity_cell_widths(
     """
     h, ht = cell
     u = np.asarray(omega_hat, dtype=np.float64) * dt / 2.0
-    s, ds = _sinc(u), _dsinc(u)
+    s, ds = sinc(u), dsinc(u)
     wV = h / (dt * s) * np.sqrt(1.0 + (ds / s) ** 2)
     rr = np.maximum(np.asarray(r, dtype=np.float64), 1e-9 * h)
     ww = 2.0 * h / (dt * rr)
