@@ -87,9 +87,12 @@ def test_claims_of_the_quick_config_are_pinned(quick: Path) -> None:
     golden = json.loads(GOLDEN.read_text(encoding="utf-8"))
     claims = {c["number"]: c for c in json.loads((quick / "reports/claims.json").read_text())["claims"]}
     assert sorted(claims) == list(range(1, 13))
+    assert sorted(int(k) for k in golden["claims"]) == list(range(1, 13))  # every claim is pinned
+    assert "not measured" not in {pin["verdict"] for pin in golden["claims"].values()}
     for number, pin in golden["claims"].items():
         c = claims[int(number)]
         assert c["verdict"] == pin["verdict"], (number, c["measured"])
+        assert set(pin["numbers"]) == set(c["numbers"]), number  # every number the verdict rests on
         for name, expect in pin["numbers"].items():
             got = c["numbers"][name]
             assert abs(got - expect["value"]) <= expect["tol"], (number, name, got, expect)

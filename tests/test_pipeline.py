@@ -304,7 +304,7 @@ def test_changing_one_parameter_reruns_only_what_it_affects(quick: Path) -> None
     jobs = _planned_jobs(proc)
     n = len(cfg["experiment_sets"]["L_straight"]["sweep"][0]["trajectory.length"])
     assert jobs.get("simulate_run") == n, jobs
-    assert jobs.get("render_trajectory_figure") == n, jobs
+    assert jobs.get("render_run_figures") == n, jobs
     assert jobs.get("collect_metrics") == 1, jobs
     assert jobs.get("render_growth_figure") == 1, jobs
     assert "render_cloud_polar_figure" not in jobs, jobs
@@ -319,7 +319,7 @@ def test_pipeline_logs_are_byte_reproducible(quick: Path, tmp_path: Path) -> Non
 
 def test_report_shows_per_rule_times_and_reproducibility(quick: Path) -> None:
     html = (quick / "reports/comparison.html").read_text(encoding="utf-8")
-    for rule in ("simulate_run", "render_trajectory_figure", "collect_metrics", "evaluate_claims"):
+    for rule in ("simulate_run", "render_run_figures", "collect_metrics", "evaluate_claims"):
         assert f"<td>{rule}</td>" in html
     # provenance is read from the logs: the lock hash the runs recorded, none flagged as different
     import hashlib

@@ -86,10 +86,10 @@ def set_figures(set_name):
 
 
 def figures_of_set(wildcards_or_name):
+    """The figure outputs of a set: its set-level figures and one folder per run (render_run_figures)."""
     name = getattr(wildcards_or_name, "set", wildcards_or_name)
     out = list(set_figures(name).values())
-    for r in RUNS[name]:
-        out.extend(run_figures(name, r).values())
+    out.extend(f"reports/figures/{name}/{r.id}" for r in RUNS[name])
     return out
 
 
@@ -129,13 +129,7 @@ def all_benchmarks(wildcards=None):
     for s in SETS:
         for r in RUNS[s]:
             out.append(f"data/benchmarks/simulate_run/{s}/{r.id}.tsv")
-            for kind in run_figures(s, r):
-                if kind.startswith("mapcloud_"):
-                    continue  # drawn by render_map_figure with its map
-                if kind.startswith("map_"):
-                    out.append(f"data/benchmarks/render_map_figure/{s}/{r.id}/{kind[4:]}.tsv")
-                else:
-                    out.append(f"data/benchmarks/render_{kind}_figure/{s}/{r.id}.tsv")
+            out.append(f"data/benchmarks/render_run_figures/{s}/{r.id}.tsv")
         for kind in set_figures(s):
             out.append(f"data/benchmarks/render_{kind}_figure/{s}.tsv")
         out.append(f"data/benchmarks/collect_metrics/{s}.tsv")

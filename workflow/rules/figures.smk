@@ -1,75 +1,27 @@
 # Figures: per run (the same functions `pose-uncertainty replay --figures` uses) and per set.
 
 
-rule render_trajectory_figure:
+rule render_run_figures:
+    wildcard_constraints:
+        run=r"(?![^/]*\.png$)[A-Za-z0-9_.-]+",  # a run's folder, not a set-level figure
     input:
         log=rules.simulate_run.output.log,
     output:
         report(
-            "reports/figures/{set}/{run}/trajectory.png",
-            caption="../report/trajectory.rst",
+            directory("reports/figures/{set}/{run}"),
+            patterns=["{name}.png"],
+            caption="../report/run_figures.rst",
             category="{set}",
             subcategory="{run}",
-            labels={"run": "{run}", "figure": "trajectory and ellipses"},
+            labels={"run": "{run}", "figure": "{name}"},
         ),
     params:
         source=SOURCE_PRESENT,
-        kinds=["trajectory"],
+        kinds=lambda w: list(run_figures(w.set, RUN_BY_ID[(w.set, w.run)])),
     log:
-        "logs/render_trajectory_figure/{set}/{run}.log",
+        "logs/render_run_figures/{set}/{run}.log",
     benchmark:
-        "data/benchmarks/render_trajectory_figure/{set}/{run}.tsv"
-    script:
-        "../scripts/render_run_figures.py"
-
-
-rule render_cloud_figure:
-    input:
-        log=rules.simulate_run.output.log,
-    output:
-        report(
-            "reports/figures/{set}/{run}/cloud.png",
-            caption="../report/cloud.rst",
-            category="{set}",
-            subcategory="{run}",
-            labels={"run": "{run}", "figure": "Monte Carlo cloud"},
-        ),
-    params:
-        source=SOURCE_PRESENT,
-        kinds=["cloud"],
-    log:
-        "logs/render_cloud_figure/{set}/{run}.log",
-    benchmark:
-        "data/benchmarks/render_cloud_figure/{set}/{run}.tsv"
-    script:
-        "../scripts/render_run_figures.py"
-
-
-rule render_map_figure:
-    input:
-        log=rules.simulate_run.output.log,
-    output:
-        map=report(
-            "reports/figures/{set}/{run}/map_{map}.png",
-            caption="../report/map.rst",
-            category="{set}",
-            subcategory="{run}",
-            labels={"run": "{run}", "figure": "probability map {map}"},
-        ),
-        cloud=report(
-            "reports/figures/{set}/{run}/mapcloud_{map}.png",
-            caption="../report/map_cloud.rst",
-            category="{set}",
-            subcategory="{run}",
-            labels={"run": "{run}", "figure": "map {map} vs its sampler"},
-        ),
-    params:
-        source=SOURCE_PRESENT,
-        kinds=lambda w: [f"map_{w.map}", f"mapcloud_{w.map}"],
-    log:
-        "logs/render_map_figure/{set}/{run}/{map}.log",
-    benchmark:
-        "data/benchmarks/render_map_figure/{set}/{run}/{map}.tsv"
+        "data/benchmarks/render_run_figures/{set}/{run}.tsv"
     script:
         "../scripts/render_run_figures.py"
 
