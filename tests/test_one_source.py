@@ -63,9 +63,9 @@ def test_every_table_cell_equals_its_logged_source(quick: Path) -> None:
     n_cells = 0
     for table in tables:
         for row in read_table(table):
-            base = quick / "data/runs" / table.stem / str(row["run"])
-            log = open_run(base.with_suffix(".mcap"))
-            timings = json.loads(base.with_suffix(".timings.json").read_text(encoding="utf-8"))
+            base = quick / "data/runs" / table.stem / str(row["run"])  # a run id may hold a dot
+            log = open_run(f"{base}.mcap")
+            timings = json.loads(Path(f"{base}.timings.json").read_text(encoding="utf-8"))
             for column, value in row.items():
                 if value is None:
                     continue  # a measure this run does not have (e.g. no Monte Carlo)
