@@ -155,87 +155,55 @@ class PartialLogWarning(UserWarning):
 # --- our schemas -------------------------------------------------------------------------
 
 
+#: Our messages: name → fields ``(name, type, repeated)``; a type is ``double``, ``string``,
+#: ``uint32``, ``uint64``, ``bytes``, ``timestamp`` or another of these messages. Field numbers
+#: follow the order (changing it changes the log format).
+_MESSAGES: dict[str, list[tuple[str, str, bool]]] = {
+    # exact pose and 3x3 covariance (row-major over x [m], y [m], theta [rad]) of one step
+    "PoseCovariance2D": [("timestamp", "timestamp", False), ("frame_id", "string", False),
+                         ("step", "uint32", False), ("time", "double", False), ("x", "double", False),
+                         ("y", "double", False), ("theta", "double", False), ("covariance", "double", True)],
+    # n-d float64 array: little-endian IEEE-754 bytes in C order
+    "Float64Array": [("shape", "uint64", True), ("data", "bytes", False)],
+    "ProbabilityMap3D": [("timestamp", "timestamp", False), ("frame_id", "string", False),
+                         ("name", "string", False), ("model", "string", False), ("x", "double", True),
+                         ("y", "double", True), ("theta", "double", True), ("values", "Float64Array", False),
+                         ("lost_mass", "double", False), ("params_json", "string", False),
+                         ("info_json", "string", False), ("center", "double", True)],
+    "Metric": [("name", "string", False), ("value", "double", False), ("unit", "string", False),
+               ("definition", "string", False)],
+    "Metrics": [("timestamp", "timestamp", False), ("metrics", "Metric", True)],
+}  # fmt: skip
+
+
 def _our_schemas() -> dict[str, Any]:
-    """Build (once) the protobuf classes of the ``pose_uncertainty`` schemas."""
+    """Build (once) the protobuf classes of the ``pose_uncertainty`` schemas (:data:`_MESSAGES`)."""
     F = descriptor_pb2.FieldDescriptorProto
+    scalars = {"double": F.TYPE_DOUBLE, "string": F.TYPE_STRING, "uint32": F.TYPE_UINT32,
+               "uint64": F.TYPE_UINT64, "bytes": F.TYPE_BYTES}  # fmt: skip
     fdp = descriptor_pb2.FileDescriptorProto(
         name="pose_uncertainty/runlog.proto", package="pose_uncertainty", syntax="proto3"
     )
     fdp.dependency.append("google/protobuf/timestamp.proto")
-
-    def message(name: str, fields: list[tuple[str, int, int, str | None]]) -> None:
+    for name, fields in _MESSAGES.items():
         m = fdp.message_type.add(name=name)
-        for number, (fname, ftype, label, type_name) in enumerate(fields, start=1):
-            f = m.field.add(name=fname, number=number, type=ftype, label=label)  # type: ignore[arg-type]
-            if type_name:
-                f.type_name = type_name
-
-    one, many = F.LABEL_OPTIONAL, F.LABEL_REPEATED
-    ts = ("timestamp", F.TYPE_MESSAGE, one, ".google.protobuf.Timestamp")
-    # Exact pose and 3x3 covariance (row-major over x [m], y [m], theta [rad]) of one step.
-    message(
-        "PoseCovariance2D",
-        [
-            ts,
-            ("frame_id", F.TYPE_STRING, one, None),
-            ("step", F.TYPE_UINT32, one, None),
-            ("time", F.TYPE_DOUBLE, one, None),
-            ("x", F.TYPE_DOUBLE, one, None),
-            ("y", F.TYPE_DOUBLE, one, None),
-            ("theta", F.TYPE_DOUBLE, one, None),
-            ("covariance", F.TYPE_DOUBLE, many, None),
-        ],
-    )
-    # n-d float64 array: little-endian IEEE-754 bytes in C order.
-    message(
-        "Float64Array",
-        [("shape", F.TYPE_UINT64, many, None), ("data", F.TYPE_BYTES, one, None)],
-    )
-    message(
-        "ProbabilityMap3D",
-        [
-            ts,
-            ("frame_id", F.TYPE_STRING, one, None),
-            ("name", F.TYPE_STRING, one, None),
-            ("model", F.TYPE_STRING, one, None),
-            ("x", F.TYPE_DOUBLE, many, None),
-            ("y", F.TYPE_DOUBLE, many, None),
-            ("theta", F.TYPE_DOUBLE, many, None),
-            ("values", F.TYPE_MESSAGE, one, ".pose_uncertainty.Float64Array"),
-            ("lost_mass", F.TYPE_DOUBLE, one, None),
-            ("params_json", F.TYPE_STRING, one, None),
-            ("info_json", F.TYPE_STRING, one, None),
-            ("center", F.TYPE_DOUBLE, many, None),
-        ],
-    )
-    message(
-        "Metric",
-        [
-            ("name", F.TYPE_STRING, one, None),
-            ("value", F.TYPE_DOUBLE, one, None),
-            ("unit", F.TYPE_STRING, one, None),
-            ("definition", F.TYPE_STRING, one, None),
-        ],
-    )
-    message("Metrics", [ts, ("metrics", F.TYPE_MESSAGE, many, ".pose_uncertainty.Metric")])
+        for number, (fname, ftype, repeated) in enumerate(fields, start=1):
+            label = F.LABEL_REPEATED if repeated else F.LABEL_OPTIONAL
+            f = m.field.add(name=fname, number=number, type=scalars.get(ftype, F.TYPE_MESSAGE), label=label)  # type: ignore[arg-type]
+            if ftype not in scalars:
+                f.type_name = ".google.protobuf.Timestamp" if ftype == "timestamp" else f".pose_uncertainty.{ftype}"
     pool = descriptor_pool.Default()
     try:
         pool.FindFileByName(fdp.name)
     except KeyError:
         pool.Add(fdp)
-    return {
-        name: message_factory.GetMessageClass(
-            pool.FindMessageTypeByName(f"pose_uncertainty.{name}")
-        )
-        for name in ("PoseCovariance2D", "Float64Array", "ProbabilityMap3D", "Metric", "Metrics")
-    }
+    return {n: message_factory.GetMessageClass(pool.FindMessageTypeByName(f"pose_uncertainty.{n}")) for n in _MESSAGES}
 
 
 _S = _our_schemas()
 PoseCovariance2D = _S["PoseCovariance2D"]
 Float64Array = _S["Float64Array"]
 ProbabilityMap3D = _S["ProbabilityMap3D"]
-MetricMsg = _S["Metric"]
 Metrics = _S["Metrics"]
 _ = _timestamp_pb2
 
@@ -432,8 +400,8 @@ def _metadata(result: RunResult) -> dict[str, str]:
     return meta
 
 
-def _write_stream(stream: Any, result: RunResult, include_timings: bool) -> None:
-    cfg = result.config
+def _check_result(result: RunResult) -> None:
+    """Shapes of the arrays to log; ValueError naming the bad one."""
     times, poses, covs = result.times, result.poses, result.covs
     n = times.size
     if poses.shape != (n, 3) or covs.shape != (n, 3, 3):
@@ -441,82 +409,75 @@ def _write_stream(stream: Any, result: RunResult, include_timings: bool) -> None
             f"result arrays must have shapes times (N+1,), poses (N+1, 3), covs (N+1, 3, 3), "
             f"got {times.shape}, {poses.shape}, {covs.shape}"
         )
-    clouds = {
-        "end_poses": result.end_poses,
-        **{f"checkpoints[{k}]": v for k, v in result.checkpoints.items()},
-    }
+    clouds = {"end_poses": result.end_poses, **{f"checkpoints[{k}]": v for k, v in result.checkpoints.items()}}
     for name, cloud in clouds.items():
         if cloud is not None and (cloud.ndim != 2 or cloud.shape[1] != 3):
             raise ValueError(f"{name} must have shape (n, 3), got shape {cloud.shape}")
     bad_steps = [k for k in result.checkpoints if not 0 <= k < n]
     if bad_steps:
         raise ValueError(f"checkpoint steps must be in [0, {n - 1}], got {bad_steps}")
-    log = _Log(stream)
-    log.w.add_metadata(METADATA_NAME, _metadata(result))
-    t_ns = [_ns(t) for t in times]
-    t_end = t_ns[-1]
-    # closed polylines (first vertex repeated): drop the repeat for a LINE_LOOP
-    ell = covariance.ellipse_polyline(covs[:, :2, :2], cfg.pr, poses[:, :2], _ELLIPSE_POINTS)[
-        :, :-1
-    ]
-    marks = set(result.ellipse_steps())
-    checkpoints = result.checkpoints
 
-    # the whole nominal path, once, at t = 0
+
+def _path_msg(poses: NDArray[np.float64], t_ns: int) -> Any:
+    """The whole nominal path as one black line strip."""
     path = SceneUpdate()
     ent = path.entities.add(frame_id=WORLD, id="path")
-    _stamp(ent, t_ns[0])
+    _stamp(ent, t_ns)
     line = ent.lines.add(type=LinePrimitive.LINE_STRIP, thickness=0.005)
     _yaw(line.pose.orientation, 0.0)
     _color(line.color, _BLACK)
     line.points.extend([Point3(x=float(x), y=float(y)) for x, y in poses[:, :2]])
-    log.put(T_PATH, path, t_ns[0])
+    return path
 
-    flat_covs = covs.reshape(n, 9)
+
+def _pose_msgs(i: int, t_ns: int, time: float, pose: NDArray, cov: NDArray) -> tuple[Any, Any, Any]:
+    """The robot frame, the nominal pose and the exact covariance of step ``i``."""
+    x, y, th = (float(v) for v in pose)
+    tf = FrameTransform(parent_frame_id=WORLD, child_frame_id=BASE)
+    _stamp(tf, t_ns)
+    tf.translation.x, tf.translation.y = x, y
+    _yaw(tf.rotation, th)
+    msg = PoseInFrame(frame_id=WORLD)
+    _stamp(msg, t_ns)
+    msg.pose.position.x, msg.pose.position.y = x, y
+    _yaw(msg.pose.orientation, th)
+    pc = PoseCovariance2D(frame_id=WORLD, step=i, time=time, x=x, y=y, theta=th, covariance=cov.ravel().tolist())
+    _stamp(pc, t_ns)
+    return tf, msg, pc
+
+
+def _ellipse_msg(i: int, t_ns: int, ring: NDArray, pr: float, marked: bool, final: bool) -> Any:
+    """The Pr-ellipse of step ``i``: the current one (grey, red at the end) and, at marks, a kept one (blue)."""
+    upd = SceneUpdate()
+    for eid in ["ellipse/current"] + ([f"ellipse/{i:06d}"] if marked else []):
+        e = upd.entities.add(frame_id=WORLD, id=eid)
+        _stamp(e, t_ns)
+        e.metadata.add(key="pr", value=repr(pr))
+        e.metadata.add(key="step", value=str(i))
+        lp = e.lines.add(type=LinePrimitive.LINE_LOOP, thickness=0.004)
+        _yaw(lp.pose.orientation, 0.0)
+        _color(lp.color, _RED if final else (_BLUE if eid != "ellipse/current" else _GREY))
+        lp.points.extend([Point3(x=float(a), y=float(b)) for a, b in ring])
+    return upd
+
+
+def _put_steps(log: _Log, result: RunResult, t_ns: list[int]) -> None:
+    """Every step: frame, pose, covariance, ellipse, and the checkpoint clouds."""
+    poses, covs, n = result.poses, result.covs, result.times.size
+    # closed polylines (first vertex repeated): drop the repeat for a LINE_LOOP
+    ell = covariance.ellipse_polyline(covs[:, :2, :2], result.config.pr, poses[:, :2], _ELLIPSE_POINTS)[:, :-1]
+    marks = set(result.ellipse_steps())
     for i in range(n):
-        ti = t_ns[i]
-        x, y, th = (float(v) for v in poses[i])
-        tf = FrameTransform(parent_frame_id=WORLD, child_frame_id=BASE)
-        _stamp(tf, ti)
-        tf.translation.x, tf.translation.y = x, y
-        _yaw(tf.rotation, th)
-        log.put(T_TF, tf, ti)
+        for topic, msg in zip((T_TF, T_POSE, T_COV),
+                              _pose_msgs(i, t_ns[i], float(result.times[i]), poses[i], covs[i]), strict=True):
+            log.put(topic, msg, t_ns[i])
+        log.put(T_ELLIPSE, _ellipse_msg(i, t_ns[i], ell[i], result.config.pr, i in marks, i == n - 1), t_ns[i])
+        if i in result.checkpoints:
+            log.put(T_CHECK, _cloud(result.checkpoints[i], t_ns[i]), t_ns[i])
 
-        pose = PoseInFrame(frame_id=WORLD)
-        _stamp(pose, ti)
-        pose.pose.position.x, pose.pose.position.y = x, y
-        _yaw(pose.pose.orientation, th)
-        log.put(T_POSE, pose, ti)
 
-        pc = PoseCovariance2D(
-            frame_id=WORLD,
-            step=i,
-            time=float(times[i]),
-            x=x,
-            y=y,
-            theta=th,
-            covariance=flat_covs[i].tolist(),
-        )
-        _stamp(pc, ti)
-        log.put(T_COV, pc, ti)
-
-        upd = SceneUpdate()
-        final = i == n - 1
-        ids = ["ellipse/current"] + ([f"ellipse/{i:06d}"] if i in marks else [])
-        for eid in ids:
-            e = upd.entities.add(frame_id=WORLD, id=eid)
-            _stamp(e, ti)
-            e.metadata.add(key="pr", value=repr(cfg.pr))
-            e.metadata.add(key="step", value=str(i))
-            lp = e.lines.add(type=LinePrimitive.LINE_LOOP, thickness=0.004)
-            _yaw(lp.pose.orientation, 0.0)
-            _color(lp.color, _RED if final else (_BLUE if eid != "ellipse/current" else _GREY))
-            lp.points.extend([Point3(x=float(a), y=float(b)) for a, b in ell[i]])
-        log.put(T_ELLIPSE, upd, ti)
-
-        if i in checkpoints:
-            log.put(T_CHECK, _cloud(checkpoints[i], ti), ti)
-
+def _put_end(log: _Log, result: RunResult, t_end: int, include_timings: bool) -> None:
+    """What belongs to the end of the run: clouds, maps and their samplers, metrics, timings."""
     if result.end_poses is not None:
         log.put(T_END, _cloud(result.end_poses, t_end), t_end)
     for mp in result.maps:
@@ -525,14 +486,19 @@ def _write_stream(stream: Any, result: RunResult, include_timings: bool) -> None
         sampler = result.map_samplers.get(mp.name)
         if sampler is not None and len(sampler):
             log.put(f"/maps/{mp.name}/sampler", _cloud(sampler, t_end), t_end)
-    log.put(
-        T_METRICS,
-        _metrics_msg(result.metrics, result.metric_units, t_end, result.metric_definitions),
-        t_end,
-    )
+    log.put(T_METRICS, _metrics_msg(result.metrics, result.metric_units, t_end, result.metric_definitions), t_end)
     if include_timings:
-        units = {k: "s" for k in result.timings}
-        log.put(T_TIMINGS, _metrics_msg(result.timings, units, t_end), t_end)
+        log.put(T_TIMINGS, _metrics_msg(result.timings, {k: "s" for k in result.timings}, t_end), t_end)
+
+
+def _write_stream(stream: Any, result: RunResult, include_timings: bool) -> None:
+    _check_result(result)
+    log = _Log(stream)
+    log.w.add_metadata(METADATA_NAME, _metadata(result))
+    t_ns = [_ns(t) for t in result.times]
+    log.put(T_PATH, _path_msg(result.poses, t_ns[0]), t_ns[0])  # the whole nominal path, once, at t = 0
+    _put_steps(log, result, t_ns)
+    _put_end(log, result, t_ns[-1], include_timings)
     log.w.finish()
 
 
@@ -791,13 +757,12 @@ def open_run(path: str | os.PathLike[str], *, recover: bool = False) -> RunLog:
     return log
 
 
-def _assemble(p: Path, records: list[Any], *, partial: bool, problem: str | None) -> RunLog:
+def _run_metadata(p: Path, records: list[Any], partial: bool, problem: str | None) -> tuple[Any, dict[str, str]]:
+    """The MCAP header and the run's metadata record, checked for format and version."""
     header = next((r for r in records if isinstance(r, Header)), None)
     if header is None:
         raise RunLogError(f"{p}: {problem or 'corrupted: no MCAP header'}; nothing recoverable")
-    meta_rec = next(
-        (r for r in records if isinstance(r, Metadata) and r.name == METADATA_NAME), None
-    )
+    meta_rec = next((r for r in records if isinstance(r, Metadata) and r.name == METADATA_NAME), None)
     if not header.library.startswith("pose-uncertainty/") or meta_rec is None:
         if partial and header.library.startswith("pose-uncertainty/"):
             raise RunLogError(f"{p}: {problem}; the run metadata is missing, nothing recoverable")
@@ -813,139 +778,113 @@ def _assemble(p: Path, records: list[Any], *, partial: bool, problem: str | None
             f"{p}: run log format version {meta.get('format_version')!r} is not supported "
             f"(this reader: {FORMAT_VERSION})"
         )
-    try:
-        config = RunConfig.from_dict(json.loads(meta["config"]))
-    except (KeyError, ValueError) as exc:
-        raise RunLogError(f"{p}: the logged run config is invalid ({exc})") from None
+    return header, meta
 
-    schemas = {r.id: r for r in records if isinstance(r, Schema)}
-    channels = {r.id: r for r in records if isinstance(r, Channel)}
-    by_topic: dict[str, list[Message]] = {}
-    for r in records:
-        if isinstance(r, Message):
-            ch = channels.get(r.channel_id)
-            if ch is None:
-                raise RunLogError(f"{p}: message on unknown channel {r.channel_id}")
-            by_topic.setdefault(ch.topic, []).append(r)
-    topic_schema: dict[str, str] = {}
-    for ch in channels.values():
-        sch = schemas.get(ch.schema_id)
-        topic_schema[ch.topic] = sch.name if sch else ""
-    topics = {t: (topic_schema.get(t, ""), len(m)) for t, m in sorted(by_topic.items())}
 
-    def decode(topic: str, expected: str) -> list[Any]:
-        msgs = by_topic.get(topic, [])
-        if msgs and topic_schema.get(topic) != expected:
-            raise RunLogError(
-                f"{p}: topic {topic} has schema {topic_schema.get(topic)!r}, expected {expected!r}"
-            )
-        cls = _CLASSES[expected]
+class _Records:
+    """The messages of a log by topic, decoded on demand against their expected schema."""
+
+    def __init__(self, p: Path, records: list[Any]) -> None:
+        self.p = p
+        schemas = {r.id: r for r in records if isinstance(r, Schema)}
+        channels = {r.id: r for r in records if isinstance(r, Channel)}
+        self.by_topic: dict[str, list[Message]] = {}
+        for r in records:
+            if isinstance(r, Message):
+                if r.channel_id not in channels:
+                    raise RunLogError(f"{p}: message on unknown channel {r.channel_id}")
+                self.by_topic.setdefault(channels[r.channel_id].topic, []).append(r)
+        self.schema = {ch.topic: (schemas[ch.schema_id].name if ch.schema_id in schemas else "")
+                       for ch in channels.values()}  # fmt: skip
+        self.topics = {t: (self.schema.get(t, ""), len(m)) for t, m in sorted(self.by_topic.items())}
+
+    def decode(self, topic: str, expected: str) -> list[Any]:
+        msgs = self.by_topic.get(topic, [])
+        if msgs and self.schema.get(topic) != expected:
+            raise RunLogError(f"{self.p}: topic {topic} has schema {self.schema.get(topic)!r}, expected {expected!r}")
         try:
-            return [cls.FromString(m.data) for m in msgs]
+            return [_CLASSES[expected].FromString(m.data) for m in msgs]
         except DecodeError as exc:
-            raise RunLogError(
-                f"{p}: a message on {topic} is not a valid {expected} ({exc})"
-            ) from None
+            raise RunLogError(f"{self.p}: a message on {topic} is not a valid {expected} ({exc})") from None
 
-    covmsgs = sorted(decode(T_COV, TOPICS[T_COV]), key=lambda m: m.step)
+    def cloud(self, msg: Any) -> NDArray[np.float64]:
+        layout = [(f.name, f.offset, f.type) for f in msg.fields]
+        if msg.point_stride != 24 or layout != [("x", 0, _F64), ("y", 8, _F64), ("theta", 16, _F64)]:
+            raise RunLogError(f"{self.p}: point cloud layout {layout} is not (x, y, theta) float64")
+        return np.frombuffer(msg.data, dtype="<f8").reshape(-1, 3).astype(np.float64)
+
+    def last_cloud(self, topic: str) -> NDArray[np.float64] | None:
+        msgs = self.decode(topic, TOPICS[T_END])
+        return self.cloud(msgs[-1]) if msgs else None
+
+    def metrics(self, topic: str) -> tuple[dict[str, float], dict[str, str], dict[str, str]]:
+        msgs = self.decode(topic, TOPICS[topic])
+        last = msgs[-1].metrics if msgs else []
+        return ({m.name: float(m.value) for m in last}, {m.name: m.unit for m in last},
+                {m.name: m.definition for m in last})  # fmt: skip
+
+
+def _read_steps(rec: _Records, n_expected: int, partial: bool) -> tuple[NDArray, NDArray, NDArray]:
+    """Times (N+1,), poses (N+1, 3) and covariances (N+1, 3, 3) of every logged step."""
+    covmsgs = sorted(rec.decode(T_COV, TOPICS[T_COV]), key=lambda m: m.step)
     steps = [m.step for m in covmsgs]
-    n_expected = int(meta.get("n_steps", "-1")) + 1
     if steps != list(range(len(steps))) or (not partial and len(steps) != n_expected):
         raise RunLogError(
-            f"{p}: {T_COV} holds steps {steps[:3]}…(count {len(steps)}), expected 0..{n_expected - 1}"
+            f"{rec.p}: {T_COV} holds steps {steps[:3]}…(count {len(steps)}), expected 0..{n_expected - 1}"
         )
     times = np.array([m.time for m in covmsgs], dtype=np.float64)
     poses = np.array([[m.x, m.y, m.theta] for m in covmsgs], dtype=np.float64).reshape(-1, 3)
     covs = np.array([list(m.covariance) for m in covmsgs], dtype=np.float64).reshape(-1, 3, 3)
+    return times, poses, covs
 
-    def cloud(msg: Any) -> NDArray[np.float64]:
-        layout = [(f.name, f.offset, f.type) for f in msg.fields]
-        if msg.point_stride != 24 or layout != [
-            ("x", 0, _F64),
-            ("y", 8, _F64),
-            ("theta", 16, _F64),
-        ]:
-            raise RunLogError(f"{p}: point cloud layout {layout} is not (x, y, theta) float64")
-        return np.frombuffer(msg.data, dtype="<f8").reshape(-1, 3).astype(np.float64)
 
-    ends = decode(T_END, TOPICS[T_END])
-    end_poses = cloud(ends[-1]) if ends else None
+def _read_checkpoints(rec: _Records, times: NDArray) -> dict[int, NDArray[np.float64]]:
     step_of_ns = {_ns(t): i for i, t in enumerate(times)}
-    checkpoints: dict[int, NDArray[np.float64]] = {}
-    for msg in decode(T_CHECK, TOPICS[T_CHECK]):
+    out: dict[int, NDArray[np.float64]] = {}
+    for msg in rec.decode(T_CHECK, TOPICS[T_CHECK]):
         t_ns = msg.timestamp.seconds * 1_000_000_000 + msg.timestamp.nanos
         if t_ns not in step_of_ns:
-            raise RunLogError(f"{p}: checkpoint cloud at {t_ns} ns matches no logged step")
-        checkpoints[step_of_ns[t_ns]] = cloud(msg)
+            raise RunLogError(f"{rec.p}: checkpoint cloud at {t_ns} ns matches no logged step")
+        out[step_of_ns[t_ns]] = rec.cloud(msg)
+    return out
 
-    maps: list[ProbabilityMap] = []
-    for name in json.loads(meta.get("maps", "[]")):
-        vols = decode(f"/maps/{name}/volume", "pose_uncertainty.ProbabilityMap3D")
-        if not vols:
-            continue
-        v = vols[-1]
-        shape = tuple(int(s) for s in v.values.shape)
-        values = np.frombuffer(v.values.data, dtype="<f8")
-        if values.size != int(np.prod(shape)):
-            raise RunLogError(f"{p}: map {name!r} holds {values.size} values, shape says {shape}")
-        maps.append(
-            ProbabilityMap(
-                name=v.name,
-                model=v.model,
-                x=np.array(v.x, dtype=np.float64),
-                y=np.array(v.y, dtype=np.float64),
-                theta=np.array(v.theta, dtype=np.float64),
-                values=values.reshape(shape).astype(np.float64),
-                lost_mass=float(v.lost_mass),
-                params=json.loads(v.params_json) if v.params_json else {},
-                info=json.loads(v.info_json) if v.info_json else {},
-                center=np.array(v.center, dtype=np.float64)
-                if len(v.center) == 3
-                else np.full(3, np.nan),
-            )
-        )
 
-    samplers: dict[str, NDArray[np.float64]] = {}
-    for mp in maps:
-        msgs = decode(f"/maps/{mp.name}/sampler", TOPICS[T_END])
-        if msgs:
-            samplers[mp.name] = cloud(msgs[-1])
+def _read_map(rec: _Records, name: str) -> ProbabilityMap | None:
+    vols = rec.decode(f"/maps/{name}/volume", "pose_uncertainty.ProbabilityMap3D")
+    if not vols:
+        return None
+    v = vols[-1]
+    shape = tuple(int(s) for s in v.values.shape)
+    values = np.frombuffer(v.values.data, dtype="<f8")
+    if values.size != int(np.prod(shape)):
+        raise RunLogError(f"{rec.p}: map {name!r} holds {values.size} values, shape says {shape}")
+    return ProbabilityMap(
+        name=v.name, model=v.model, x=np.array(v.x, dtype=np.float64), y=np.array(v.y, dtype=np.float64),
+        theta=np.array(v.theta, dtype=np.float64), values=values.reshape(shape).astype(np.float64),
+        lost_mass=float(v.lost_mass), params=json.loads(v.params_json) if v.params_json else {},
+        info=json.loads(v.info_json) if v.info_json else {},
+        center=np.array(v.center, dtype=np.float64) if len(v.center) == 3 else np.full(3, np.nan),
+    )  # fmt: skip
 
-    def metric_dicts(topic: str) -> tuple[dict[str, float], dict[str, str], dict[str, str]]:
-        msgs = decode(topic, TOPICS[topic])
-        if not msgs:
-            return {}, {}, {}
-        last = msgs[-1].metrics
-        return (
-            {m.name: float(m.value) for m in last},
-            {m.name: m.unit for m in last},
-            {m.name: m.definition for m in last},
-        )
 
-    metrics, units, definitions = metric_dicts(T_METRICS)
-    timings, _, _ = metric_dicts(T_TIMINGS)
-    provenance = {k: meta[k] for k in PROVENANCE_KEYS if k in meta}
+def _assemble(p: Path, records: list[Any], *, partial: bool, problem: str | None) -> RunLog:
+    header, meta = _run_metadata(p, records, partial, problem)
+    try:
+        config = RunConfig.from_dict(json.loads(meta["config"]))
+    except (KeyError, ValueError) as exc:
+        raise RunLogError(f"{p}: the logged run config is invalid ({exc})") from None
+    rec = _Records(p, records)
+    times, poses, covs = _read_steps(rec, int(meta.get("n_steps", "-1")) + 1, partial)
+    maps = [m for m in (_read_map(rec, name) for name in json.loads(meta.get("maps", "[]"))) if m is not None]
+    samplers = {m.name: c for m in maps if (c := rec.last_cloud(f"/maps/{m.name}/sampler")) is not None}
+    metrics, units, definitions = rec.metrics(T_METRICS)
     return RunLog(
-        config=config,
-        times=times,
-        poses=poses,
-        covs=covs,
-        end_poses=end_poses,
-        checkpoints=checkpoints,
-        maps=tuple(maps),
-        map_samplers=samplers,
-        metrics=metrics,
-        metric_units=units,
-        metric_definitions=definitions,
-        timings=timings,
-        provenance=provenance,
-        path=p,
-        metadata=meta,
-        library=header.library,
-        topics=topics,
-        partial=partial,
-        problems=(problem,) if problem else (),
-    )
+        config=config, times=times, poses=poses, covs=covs, end_poses=rec.last_cloud(T_END),
+        checkpoints=_read_checkpoints(rec, times), maps=tuple(maps), map_samplers=samplers, metrics=metrics,
+        metric_units=units, metric_definitions=definitions, timings=rec.metrics(T_TIMINGS)[0],
+        provenance={k: meta[k] for k in PROVENANCE_KEYS if k in meta}, path=p, metadata=meta,
+        library=header.library, topics=rec.topics, partial=partial, problems=(problem,) if problem else (),
+    )  # fmt: skip
 
 
 # --- summary, comparison, verification ------------------------------------------------------
