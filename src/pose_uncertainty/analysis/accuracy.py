@@ -62,6 +62,7 @@ from ..core.validation import (
 from ..methods import covariance as cv
 from ..methods import expcoords as ec
 from ..methods.maps import ProbabilityMap
+from ..methods.sampling import sample_end_poses
 
 __all__ = [
     "KL_FLOOR",
@@ -438,8 +439,6 @@ def accuracy_vs_distance(
     list of dict, one per checkpoint: ``step``, ``distance`` [m] (path length
     so far) and the entries of :func:`compare_methods`.
     """
-    from ..methods.sampling import sample_end_poses
-
     n = check_positive_int("n", n)
     m = check_positive_int("n_checkpoints", n_checkpoints)
     N = trajectory.n_steps

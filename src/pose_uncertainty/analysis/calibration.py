@@ -73,11 +73,15 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy import optimize
+from scipy import stats as sstats
 
+from ..core.kinematics import wrap_angle
 from ..core.trajectories import Trajectory
 from ..core.validation import check_choice, check_finite, check_last_axis, check_probability
 from ..methods import covariance as cv
 from ..methods import expcoords as ec
+from ..methods.motion_models import odometry_deltas, velocity_inverse
 
 __all__ = [
     "CI_METHODS",
@@ -171,8 +175,6 @@ Objective = Callable[[NDArray], tuple[float, NDArray]]
 
 def _minimise(nll: Objective, x0: NDArray) -> NDArray:
     """argmin over x ≥ 0 of ``nll`` (returns value and gradient; parameters scaled to order 1)."""
-    from scipy import optimize  # imported here: keeps `pose-uncertainty --help` fast
-
     best = None
     for start in (x0, np.full_like(x0, 1.0)):
         res = optimize.minimize(
@@ -189,8 +191,6 @@ def _profile_interval(
     nll: Objective, xhat: NDArray, j: int, crit: float, se: float
 ) -> tuple[float, float]:
     """Profile-likelihood interval of parameter j: where 2(nll_p − nll_min) = crit."""
-    from scipy import optimize
-
     nll_min = nll(xhat)[0]
     others = [i for i in range(xhat.size) if i != j]
 
@@ -251,8 +251,6 @@ def _finish(
     info: dict[str, Any],
 ) -> CalibrationResult:
     """Estimates, Fisher standard errors and intervals in original units (x = θ/scale)."""
-    from scipy import stats as sstats
-
     try:
         cov = np.linalg.inv(fisher)
         se_scaled = np.sqrt(np.maximum(np.diag(cov), 0.0))
@@ -324,20 +322,9 @@ def fit_k(
     check_choice("coords", coords, COORDS)
     check_choice("ci_method", ci_method, CI_METHODS)
     lvl = float(check_probability("level", level))
-    p = check_last_axis("end_poses", end_poses, 3)
-    if p.ndim != 2 or p.shape[0] < MIN_ROWS:
-        raise ValueError(
-            f"end_poses must have shape (n, 3) with n >= {MIN_ROWS} (allowed: at least "
-            f"{MIN_ROWS} runs), got shape {p.shape}"
-        )
-    check_finite("end_poses", p)
+    p = _check_end_poses(end_poses)
     mu, G = _unit_model(trajectory, coords)
-    if coords == "expcoords":
-        d = ec.coordinates(p, mu)
-    else:
-        d = p - mu
-        # headings: the residual nearest to the noiseless heading
-        d[:, 2] = np.mod(d[:, 2] + np.pi, 2 * np.pi) - np.pi
+    d = _end_pose_residuals(p, mu, coords)
     n = d.shape[0]
     S = d.T @ d / n
     if equal:
@@ -347,6 +334,41 @@ def fit_k(
     k0 = np.trace(S) / tr_g.sum()
     scale = np.full(G.shape[0], k0 if k0 > 0 else 1e-6)
     Gs = G * scale[:, None, None]
+    nll = _gaussian_nll(Gs, S, n)
+    xhat = _minimise(nll, np.ones(G.shape[0]))
+    fisher = _gaussian_fisher(xhat, Gs, n)
+    names = ("k",) if equal else ("k_r", "k_l")
+    info = {"coords": coords, "trajectory": trajectory.name, "end_pose": [float(v) for v in mu]}
+    return _finish(names, nll, xhat, fisher, scale, lvl, ci_method, n, f"k ({coords})", info)
+
+
+def _check_end_poses(end_poses: ArrayLike) -> NDArray:
+    """End poses (n, 3), finite, with n ≥ :data:`MIN_ROWS`."""
+    p = check_last_axis("end_poses", end_poses, 3)
+    if p.ndim != 2 or p.shape[0] < MIN_ROWS:
+        raise ValueError(
+            f"end_poses must have shape (n, 3) with n >= {MIN_ROWS} (allowed: at least "
+            f"{MIN_ROWS} runs), got shape {p.shape}"
+        )
+    check_finite("end_poses", p)
+    return p
+
+
+def _end_pose_residuals(p: NDArray, mu: NDArray, coords: str) -> NDArray:
+    """Residuals (n, 3) of end poses ``p`` from the model's end pose ``mu``, in ``coords``."""
+    if coords == "expcoords":
+        return ec.coordinates(p, mu)
+    d = p - mu
+    # headings: the residual nearest to the noiseless heading
+    d[:, 2] = np.mod(d[:, 2] + np.pi, 2 * np.pi) - np.pi
+    return d
+
+
+def _gaussian_nll(Gs: NDArray, S: NDArray, n: int) -> Objective:
+    """Negative log-likelihood of ``n`` zero-mean residuals of scatter ``S`` (3, 3).
+
+    The model covariance is ``Σ = Σ_a x_a Gs_a``; returns value and gradient in ``x``.
+    """
 
     def nll(x: NDArray) -> tuple[float, NDArray]:
         # −ℓ = (n/2)[tr(Σ⁻¹S) + log det Σ + 3 log 2π];  ∂/∂x_a = (n/2)[tr(Σ⁻¹G_a) − tr(Σ⁻¹SΣ⁻¹G_a)]
@@ -359,13 +381,14 @@ def fit_k(
         f = 0.5 * n * (float(np.trace(Si @ S)) + logdet + 3 * math.log(2 * math.pi))
         return f, 0.5 * n * np.einsum("ij,aji->a", M, Gs)
 
-    xhat = _minimise(nll, np.ones(G.shape[0]))
+    return nll
+
+
+def _gaussian_fisher(xhat: NDArray, Gs: NDArray, n: int) -> NDArray:
+    """Fisher information at ``xhat``: ``(n/2) tr(Σ⁻¹G_a Σ⁻¹G_b)`` with ``Σ = Σ_a x_a Gs_a``."""
     Sig = np.tensordot(xhat, Gs, axes=1)
     Si = np.linalg.inv(Sig)
-    fisher = np.array([[0.5 * n * np.trace(Si @ a @ Si @ b) for b in Gs] for a in Gs])
-    names = ("k",) if equal else ("k_r", "k_l")
-    info = {"coords": coords, "trajectory": trajectory.name, "end_pose": [float(v) for v in mu]}
-    return _finish(names, nll, xhat, fisher, scale, lvl, ci_method, n, f"k ({coords})", info)
+    return np.array([[0.5 * n * np.trace(Si @ a @ Si @ b) for b in Gs] for a in Gs])
 
 
 # --- variance regressions: motion-model alphas -----------------------------------------------------
@@ -393,8 +416,6 @@ def fit_variance_regression(
     -------
     CalibrationResult
     """
-    from scipy import optimize
-
     check_choice("ci_method", ci_method, CI_METHODS)
     lvl = float(check_probability("level", level))
     r = check_finite("residuals", residuals).ravel()
@@ -460,8 +481,6 @@ def fit_alphas_velocity(
     -------
     dict: ``"V"`` (α1, α2), ``"omega"`` (α3, α4), ``"gamma"`` (α5, α6)
     """
-    from ..methods.motion_models import velocity_inverse
-
     check_choice("scaling", scaling, ("squared", "abs"))
     x = check_last_axis("samples", samples, 3)
     m = x.shape[0]
@@ -514,9 +533,6 @@ def fit_alphas_odometry(
     -------
     dict: ``"rotation"`` (α1, α2), ``"translation"`` (α3, α4)
     """
-    from ..core.kinematics import wrap_angle
-    from ..methods.motion_models import odometry_deltas
-
     check_choice("scaling", scaling, ("squared", "abs"))
     x = check_last_axis("samples", samples, 3)
     m = x.shape[0]
@@ -569,6 +585,17 @@ def read_csv_columns(
     case-insensitively; blank lines are skipped; at least ``min_rows`` data rows.
     """
     p = Path(path)
+    rows = _read_csv_rows(p, required)
+    columns = _wanted_columns(p, rows[0], required, optional)
+    data = _parse_columns(p, rows[1:], columns, text)
+    n = len(data[columns[0][0]])
+    if n < min_rows:
+        raise ValueError(f"{p}: too few data rows: {n} (need at least {min_rows})")
+    return {c: np.asarray(v) for c, v in data.items()}
+
+
+def _read_csv_rows(p: Path, required: Sequence[str]) -> list[list[str]]:
+    """All rows of the CSV file ``p``, the first a non-blank header; ValueError naming the file."""
     try:
         with p.open(newline="", encoding="utf-8") as fh:
             rows = list(csv.reader(fh))
@@ -582,7 +609,18 @@ def read_csv_columns(
         raise ValueError(f"{p}: not a valid CSV file ({exc})") from None
     if not rows or not any(c.strip() for c in rows[0]):
         raise ValueError(f"{p}: empty file (expected a header row with columns {', '.join(required)})")
-    header = [c.strip().lower() for c in rows[0]]
+    return rows
+
+
+def _wanted_columns(
+    p: Path, header_row: Sequence[str], required: Sequence[str], optional: Sequence[str]
+) -> list[tuple[str, int]]:
+    """(name, field index) of each wanted column: the required ones, then the optional group if present.
+
+    Header names are matched case-insensitively; a missing required column or a
+    partly present optional group is a ValueError naming the file.
+    """
+    header = [c.strip().lower() for c in header_row]
     missing = [c for c in required if c not in header]
     if missing:
         raise ValueError(
@@ -596,33 +634,38 @@ def read_csv_columns(
             f"{p}: incomplete optional column group — has {', '.join(present_opt)} but not "
             f"{', '.join(absent)} (give all of {', '.join(optional)} or none)"
         )
-    wanted = list(required) + present_opt
-    idx = {c: header.index(c) for c in wanted}
-    data: dict[str, list[Any]] = {c: [] for c in wanted}
-    for line_no, row in enumerate(rows[1:], start=2):
+    return [(c, header.index(c)) for c in list(required) + present_opt]
+
+
+def _parse_columns(
+    p: Path, data_rows: Sequence[Sequence[str]], columns: list[tuple[str, int]], text: Sequence[str]
+) -> dict[str, list[Any]]:
+    """Values of the ``(name, field index)`` columns over the data rows (line 2 on, blanks skipped).
+
+    ValueError naming file, line and column for a short row or a bad value.
+    """
+    data: dict[str, list[Any]] = {c: [] for c, _ in columns}
+    for line_no, row in enumerate(data_rows, start=2):
         if not row or not any(c.strip() for c in row):
             continue  # blank line
-        for c in wanted:
-            i = idx[c]
+        for c, i in columns:
             if i >= len(row):
                 raise ValueError(f"{p}: line {line_no}: column {c!r} is missing (row has {len(row)} fields)")
-            field_ = row[i].strip()
-            if c in text:
-                data[c].append(field_.lower())
-                continue
-            try:
-                val = float(field_)
-            except ValueError:
-                raise ValueError(
-                    f"{p}: line {line_no}: column {c!r}: not a number: {field_!r}"
-                ) from None
-            if not math.isfinite(val):
-                raise ValueError(f"{p}: line {line_no}: column {c!r}: not finite: {field_!r}")
-            data[c].append(val)
-    n = len(data[wanted[0]])
-    if n < min_rows:
-        raise ValueError(f"{p}: too few data rows: {n} (need at least {min_rows})")
-    return {c: np.asarray(v) for c, v in data.items()}
+            data[c].append(_parse_field(p, line_no, c, row[i].strip(), c in text))
+    return data
+
+
+def _parse_field(p: Path, line_no: int, c: str, field_: str, is_text: bool) -> Any:
+    """One stripped field: lower-cased text, or a finite float."""
+    if is_text:
+        return field_.lower()
+    try:
+        val = float(field_)
+    except ValueError:
+        raise ValueError(f"{p}: line {line_no}: column {c!r}: not a number: {field_!r}") from None
+    if not math.isfinite(val):
+        raise ValueError(f"{p}: line {line_no}: column {c!r}: not finite: {field_!r}")
+    return val
 
 
 def read_end_poses_csv(path: str | Path) -> NDArray[np.float64]:

@@ -235,50 +235,81 @@ def integrate_in_type(
     r_m = np.atleast_2d(np.asarray(ds_r, dtype=np.float64))
     l_m = np.atleast_2d(np.asarray(ds_l, dtype=np.float64))
     is_int = number_type == "int_mm"
-    if is_int:
-        scheme = "seed001"
-    T: Any = {"int_mm": np.int64, "float32": np.float32, "float64": np.float64,
-         "longdouble": np.longdouble}[number_type]
-
-    def store(v: NDArray) -> NDArray:
-        return np.trunc(v).astype(np.int64) if is_int else v.astype(T)
-
-    n_runs, n_steps = r_m.shape
+    T: Any = _NUMPY_TYPES[number_type]
     # wheel speeds [mm/s] stored in the type (seed 001 keeps them in TYPENAME)
-    vr_t = store(r_m / step * 1000.0)
-    vl_t = store(l_m / step * 1000.0)
+    vr_t = _store(r_m / step * 1000.0, T)
+    vl_t = _store(l_m / step * 1000.0, T)
+    if scheme == "full" and not is_int:
+        x, y, th64 = _integrate_all_in_type(vr_t, vl_t, track, step, method, T)
+    else:
+        x, y, th64 = _integrate_as_seed001(vr_t, vl_t, track, step, method, T)
+    return np.stack([x.astype(np.float64) / 1000.0, y.astype(np.float64) / 1000.0, th64], -1)
+
+
+_NUMPY_TYPES: dict[str, Any] = {
+    "int_mm": np.int64, "float32": np.float32, "float64": np.float64, "longdouble": np.longdouble,
+}  # fmt: skip
+
+
+def _store(v: NDArray, T: Any) -> NDArray:
+    """``v`` converted to the number type ``T`` (integers: truncated toward zero, as C converts)."""
+    return np.trunc(v).astype(np.int64) if T is np.int64 else v.astype(T)
+
+
+def _integrate_all_in_type(
+    vr_t: NDArray, vl_t: NDArray, track: float, step: float, method: str, T: Any
+) -> tuple[NDArray, NDArray, NDArray[np.float64]]:
+    """Scheme ``full``: speeds, step, heading, trigonometry and positions all in the float type ``T``.
+
+    ``vr_t, vl_t`` (n, N) wheel speeds [mm/s] in ``T``; returns x, y [mm] in ``T``
+    and the heading [rad] as float64, each shape (n,).
+    """
+    n_runs, n_steps = vr_t.shape
     x = np.zeros(n_runs, dtype=T)
     y = np.zeros(n_runs, dtype=T)
-    if scheme == "full":
-        b = T(track * 1000.0)
-        h = T(step)
-        half = T(0.5)
-        th = np.zeros(n_runs, dtype=T)
-        for i in range(n_steps):  # the sequential loop in the type is the experiment
-            r, l = vr_t[:, i] * h, vl_t[:, i] * h
-            ds = (r + l) * half
-            dth = (r - l) / b
-            phi, scale = _phi_scale(th, ds, dth, method, half, T)
-            x = x + scale * np.cos(phi)
-            y = y + scale * np.sin(phi)
-            th = th + dth
-        th64 = th.astype(np.float64)
-    else:
-        bd = track * 1000.0
-        th64 = np.zeros(n_runs)
-        for i in range(n_steps):
-            r = vr_t[:, i].astype(np.float64) * step
-            l = vl_t[:, i].astype(np.float64) * step
-            ds = (r + l) * 0.5
-            dth = (r - l) / bd
-            phi, scale = _phi_scale(th64, ds, dth, method, 0.5, np.float64)
-            # iX += increment: computed in double, converted back to the stored type
-            x = store(x.astype(np.float64) + scale * np.cos(phi)) if is_int else (
-                x + scale * np.cos(phi)).astype(T)
-            y = store(y.astype(np.float64) + scale * np.sin(phi)) if is_int else (
-                y + scale * np.sin(phi)).astype(T)
-            th64 = th64 + dth
-    return np.stack([x.astype(np.float64) / 1000.0, y.astype(np.float64) / 1000.0, th64], -1)
+    b = T(track * 1000.0)
+    h = T(step)
+    half = T(0.5)
+    th = np.zeros(n_runs, dtype=T)
+    for i in range(n_steps):  # the sequential loop in the type is the experiment
+        r, l = vr_t[:, i] * h, vl_t[:, i] * h
+        ds = (r + l) * half
+        dth = (r - l) / b
+        phi, scale = _phi_scale(th, ds, dth, method, half, T)
+        x = x + scale * np.cos(phi)
+        y = y + scale * np.sin(phi)
+        th = th + dth
+    return x, y, th.astype(np.float64)
+
+
+def _integrate_as_seed001(
+    vr_t: NDArray, vl_t: NDArray, track: float, step: float, method: str, T: Any
+) -> tuple[NDArray, NDArray, NDArray[np.float64]]:
+    """Scheme ``seed001``, as seed 001's C++: positions and speeds in ``T``, the rest in double.
+
+    Each increment is computed in double, added to the stored position and
+    converted back to ``T`` (integers: truncated toward zero). Arguments and
+    result as :func:`_integrate_all_in_type`.
+    """
+    n_runs, n_steps = vr_t.shape
+    is_int = T is np.int64
+    x = np.zeros(n_runs, dtype=T)
+    y = np.zeros(n_runs, dtype=T)
+    bd = track * 1000.0
+    th64 = np.zeros(n_runs)
+    for i in range(n_steps):
+        r = vr_t[:, i].astype(np.float64) * step
+        l = vl_t[:, i].astype(np.float64) * step
+        ds = (r + l) * 0.5
+        dth = (r - l) / bd
+        phi, scale = _phi_scale(th64, ds, dth, method, 0.5, np.float64)
+        # iX += increment: computed in double, converted back to the stored type
+        x = _store(x.astype(np.float64) + scale * np.cos(phi), T) if is_int else (
+            x + scale * np.cos(phi)).astype(T)
+        y = _store(y.astype(np.float64) + scale * np.sin(phi), T) if is_int else (
+            y + scale * np.sin(phi)).astype(T)
+        th64 = th64 + dth
+    return x, y, th64
 
 
 def _phi_scale(

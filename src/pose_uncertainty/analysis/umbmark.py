@@ -90,6 +90,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy import stats as sstats
 
 from ..core.validation import check_finite, check_positive, check_probability
 from ..methods.systematic import DIRECTIONS, WheelGeometry, return_errors_noiseless
@@ -361,8 +362,6 @@ def _estimates(
     rng: np.random.Generator | None,
 ) -> dict[str, Estimate]:
     """Values, delta and bootstrap intervals of the quantities ``fn(c)`` (module docstring)."""
-    from scipy import stats as sstats  # imported here: keeps `pose-uncertainty --help` fast
-
     c = np.concatenate([cw.mean(axis=0), ccw.mean(axis=0)])
     step = 1e-7 * max(float(np.abs(c).max()), 1e-3)
     # the estimate, the difference probes and the resamples: one vectorised call

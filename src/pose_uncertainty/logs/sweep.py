@@ -263,54 +263,74 @@ def expand_set(name: str, spec: Mapping[str, Any], defaults: Mapping[str, Any] |
     """
     where = f"experiment_sets.{name}"
     base = _deep_merge(defaults or {}, spec.get("base", {}) or {})
-    axes: list[list[tuple[dict[str, Any], list[str]]]] = []
-    for ai, axis in enumerate(spec.get("sweep", []) or []):
-        keys = [k for k in axis if k != "labels"]
-        lengths = {k: len(axis[k]) for k in keys}
-        if len(set(lengths.values())) > 1:
-            raise ConfigError(
-                f"config key '{where}.sweep[{ai}]' has lists of unequal length {lengths}; "
-                "allowed: equal lengths (the values of one axis are taken together)"
-            )
-        n = next(iter(lengths.values()), 0)
-        labels = axis.get("labels")
-        if labels is not None and len(labels) != n:
-            raise ConfigError(
-                f"config key '{where}.sweep[{ai}].labels' has {len(labels)} labels for {n} values; "
-                "allowed: one label per value"
-            )
-        points = []
-        for i in range(n):
-            values = {k: axis[k][i] for k in keys}
-            lab = [label_value(labels[i])] if labels is not None else [run_label(k, v) for k, v in values.items()]
-            points.append((values, lab))
-        axes.append(points)
+    axes = [_axis_points(where, ai, axis) for ai, axis in enumerate(spec.get("sweep", []) or [])]
     runs: dict[str, Run] = {}
     for combo in itertools.product(*axes) if axes else [()]:
-        cfg = copy.deepcopy(base)
-        swept: dict[str, Any] = {}
-        parts: list[str] = []
-        for values, lab in combo:
-            for k, v in values.items():
-                _set_dotted(cfg, k, v)
-                swept[k] = copy.deepcopy(v)
-            parts.extend(lab)
-        run_id = "_".join(x for x in parts if x) or "run"
-        run_id = _SAFE.sub("-", run_id)
-        cfg["name"] = run_id
-        try:
-            full = RunConfig.from_dict(cfg).to_dict()
-        except ValueError as exc:
-            raise ConfigError(f"{where}, run {run_id!r}: {exc}") from None
-        if run_id in runs:
-            if runs[run_id].config != full:
+        run = _combine(name, where, base, combo)
+        if run.id in runs:
+            if runs[run.id].config != run.config:
                 raise ConfigError(
-                    f"config key '{where}.sweep' gives two different runs the id {run_id!r}; "
+                    f"config key '{where}.sweep' gives two different runs the id {run.id!r}; "
                     "allowed: distinct labels (add 'labels' to the axis)"
                 )
             continue
-        runs[run_id] = Run(set=name, id=run_id, config=full, swept=swept)
+        runs[run.id] = run
     return list(runs.values())
+
+
+#: One value of an axis: the swept dotted keys with their values, and its labels in the run id.
+_AxisPoint = tuple[dict[str, Any], list[str]]
+
+
+def _axis_points(where: str, ai: int, axis: Mapping[str, Any]) -> list[_AxisPoint]:
+    """The values of one axis (its lists zipped), each with its run-id label(s).
+
+    ConfigError naming ``<where>.sweep[ai]`` for lists of unequal length or a
+    wrong number of ``labels``.
+    """
+    keys = [k for k in axis if k != "labels"]
+    lengths = {k: len(axis[k]) for k in keys}
+    if len(set(lengths.values())) > 1:
+        raise ConfigError(
+            f"config key '{where}.sweep[{ai}]' has lists of unequal length {lengths}; "
+            "allowed: equal lengths (the values of one axis are taken together)"
+        )
+    n = next(iter(lengths.values()), 0)
+    labels = axis.get("labels")
+    if labels is not None and len(labels) != n:
+        raise ConfigError(
+            f"config key '{where}.sweep[{ai}].labels' has {len(labels)} labels for {n} values; "
+            "allowed: one label per value"
+        )
+    points = []
+    for i in range(n):
+        values = {k: axis[k][i] for k in keys}
+        lab = [label_value(labels[i])] if labels is not None else [run_label(k, v) for k, v in values.items()]
+        points.append((values, lab))
+    return points
+
+
+def _combine(name: str, where: str, base: dict[str, Any], combo: Sequence[_AxisPoint]) -> Run:
+    """The run of one combination of axis values: ``base`` with them set, its id from their labels.
+
+    ConfigError naming the set and the run id when the result is not a valid run configuration.
+    """
+    cfg = copy.deepcopy(base)
+    swept: dict[str, Any] = {}
+    parts: list[str] = []
+    for values, lab in combo:
+        for k, v in values.items():
+            _set_dotted(cfg, k, v)
+            swept[k] = copy.deepcopy(v)
+        parts.extend(lab)
+    run_id = "_".join(x for x in parts if x) or "run"
+    run_id = _SAFE.sub("-", run_id)
+    cfg["name"] = run_id
+    try:
+        full = RunConfig.from_dict(cfg).to_dict()
+    except ValueError as exc:
+        raise ConfigError(f"{where}, run {run_id!r}: {exc}") from None
+    return Run(set=name, id=run_id, config=full, swept=swept)
 
 
 def expand_all(config: Mapping[str, Any]) -> dict[str, list[Run]]:

@@ -64,6 +64,7 @@ import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
+import contourpy
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -700,8 +701,6 @@ def pr_region_xy(
     -------
     list of ndarray, each shape (m, 2) [m] — closed polylines (usually one)
     """
-    import contourpy
-
     pr_ = float(check_probability("pr", pr))
     mu = check_last_axis("mean_pose", mean_pose, 3)
     S = _check_cov3(cov)

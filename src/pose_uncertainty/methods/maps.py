@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 import scipy.fft as sfft
@@ -347,39 +347,46 @@ class _Step:
         density has its ``1/r`` singularity.
         """
         var = self.variances()
-        sd = np.sqrt(var)
-        reach = noise_reach(self.noise)
-        ht = cell[1]
-
-        def nodes(mean: float, std: float, lo_: float, hi_: float) -> tuple[Array, float]:
-            if std <= 0.0:
-                return np.array([mean]), 1.0
-            a_, b_ = max(mean - reach * std, lo_), min(mean + reach * std, hi_)
-            step = (b_ - a_) / n_nodes
-            return np.asarray(a_ + step * (np.arange(n_nodes) + 0.5), dtype=np.float64), step
-
         if self.model == "velocity":
-            dt = self.dt
-            w, step = nodes(float(self.u[1]), float(sd[1]), -math.pi / dt, math.pi / dt)
-            phi = w * dt
-            sinc = np.sinc(phi / (2 * math.pi))
-            beta = start_theta + phi / 2
-            f0, f1 = _ray_box(beta, s, lo, hi)
-            b0, b1 = _ray_box(beta + math.pi, s, lo, hi)
-            scale = dt * sinc
-            V = self.u[0]
-            pv = (
-                cdf(f1 / scale - V, var[0], self.noise)
-                - cdf(f0 / scale - V, var[0], self.noise)
-                + cdf(-b0 / scale - V, var[0], self.noise)
-                - cdf(-b1 / scale - V, var[0], self.noise)
-            )
-            pw = prob(self.u[1] - w, var[1], self.noise) if sd[1] > 0 else np.ones(1)
-            g = wrap_angle(theta_dst[None, :] - start_theta - phi[:, None]) / dt
-            pg = prob_cell(g, var[2], ht / dt, self.noise) / dt
-            return np.asarray(step * np.sum((pv * pw)[:, None] * pg, axis=0))
+            return self._exact_cell_velocity(var, s, lo, hi, start_theta, theta_dst, cell[1], n_nodes)
+        return self._exact_cell_odometry(var, s, lo, hi, start_theta, theta_dst, cell[1], n_nodes)
+
+    def _exact_cell_velocity(
+        self, var: Array, s: Array, lo: Array, hi: Array, start_theta: float, theta_dst: Array,
+        ht: float, n_nodes: int,
+    ) -> Array:
+        """:meth:`exact_cell`, velocity model: quadrature over ``ω̂`` of the CDF of ``V̂``."""
+        sd = np.sqrt(var)
+        dt = self.dt
+        w, step = _midpoint_nodes(float(self.u[1]), float(sd[1]), -math.pi / dt, math.pi / dt,
+                                  noise_reach(self.noise), n_nodes)  # fmt: skip
+        phi = w * dt
+        sinc = np.sinc(phi / (2 * math.pi))
+        beta = start_theta + phi / 2
+        f0, f1 = _ray_box(beta, s, lo, hi)
+        b0, b1 = _ray_box(beta + math.pi, s, lo, hi)
+        scale = dt * sinc
+        V = self.u[0]
+        pv = (
+            cdf(f1 / scale - V, var[0], self.noise)
+            - cdf(f0 / scale - V, var[0], self.noise)
+            + cdf(-b0 / scale - V, var[0], self.noise)
+            - cdf(-b1 / scale - V, var[0], self.noise)
+        )
+        pw = prob(self.u[1] - w, var[1], self.noise) if sd[1] > 0 else np.ones(1)
+        g = wrap_angle(theta_dst[None, :] - start_theta - phi[:, None]) / dt
+        pg = prob_cell(g, var[2], ht / dt, self.noise) / dt
+        return np.asarray(step * np.sum((pv * pw)[:, None] * pg, axis=0))
+
+    def _exact_cell_odometry(
+        self, var: Array, s: Array, lo: Array, hi: Array, start_theta: float, theta_dst: Array,
+        ht: float, n_nodes: int,
+    ) -> Array:
+        """:meth:`exact_cell`, odometry model: quadrature over ``δ̂rot1`` of the CDF of ``δ̂trans``."""
+        sd = np.sqrt(var)
         r1u, tru, r2u = (float(v) for v in self.u)
-        r1, step = nodes(r1u, float(sd[0]), r1u - math.pi, r1u + math.pi)
+        r1, step = _midpoint_nodes(r1u, float(sd[0]), r1u - math.pi, r1u + math.pi,
+                                   noise_reach(self.noise), n_nodes)  # fmt: skip
         r2 = wrap_angle(theta_dst[None, :] - start_theta - r1[:, None])
         if self.variance_from == "hypothesis" or (
             self.variance_from is None and not self.corrected
@@ -403,6 +410,20 @@ class _Step:
             p1 = np.ones((1, 1))
         p3 = prob_cell(wrap_angle(r2u - r2), v3, ht, self.noise)
         return np.asarray(step * np.sum(p1 * pt * p3, axis=0))
+
+
+def _midpoint_nodes(
+    mean: float, std: float, lo: float, hi: float, reach: float, n_nodes: int
+) -> tuple[Array, float]:
+    """Midpoint rule on ``mean ± reach·std`` clipped to ``[lo, hi]``: (nodes, their spacing).
+
+    A zero ``std`` gives the single node ``mean`` with weight 1.
+    """
+    if std <= 0.0:
+        return np.array([mean]), 1.0
+    a_, b_ = max(mean - reach * std, lo), min(mean + reach * std, hi)
+    step = (b_ - a_) / n_nodes
+    return np.asarray(a_ + step * (np.arange(n_nodes) + 0.5), dtype=np.float64), step
 
 
 def _make_step(
@@ -509,21 +530,7 @@ def single_step_map(
     x0 = check_finite("start", check_last_axis("start", start, 3))
     if x0.shape != (3,):
         raise ValueError(f"start must have shape (3,), got shape {x0.shape}")
-    step_dt = float(check_positive("dt", dt))
-    u = check_finite("control", control)
-    if u.shape != (2,):
-        raise ValueError(f"control must have shape (2,) (allowed: (V, omega)), got shape {u.shape}")
-    if model == "odometry":
-        if odometry is None:
-            od = noiseless_velocity_poses(x0, u[None, :], step_dt)
-        else:
-            od = check_finite("odometry", check_last_axis("odometry", odometry, 3))
-            if od.shape != (2, 3):
-                raise ValueError(f"odometry must have shape (2, 3), got shape {od.shape}")
-        stp = _make_step(model, None, step_dt, a, noise, scaling, corrected, variance_from,
-                         (od[0], od[1]))  # fmt: skip
-    else:
-        stp = _make_step(model, u, step_dt, a, noise, scaling, corrected, None, None)
+    stp = _single_step(model, x0, control, dt, a, noise, scaling, corrected, variance_from, odometry)
     end = stp.noiseless(x0)
     g = grid if grid is not None else Grid.centered(end)
     cell = (g.resolution, g.theta_resolution)
@@ -541,26 +548,73 @@ def single_step_map(
     dens = stp.density(xy, g.theta, x0, cell if averaged else None)
     values = dens * g.cell_volume
     if corrected and g.contains(x0):
-        # cells within EXACT_RADIUS cells of the start: exact integration (1/r singularity)
-        h = g.resolution
-        ix = int(np.floor((x0[0] - g.x0) / h + 0.5))
-        iy = int(np.floor((x0[1] - g.y0) / h + 0.5))
-        for jx in range(max(0, ix - EXACT_RADIUS), min(g.nx, ix + EXACT_RADIUS + 1)):
-            for jy in range(max(0, iy - EXACT_RADIUS), min(g.ny, iy + EXACT_RADIUS + 1)):
-                lo = np.array([g.x[jx] - h / 2, g.y[jy] - h / 2])
-                values[jx, jy, :] = (
-                    stp.exact_cell(x0[:2], lo, lo + h, float(x0[2]), g.theta, cell)
-                    * g.theta_resolution
-                )
+        _integrate_start_cells(values, stp, g, x0)
     raw = float(values.sum())
     info["raw_sum"] = raw
+    lost = _normalise_single(values, raw, corrected)
+    return ProbabilityMap(g.x, g.y, g.theta, values, lost, model, g, info)
+
+
+def _single_step(
+    model: str,
+    x0: Array,
+    control: ArrayLike,
+    dt: float,
+    alphas: Array,
+    noise: str,
+    scaling: str,
+    corrected: bool,
+    variance_from: str | None,
+    odometry: ArrayLike | None,
+) -> _Step:
+    """Check the control of :func:`single_step_map` and make its step (odometry: given or seed 000's)."""
+    step_dt = float(check_positive("dt", dt))
+    u = check_finite("control", control)
+    if u.shape != (2,):
+        raise ValueError(f"control must have shape (2,) (allowed: (V, omega)), got shape {u.shape}")
+    if model != "odometry":
+        return _make_step(model, u, step_dt, alphas, noise, scaling, corrected, None, None)
+    if odometry is None:
+        od = noiseless_velocity_poses(x0, u[None, :], step_dt)
+    else:
+        od = check_finite("odometry", check_last_axis("odometry", odometry, 3))
+        if od.shape != (2, 3):
+            raise ValueError(f"odometry must have shape (2, 3), got shape {od.shape}")
+    return _make_step(model, None, step_dt, alphas, noise, scaling, corrected, variance_from,
+                      (od[0], od[1]))  # fmt: skip
+
+
+def _integrate_start_cells(values: Array, stp: _Step, g: Grid, x0: Array) -> None:
+    """Overwrite the cells within :data:`EXACT_RADIUS` cells of the start by their exact mass (in place).
+
+    The corrected density has an integrable ``1/r`` singularity at the start
+    (:meth:`_Step.exact_cell`).
+    """
+    h = g.resolution
+    cell = (h, g.theta_resolution)
+    ix = int(np.floor((x0[0] - g.x0) / h + 0.5))
+    iy = int(np.floor((x0[1] - g.y0) / h + 0.5))
+    for jx in range(max(0, ix - EXACT_RADIUS), min(g.nx, ix + EXACT_RADIUS + 1)):
+        for jy in range(max(0, iy - EXACT_RADIUS), min(g.ny, iy + EXACT_RADIUS + 1)):
+            lo = np.array([g.x[jx] - h / 2, g.y[jy] - h / 2])
+            values[jx, jy, :] = (
+                stp.exact_cell(x0[:2], lo, lo + h, float(x0[2]), g.theta, cell)
+                * g.theta_resolution
+            )
+
+
+def _normalise_single(values: Array, raw: float, corrected: bool) -> float:
+    """Scale a single-step map of sum ``raw`` in place; return its lost mass.
+
+    Corrected: to ``1 − lost``, ``lost = max(0, 1 − raw)``. Thrun's: to 1 (relative
+    probability, nothing lost).
+    """
     if corrected:
         lost = max(0.0, 1.0 - raw)
         values *= (1.0 - lost) / raw
-    else:
-        lost = 0.0
-        values /= raw
-    return ProbabilityMap(g.x, g.y, g.theta, values, lost, model, g, info)
+        return lost
+    values /= raw
+    return 0.0
 
 
 # ============================================================================= multi step
@@ -646,35 +700,101 @@ def _heading_kernel(mean: float, std: float, noise: str, ht: float) -> tuple[int
     return i0 - L, np.convolve(split, box)
 
 
+class _ControlNodes(NamedTuple):
+    """Quadrature nodes of one step's control noise, moved to local pose changes."""
+
+    shape: tuple[int, int]  # nodes along the first and the second control axis
+    pose: Array  # (Q, 3) local pose change of each node [m, m, rad], Q = shape[0]·shape[1]
+    weight: Array  # (Q,) exact probability of each node's control interval
+    head_mean: float  # mean of the heading-only noise (γΔt or δrot2) [rad]
+    head_std: float  # its standard deviation [rad]
+
+
+def _velocity_nodes(stp: _Step, sd: Array, h: float, ht: float, n_max: int) -> _ControlNodes:
+    """Nodes of ``(V̂, ω̂)``, spaced ≤ a quarter cell in pose space."""
+    V, w = float(stp.u[0]), float(stp.u[1])
+    dt = stp.dt
+    # along-track: dx = dV·Δt·sinc ≤ dV·Δt; across: ≈ |V|Δt²/2·dω; heading: Δt·dω
+    Vn, Vw = _node_masses(V, float(sd[0]), stp.noise, 0.25 * h / dt, n_max)
+    lever = (abs(V) + noise_reach(stp.noise) * float(sd[0])) * dt * dt / 2.0
+    w_sp = min(0.25 * ht / dt, 0.25 * h / lever if lever > 0 else math.inf)
+    wn, ww = _node_masses(w, float(sd[1]), stp.noise, w_sp, n_max)
+    wn = np.clip(wn, -math.pi / dt, math.pi / dt)
+    A, B = np.meshgrid(Vn, wn, indexing="ij")
+    pose = velocity_forward(np.zeros(3), A.ravel(), B.ravel(), 0.0, dt)
+    return _ControlNodes(A.shape, pose, np.outer(Vw, ww).ravel(), 0.0, float(sd[2]) * dt)
+
+
+def _odometry_nodes(stp: _Step, sd: Array, h: float, ht: float, n_max: int) -> _ControlNodes:
+    """Nodes of ``(δ̂rot1, δ̂trans)``, spaced ≤ a quarter cell in pose space."""
+    r1, tr, r2 = (float(v) for v in stp.u)
+    tr_n, tr_w = _node_masses(tr, float(sd[1]), stp.noise, 0.25 * h, n_max)
+    lever = abs(tr) + noise_reach(stp.noise) * float(sd[1])
+    r1_sp = min(0.25 * ht, 0.25 * h / lever if lever > 0 else math.inf)
+    r1_n, r1_w = _node_masses(r1, float(sd[0]), stp.noise, r1_sp, n_max)
+    A, B = np.meshgrid(r1_n, tr_n, indexing="ij")
+    pose = odometry_forward(np.zeros(3), A.ravel(), B.ravel(), 0.0)
+    return _ControlNodes(A.shape, pose, np.outer(r1_w, tr_w).ravel(), r2, float(sd[2]))
+
+
+def _node_heading_variances(
+    t_parts: list[tuple[AnyArray, AnyArray | float]], mp: int, weight: Array, fth: Array, wth: Array
+) -> tuple[float, float]:
+    """Heading variance [cells²] the position nodes carry: (deposited on the cells, continuous).
+
+    ``fth`` (Q,) are the nodes' heading changes and ``wth`` (Q,) the widths of
+    their intervals [cells]; ``t_parts`` their deposit (:func:`_axis_parts`) on
+    ``mp`` heading offsets.
+    """
+    phi_mass = np.zeros(mp)
+    for i_, w_ in t_parts:
+        phi_mass += np.bincount(i_, weight * w_, minlength=mp)
+    var_phi_disc = _discrete_var(phi_mass)
+    mu = float(weight @ fth)
+    var_phi_true = float(weight @ (fth - mu) ** 2 + weight @ (wth**2) / 12.0)
+    return var_phi_disc, var_phi_true
+
+
+def _matched_heading_std(
+    head_mean: float, head_std: float, target: float, noise: str, ht: float, compensate: bool
+) -> float:
+    """Width [rad] of the heading-only noise: ``head_std``, or moment-matched to ``target`` [cells²].
+
+    Moment matching of the heading (diffusion compensation). Each step's cell
+    integration/linear split changes the heading variance of the discrete kernel
+    (Sheppard's +h_θ²/12 for a spread-out kernel, +frac(1−frac)·h_θ² for a split
+    mean, −σ² for a noise narrower than a cell that is rounded away), and the next
+    step inherits the change, so it accumulates over the steps. The width of the
+    heading-only noise is therefore chosen (by bisection) so that the discrete
+    kernel's heading variance equals the continuous one, σ_φ² + σ_head², whenever
+    it can be: ``target`` is what the heading-only kernel must add.
+    """
+    if not (compensate and head_std > 0.0):
+        return float(head_std)
+
+    def head_var(sd_bins: float) -> float:
+        return _discrete_var(_heading_kernel(head_mean, sd_bins * ht, noise, ht)[1])
+
+    lo_, hi_ = 0.0, math.sqrt(max(target, 0.0)) + 1.0
+    if head_var(lo_) >= target:
+        sd_bins = 0.0
+    else:
+        while head_var(hi_) < target:
+            hi_ *= 2.0
+        for _ in range(50):
+            mid = 0.5 * (lo_ + hi_)
+            lo_, hi_ = (mid, hi_) if head_var(mid) < target else (lo_, mid)
+        sd_bins = 0.5 * (lo_ + hi_)
+    return sd_bins * ht
+
+
 def _quadrature_kernel(
     stp: _Step, h: float, ht: float, n_max: int = 1500, compensate: bool = True
 ) -> _Kernel:
     """Build the quadrature of one step's control noise, spaced ≤ half a cell in pose space."""
     sd = np.sqrt(stp.variances())
-    if stp.model == "velocity":
-        V, w = float(stp.u[0]), float(stp.u[1])
-        dt = stp.dt
-        # along-track: dx = dV·Δt·sinc ≤ dV·Δt; across: ≈ |V|Δt²/2·dω; heading: Δt·dω
-        Vn, Vw = _node_masses(V, float(sd[0]), stp.noise, 0.25 * h / dt, n_max)
-        lever = (abs(V) + noise_reach(stp.noise) * float(sd[0])) * dt * dt / 2.0
-        w_sp = min(0.25 * ht / dt, 0.25 * h / lever if lever > 0 else math.inf)
-        wn, ww = _node_masses(w, float(sd[1]), stp.noise, w_sp, n_max)
-        wn = np.clip(wn, -math.pi / dt, math.pi / dt)
-        A, B = np.meshgrid(Vn, wn, indexing="ij")
-        pose = velocity_forward(np.zeros(3), A.ravel(), B.ravel(), 0.0, dt)
-        weight = np.outer(Vw, ww).ravel()
-        head_mean, head_std = 0.0, float(sd[2]) * dt
-    else:
-        r1, tr, r2 = (float(v) for v in stp.u)
-        tr_n, tr_w = _node_masses(tr, float(sd[1]), stp.noise, 0.25 * h, n_max)
-        lever = abs(tr) + noise_reach(stp.noise) * float(sd[1])
-        r1_sp = min(0.25 * ht, 0.25 * h / lever if lever > 0 else math.inf)
-        r1_n, r1_w = _node_masses(r1, float(sd[0]), stp.noise, r1_sp, n_max)
-        A, B = np.meshgrid(r1_n, tr_n, indexing="ij")
-        pose = odometry_forward(np.zeros(3), A.ravel(), B.ravel(), 0.0)
-        weight = np.outer(r1_w, tr_w).ravel()
-        head_mean, head_std = r2, float(sd[2])
-    na, nb = A.shape
+    nodes_of = _velocity_nodes if stp.model == "velocity" else _odometry_nodes
+    (na, nb), pose, weight, head_mean, head_std = nodes_of(stp, sd, h, ht, n_max)
     grid_pose = pose.reshape(na, nb, 3)
     step_a: Array = np.asarray(np.gradient(grid_pose, axis=0)) if na > 1 else np.zeros_like(grid_pose)
     step_b: Array = np.asarray(np.gradient(grid_pose, axis=1)) if nb > 1 else np.zeros_like(grid_pose)
@@ -685,39 +805,9 @@ def _quadrature_kernel(
     m_lo_p = min(int(p_[0].min()) for p_ in t_parts)
     mp = max(int(p_[0].max()) for p_ in t_parts) - m_lo_p + 1
     t_parts = [(i_ - m_lo_p, w_) for i_, w_ in t_parts]
-    # Moment matching of the heading (diffusion compensation). Each step's cell
-    # integration/linear split changes the heading variance of the discrete kernel
-    # (Sheppard's +h_θ²/12 for a spread-out kernel, +frac(1−frac)·h_θ² for a split
-    # mean, −σ² for a noise narrower than a cell that is rounded away), and the next
-    # step inherits the change, so it accumulates over the steps. The width of the
-    # heading-only noise is therefore chosen so that the discrete kernel's heading
-    # variance equals the continuous one, σ_φ² + σ_head², whenever it can be.
-    phi_mass = np.zeros(mp)
-    for i_, w_ in t_parts:
-        phi_mass += np.bincount(i_, weight * w_, minlength=mp)
-    var_phi_disc = _discrete_var(phi_mass)
-    mu = float(weight @ fth)
-    var_phi_true = float(weight @ (fth - mu) ** 2 + weight @ (wth**2) / 12.0)
+    var_phi_disc, var_phi_true = _node_heading_variances(t_parts, mp, weight, fth, wth)
     target = var_phi_true + (head_std / ht) ** 2 - var_phi_disc  # bins²
-
-    def head_var(sd_bins: float) -> float:
-        return _discrete_var(_heading_kernel(head_mean, sd_bins * ht, stp.noise, ht)[1])
-
-    head_sd: float
-    if compensate and head_std > 0.0:
-        lo_, hi_ = 0.0, math.sqrt(max(target, 0.0)) + 1.0
-        if head_var(lo_) >= target:
-            sd_bins = 0.0
-        else:
-            while head_var(hi_) < target:
-                hi_ *= 2.0
-            for _ in range(50):
-                mid = 0.5 * (lo_ + hi_)
-                lo_, hi_ = (mid, hi_) if head_var(mid) < target else (lo_, mid)
-            sd_bins = 0.5 * (lo_ + hi_)
-        head_sd = sd_bins * ht
-    else:
-        head_sd = float(head_std)
+    head_sd = _matched_heading_std(head_mean, head_std, target, stp.noise, ht, compensate)
     head_lo, head_kernel = _heading_kernel(head_mean, head_sd, stp.noise, ht)
     mismatch = (var_phi_disc + _discrete_var(head_kernel) - var_phi_true - (head_std / ht) ** 2) * ht**2
     ia, ib = np.meshgrid(np.arange(na), np.arange(nb), indexing="ij")
@@ -736,17 +826,6 @@ def _quadrature_kernel(
         head_kernel=head_kernel,
         perimeter=np.flatnonzero(edge),
     )
-
-
-def _cic_1d(pos: Array, weight: Array) -> tuple[int, Array]:
-    """Linear (cloud-in-cell) deposit of 1-D positions in cell units: (first index, masses)."""
-    i0 = np.floor(pos).astype(np.int64)
-    frac = pos - i0
-    lo = int(i0.min())
-    out = np.zeros(int(i0.max()) - lo + 2)
-    np.add.at(out, i0 - lo, weight * (1.0 - frac))
-    np.add.at(out, i0 - lo + 1, weight * frac)
-    return lo, out
 
 
 def _splat(f: Array, width: Array) -> list[tuple[AnyArray, AnyArray | float]]:
@@ -1182,13 +1261,43 @@ def multi_step_map(
             workers=workers,
         )  # fmt: skip
         return _coarsen(fine, over)
-    # --- unpack a Trajectory-like object
-    if controls is not None and hasattr(controls, "controls") and hasattr(controls, "dt"):
-        traj = controls
-        controls = np.asarray(traj.controls, dtype=np.float64)
-        dt = traj.dt if dt is None else dt
-        if start is None and hasattr(traj, "start"):
-            start = traj.start
+    x0, a, u, dts, od = _normalise_path(model, controls, dt, alphas, start, noise, scaling, odometry)
+    max_cells = check_positive_int("max_cells", max_cells)
+    steps = _path_steps(model, u, dts, a, noise, scaling, od)
+    g, grow = _start_grid(grid, x0, resolution, theta_resolution)
+    belief, g, lost_total, diagnostics = _predict_path(
+        steps, g, grow, x0, max_cells, n_nodes_max, diffusion_compensation, workers
+    )
+    info = {
+        **diagnostics,
+        "n_steps": len(steps),
+        "start": x0.tolist(),
+        "noise": noise,
+        "scaling": scaling,
+        "method": "histogram filter, quadrature kernels, FFT per source heading",
+    }
+    return ProbabilityMap(g.x, g.y, g.theta, belief, max(0.0, float(lost_total)), model, g, info)
+
+
+def _normalise_path(
+    model: str,
+    controls: Any,
+    dt: ArrayLike | None,
+    alphas: ArrayLike | None,
+    start: ArrayLike | None,
+    noise: str,
+    scaling: str,
+    odometry: ArrayLike | None,
+) -> tuple[Array, Array, Array | None, Array, Array | None]:
+    """Check the path inputs of :func:`multi_step_map`.
+
+    Returns
+    -------
+    x0 : (3,) start pose; alphas : (6,) or (4,); u : (N, 2) controls or None
+    (odometry given instead); dts : (N,) step durations [s]; od : (N+1, 3)
+    odometry poses of the odometry model, None for the velocity model
+    """
+    controls, dt, start = _unpack_trajectory(controls, dt, start)
     x0 = check_finite("start", (0.0, 0.0, 0.0) if start is None else start)
     if x0.shape != (3,):
         raise ValueError(f"start must have shape (3,), got shape {x0.shape}")
@@ -1196,16 +1305,42 @@ def multi_step_map(
     check_scaling(scaling)
     n_alpha = 6 if model == "velocity" else 4
     a = check_alphas(np.full(n_alpha, 0.05) if alphas is None else alphas, n_alpha)
+    u, n_steps = _check_controls(model, controls, odometry)
+    dts = _check_step_durations(model, dt, odometry, n_steps)
+    od = _odometry_path(model, odometry, x0, u, dts, n_steps)
+    return x0, a, u, dts, od
+
+
+def _unpack_trajectory(controls: Any, dt: Any, start: Any) -> tuple[Any, Any, Any]:
+    """``(controls, dt, start)`` of a Trajectory-like ``controls``; other inputs unchanged.
+
+    An explicit ``dt`` or ``start`` wins over the trajectory's.
+    """
+    if controls is not None and hasattr(controls, "controls") and hasattr(controls, "dt"):
+        traj = controls
+        controls = np.asarray(traj.controls, dtype=np.float64)
+        dt = traj.dt if dt is None else dt
+        if start is None and hasattr(traj, "start"):
+            start = traj.start
+    return controls, dt, start
+
+
+def _check_controls(model: str, controls: Any, odometry: ArrayLike | None) -> tuple[Array | None, int]:
+    """Controls (N, 2) — None when the odometry model is given only its poses — and N."""
     if controls is not None:
         u = check_finite("controls", check_last_axis("controls", controls, 2))
         if u.ndim != 2 or u.shape[0] < 1:
             raise ValueError(f"controls must have shape (N, 2) with N >= 1, got shape {u.shape}")
-        n_steps = u.shape[0]
-    elif model == "odometry" and odometry is not None:
-        u = None
-        n_steps = int(np.shape(odometry)[0]) - 1
-    else:
-        raise ValueError("controls must be given (allowed: array of shape (N, 2) or a Trajectory), got None")
+        return u, u.shape[0]
+    if model == "odometry" and odometry is not None:
+        return None, int(np.shape(odometry)[0]) - 1
+    raise ValueError("controls must be given (allowed: array of shape (N, 2) or a Trajectory), got None")
+
+
+def _check_step_durations(
+    model: str, dt: ArrayLike | None, odometry: ArrayLike | None, n_steps: int
+) -> Array:
+    """Step durations (N,) [s]; the odometry model given its poses needs none (1 s each)."""
     if dt is None:
         if model == "velocity" or odometry is None:
             raise ValueError("dt must be given (allowed: > 0), got None")
@@ -1214,49 +1349,92 @@ def multi_step_map(
     dts = np.full(n_steps, float(dts)) if dts.ndim == 0 else dts
     if dts.shape != (n_steps,):
         raise ValueError(f"dt must be a scalar or have shape ({n_steps},), got shape {dts.shape}")
-    od: Array | None = None
-    if model == "odometry":
-        if odometry is None:
-            assert u is not None
-            od = noiseless_velocity_poses(x0, u, dts)
-        else:
-            od = check_finite("odometry", check_last_axis("odometry", odometry, 3))
-            if od.shape != (n_steps + 1, 3):
-                raise ValueError(
-                    f"odometry must have shape (N+1, 3) = ({n_steps + 1}, 3), got shape {od.shape}"
-                )
-    max_cells = check_positive_int("max_cells", max_cells)
-    steps = [
+    return dts
+
+
+def _odometry_path(
+    model: str, odometry: ArrayLike | None, x0: Array, u: Array | None, dts: Array, n_steps: int
+) -> Array | None:
+    """Odometry poses (N+1, 3) of the odometry model; None for the velocity model.
+
+    Given, or the noiseless velocity poses along ``u`` (seed 000).
+    """
+    if model != "odometry":
+        return None
+    if odometry is None:
+        assert u is not None
+        return noiseless_velocity_poses(x0, u, dts)
+    od = check_finite("odometry", check_last_axis("odometry", odometry, 3))
+    if od.shape != (n_steps + 1, 3):
+        raise ValueError(
+            f"odometry must have shape (N+1, 3) = ({n_steps + 1}, 3), got shape {od.shape}"
+        )
+    return od
+
+
+def _path_steps(
+    model: str, u: Array | None, dts: Array, alphas: Array, noise: str, scaling: str, od: Array | None
+) -> list[_Step]:
+    """One corrected-density :class:`_Step` per control (velocity) or odometry pair (odometry)."""
+    return [
         _make_step(
             model,
             None if u is None else u[i],
             float(dts[i]),
-            a,
+            alphas,
             noise,
             scaling,
             True,
             None,
             None if od is None else (od[i], od[i + 1]),
         )
-        for i in range(n_steps)
+        for i in range(dts.shape[0])
     ]
 
-    # --- grid and initial belief
+
+def _start_grid(
+    grid: Grid | None, x0: Array, resolution: float, theta_resolution: float
+) -> tuple[Grid, bool]:
+    """The grid to start on and whether it grows.
+
+    The fixed ``grid`` (which must hold the start), or a growing grid of one cell
+    centred on the start.
+    """
     if grid is not None:
-        g = grid
-        if not g.contains(x0):
-            xa, xb, ya, yb = g.extent()
+        if not grid.contains(x0):
+            xa, xb, ya, yb = grid.extent()
             raise ValueError(
                 f"start must lie inside the grid (allowed: x in [{xa:g}, {xb:g}), "
                 f"y in [{ya:g}, {yb:g})), got ({x0[0]:g}, {x0[1]:g})"
             )
-        grow = False
-    else:
-        h_ = float(check_positive("resolution", resolution))
-        htr = float(check_positive("theta_resolution", theta_resolution))
-        nt = max(1, math.ceil(2.0 * math.pi / htr - 1e-9))
-        g = Grid.square(float(x0[0]), float(x0[1]), 1, 1, h_, nt, float(x0[2]))
-        grow = True
+        return grid, False
+    h_ = float(check_positive("resolution", resolution))
+    htr = float(check_positive("theta_resolution", theta_resolution))
+    nt = max(1, math.ceil(2.0 * math.pi / htr - 1e-9))
+    return Grid.square(float(x0[0]), float(x0[1]), 1, 1, h_, nt, float(x0[2])), True
+
+
+def _predict_path(
+    steps: list[_Step],
+    g: Grid,
+    grow: bool,
+    x0: Array,
+    max_cells: int,
+    n_nodes_max: int,
+    compensate: bool,
+    workers: int,
+) -> tuple[Array, Grid, float, dict[str, Any]]:
+    """The histogram filter's prediction along ``steps`` from a Dirac at ``x0``.
+
+    Per step: build the kernel, drop negligible heading slices, grow the grid (if
+    ``grow``) to hold the support plus the kernel's reach, take the step.
+
+    Returns
+    -------
+    belief : (nx, ny, nθ) on the final grid; g : the final grid; lost : mass
+    lost in total; diagnostics : ``lost_per_step``, ``grid_growths``,
+    ``roundoff``, ``negligible_slices``, ``heading_variance_mismatch_total``
+    """
     h, ht, nt = g.resolution, g.theta_resolution, g.ntheta
     belief = np.zeros(g.shape)
     _deposit(belief, g, x0)
@@ -1268,69 +1446,91 @@ def multi_step_map(
     roundoff = 0.0
     negligible = 0.0
     thetas = g.theta
-
     for stp in steps:
-        kern = _quadrature_kernel(stp, h, ht, n_nodes_max, diffusion_compensation)
-        ax, ay, wx, wy = _kernel_windows(kern, thetas, h)
+        kern = _quadrature_kernel(stp, h, ht, n_nodes_max, compensate)
+        windows = _kernel_windows(kern, thetas, h)
         mismatch.append(kern.heading_variance_mismatch)
-
         # heading slices holding less than 1e-14 are not propagated: their mass is
         # counted as lost (reported as ``negligible_slices`` in ``info``)
         dropped, active = _drop_negligible_slices(belief)
         negligible += dropped
         lost_total += dropped
-        # grow the grid to hold support + kernel reach
         if grow and active.size:
-            thr = 1e-14 * float(belief.max())
-            sx = np.flatnonzero((belief[:, :, active] > thr).any(axis=(1, 2)))
-            sy = np.flatnonzero((belief[:, :, active] > thr).any(axis=(0, 2)))
-            ix0 = round((g.x0 - x0[0]) / h)
-            iy0 = round((g.y0 - x0[1]) / h)
-            need_lo = (ix0 + int(sx[0]) + int(ax[active].min()), iy0 + int(sy[0]) + int(ay[active].min()))
-            need_hi = (
-                ix0 + int(sx[-1]) + int((ax[active] + wx - 1).max()),
-                iy0 + int(sy[-1]) + int((ay[active] + wy - 1).max()),
-            )
-            cur_lo = (ix0, iy0)
-            cur_hi = (ix0 + g.nx - 1, iy0 + g.ny - 1)
-            if any(need_lo[i] < cur_lo[i] or need_hi[i] > cur_hi[i] for i in range(2)):
-                slack = max(4, (wx + wy) // 4)
-                new_lo, new_hi = _grow_bounds(cur_lo, cur_hi, need_lo, need_hi, max_side, slack)
-                ng = Grid.square(
-                    float(x0[0]) + new_lo[0] * h, float(x0[1]) + new_lo[1] * h,
-                    new_hi[0] - new_lo[0] + 1, new_hi[1] - new_lo[1] + 1, h, nt, g.theta0,
-                )  # fmt: skip
-                nb = np.zeros(ng.shape)
-                # copy the overlap
-                ox, oy = cur_lo[0] - new_lo[0], cur_lo[1] - new_lo[1]
-                sxa, sxb = max(0, -ox), min(g.nx, ng.nx - ox)
-                sya, syb = max(0, -oy), min(g.ny, ng.ny - oy)
-                before = float(belief.sum())
-                if sxa < sxb and sya < syb:
-                    nb[sxa + ox : sxb + ox, sya + oy : syb + oy] = belief[sxa:sxb, sya:syb]
-                lost_total += before - float(nb.sum())
-                belief, g = nb, ng
+            grown = _grow_grid(belief, g, x0, active, windows, max_side)
+            if grown is not None:
+                belief, g, cut = grown
+                lost_total += cut
                 growths += 1
-
         # ``thetas`` are the headings of the first grid: a grown grid re-normalises theta0,
         # which can relabel the slices by one cell (see core.grids.Grid); the kernels keep the first
         belief, step_roundoff, lost_step = _convolve_step(
-            belief, g, kern, active, (ax, ay, wx, wy), thetas, workers
+            belief, g, kern, active, windows, thetas, workers
         )
         roundoff += step_roundoff
         lost_per_step.append(lost_step)
         lost_total += lost_step
-
-    info = {
+    diagnostics = {
         "lost_per_step": lost_per_step,
         "grid_growths": growths,
         "roundoff": roundoff,
         "negligible_slices": negligible,
         "heading_variance_mismatch_total": float(np.sum(mismatch)),
-        "n_steps": n_steps,
-        "start": x0.tolist(),
-        "noise": noise,
-        "scaling": scaling,
-        "method": "histogram filter, quadrature kernels, FFT per source heading",
     }
-    return ProbabilityMap(g.x, g.y, g.theta, belief, max(0.0, float(lost_total)), model, g, info)
+    return belief, g, lost_total, diagnostics
+
+
+def _needed_bounds(
+    belief: Array, g: Grid, x0: Array, active: AnyArray, windows: tuple[AnyArray, AnyArray, int, int]
+) -> tuple[tuple[int, int], tuple[int, int], tuple[int, int], tuple[int, int]]:
+    """Cell-index bounds (inclusive, from the start cell) of the grid and of what the step needs.
+
+    Returns ``(cur_lo, cur_hi, need_lo, need_hi)``: the grid's, and the belief's
+    support (active heading slices) widened by the kernel windows of those headings.
+    """
+    ax, ay, wx, wy = windows
+    h = g.resolution
+    thr = 1e-14 * float(belief.max())
+    sx = np.flatnonzero((belief[:, :, active] > thr).any(axis=(1, 2)))
+    sy = np.flatnonzero((belief[:, :, active] > thr).any(axis=(0, 2)))
+    ix0 = round((g.x0 - x0[0]) / h)
+    iy0 = round((g.y0 - x0[1]) / h)
+    need_lo = (ix0 + int(sx[0]) + int(ax[active].min()), iy0 + int(sy[0]) + int(ay[active].min()))
+    need_hi = (
+        ix0 + int(sx[-1]) + int((ax[active] + wx - 1).max()),
+        iy0 + int(sy[-1]) + int((ay[active] + wy - 1).max()),
+    )
+    return (ix0, iy0), (ix0 + g.nx - 1, iy0 + g.ny - 1), need_lo, need_hi
+
+
+def _grow_grid(
+    belief: Array,
+    g: Grid,
+    x0: Array,
+    active: AnyArray,
+    windows: tuple[AnyArray, AnyArray, int, int],
+    max_side: int,
+) -> tuple[Array, Grid, float] | None:
+    """Grow the grid to hold what the step needs (:func:`_needed_bounds`), ≤ ``max_side`` a side.
+
+    Returns (belief copied onto the new grid, the new grid, mass cut off by
+    the cap), or None when the grid already holds it.
+    """
+    cur_lo, cur_hi, need_lo, need_hi = _needed_bounds(belief, g, x0, active, windows)
+    if not any(need_lo[i] < cur_lo[i] or need_hi[i] > cur_hi[i] for i in range(2)):
+        return None
+    h = g.resolution
+    slack = max(4, (windows[2] + windows[3]) // 4)
+    new_lo, new_hi = _grow_bounds(cur_lo, cur_hi, need_lo, need_hi, max_side, slack)
+    ng = Grid.square(
+        float(x0[0]) + new_lo[0] * h, float(x0[1]) + new_lo[1] * h,
+        new_hi[0] - new_lo[0] + 1, new_hi[1] - new_lo[1] + 1, h, g.ntheta, g.theta0,
+    )  # fmt: skip
+    nb = np.zeros(ng.shape)
+    # copy the overlap
+    ox, oy = cur_lo[0] - new_lo[0], cur_lo[1] - new_lo[1]
+    sxa, sxb = max(0, -ox), min(g.nx, ng.nx - ox)
+    sya, syb = max(0, -oy), min(g.ny, ng.ny - oy)
+    before = float(belief.sum())
+    if sxa < sxb and sya < syb:
+        nb[sxa + ox : sxb + ox, sya + oy : syb + oy] = belief[sxa:sxb, sya:syb]
+    return nb, ng, before - float(nb.sum())

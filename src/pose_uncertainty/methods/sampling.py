@@ -253,41 +253,17 @@ def sample_end_poses(
         if not cps or min(cps) < 0 or max(cps) > N:
             raise ValueError(f"checkpoints must be step indices in [0, {N}], got {list(checkpoints)}")
     start_sqrt = start_factor(cov0)
-    ds_r, ds_l = trajectory.ds_r, trajectory.ds_l
     chunk, starts, children = chunk_streams(rng, n, N)
     n_out = 1 if checkpoints is None else len(checkpoints)
     out = np.empty((n, n_out, 3))
-    if regime == "per_step":
-        # Δs' ~ N(Δs, k|Δs|)
-        std_r = np.sqrt(kr * np.abs(ds_r))
-        std_l = np.sqrt(kl * np.abs(ds_l))
-    else:
-        # Δs' = Δs (1 + ε), ε ~ N(0, k/L): total-travel variance k·L at the end of the run
-        L_r, L_l = trajectory.wheel_travel
-        eps_std_r = np.sqrt(kr / L_r) if L_r > 0 else 0.0
-        eps_std_l = np.sqrt(kl / L_l) if L_l > 0 else 0.0
-    start = np.asarray(trajectory.start, dtype=np.float64)
+    wheel_std = _wheel_noise_std(trajectory, kr, kl, regime)
 
     def run_chunk(j: int) -> None:
         lo = starts[j]
         m = min(chunk, n - lo)
-        g = children[j]
-        z = g.standard_normal((2, m, N) if regime == "per_step" else (2, m, 1))
-        if regime == "per_step":
-            z[0] *= std_r  # Δs_r' − Δs_r ~ N(0, k_r|Δs_r|)
-            z[1] *= std_l
-            noise_r, noise_l = z[0], z[1]
-        else:
-            noise_r = (eps_std_r * z[0]) * ds_r  # Δs_r' − Δs_r = ε_r Δs_r
-            noise_l = (eps_std_l * z[1]) * ds_l
-        offset = None if start_sqrt is None else g.standard_normal((m, 3)) @ start_sqrt.T
-        if checkpoints is None:
-            out[lo : lo + m, 0] = _end_poses_perturbed(trajectory, noise_r, noise_l, method, offset)
-        else:
-            starts_ = start if offset is None else start + offset
-            out[lo : lo + m] = integrate_end(
-                ds_r + noise_r, ds_l + noise_l, trajectory.track, starts_, method, checkpoints
-            )
+        out[lo : lo + m] = _sample_chunk(
+            trajectory, children[j], m, regime, wheel_std, start_sqrt, method, checkpoints
+        )
 
     if n_workers == 1 or len(starts) == 1:
         for j in range(len(starts)):
@@ -296,3 +272,58 @@ def sample_end_poses(
         with ThreadPoolExecutor(max_workers=n_workers) as pool:
             list(pool.map(run_chunk, range(len(starts))))
     return out[:, 0, :] if checkpoints is None else out
+
+
+def _wheel_noise_std(
+    trajectory: Trajectory, kr: float, kl: float, regime: str
+) -> tuple[NDArray[np.float64] | float, NDArray[np.float64] | float]:
+    """Standard deviations of the wheels' errors (right, left).
+
+    ``per_step``: of each step's travel [m], shape (N,) each; ``per_run``: of the
+    relative scale error ``ε`` [-], scalars (0 for a wheel that does not move).
+    """
+    ds_r, ds_l = trajectory.ds_r, trajectory.ds_l
+    if regime == "per_step":
+        # Δs' ~ N(Δs, k|Δs|)
+        return np.sqrt(kr * np.abs(ds_r)), np.sqrt(kl * np.abs(ds_l))
+    # Δs' = Δs (1 + ε), ε ~ N(0, k/L): total-travel variance k·L at the end of the run
+    L_r, L_l = trajectory.wheel_travel
+    eps_std_r = np.sqrt(kr / L_r) if L_r > 0 else 0.0
+    eps_std_l = np.sqrt(kl / L_l) if L_l > 0 else 0.0
+    return eps_std_r, eps_std_l
+
+
+def _sample_chunk(
+    trajectory: Trajectory,
+    g: np.random.Generator,
+    m: int,
+    regime: str,
+    wheel_std: tuple[NDArray[np.float64] | float, NDArray[np.float64] | float],
+    start_sqrt: NDArray[np.float64] | None,
+    method: str,
+    checkpoints: Sequence[int] | None,
+) -> NDArray[np.float64]:
+    """Poses of ``m`` particles drawn from the chunk's stream ``g``, shape (m, C, 3) (C = 1: end).
+
+    Draws, in this order: the wheel errors (2, m, N) per step or (2, m, 1) per
+    run (standard normal, scaled by :func:`_wheel_noise_std`), then the start
+    offsets (m, 3) when ``start_sqrt`` is given.
+    """
+    ds_r, ds_l = trajectory.ds_r, trajectory.ds_l
+    std_r, std_l = wheel_std
+    z = g.standard_normal((2, m, trajectory.n_steps) if regime == "per_step" else (2, m, 1))
+    if regime == "per_step":
+        z[0] *= std_r  # Δs_r' − Δs_r ~ N(0, k_r|Δs_r|)
+        z[1] *= std_l
+        noise_r, noise_l = z[0], z[1]
+    else:
+        noise_r = (std_r * z[0]) * ds_r  # Δs_r' − Δs_r = ε_r Δs_r
+        noise_l = (std_l * z[1]) * ds_l
+    offset = None if start_sqrt is None else g.standard_normal((m, 3)) @ start_sqrt.T
+    if checkpoints is None:
+        return _end_poses_perturbed(trajectory, noise_r, noise_l, method, offset)[:, None, :]
+    start = np.asarray(trajectory.start, dtype=np.float64)
+    starts_ = start if offset is None else start + offset
+    return integrate_end(
+        ds_r + noise_r, ds_l + noise_l, trajectory.track, starts_, method, checkpoints
+    )
