@@ -31,7 +31,9 @@ CONFIG = {
 }
 
 
-def synthetic_map(name: str, end: np.ndarray, rng: np.random.Generator) -> ProbabilityMap:
+def synthetic_map(
+    name: str, end: np.ndarray, rng: np.random.Generator, log_volume: bool = False
+) -> ProbabilityMap:
     """A ProbabilityMap-like record: a normalised Gaussian bump in (x, y, θ) around ``end``."""
     x = end[0] + np.linspace(-0.5, 0.5, 41)
     y = end[1] + np.linspace(-0.5, 0.5, 37)
@@ -41,7 +43,7 @@ def synthetic_map(name: str, end: np.ndarray, rng: np.random.Generator) -> Proba
     values *= (1.0 - 1e-3) / values.sum()  # probability mass per cell; 1e-3 lost off the grid
     return ProbabilityMap(
         x, y, theta, values, lost_mass=1e-3, model="velocity", name=name,
-        params={"alphas": [0.05] * 6}, info={"synthetic": True},
+        params={"alphas": [0.05] * 6, "log_volume": log_volume}, info={"synthetic": True},
     )  # fmt: skip
 
 
@@ -49,7 +51,8 @@ def synthetic_map(name: str, end: np.ndarray, rng: np.random.Generator) -> Proba
 def result() -> RunResult:
     res = execute(RunConfig.from_dict(CONFIG))
     rng = np.random.default_rng(5)
-    maps = (synthetic_map("vel", res.poses[-1], rng), synthetic_map("odo", res.poses[-1], rng))
+    # one map logged in full, one as its θ-marginal and the digest of its full array (the default)
+    maps = (synthetic_map("vel", res.poses[-1], rng, log_volume=True), synthetic_map("odo", res.poses[-1], rng))
     return dataclasses.replace(res, maps=maps)
 
 
@@ -77,16 +80,20 @@ def test_write_read_is_lossless_for_every_topic(result: RunResult, logfile: Path
     assert sorted(log.checkpoints) == sorted(result.checkpoints) == [40]
     assert exact(log.checkpoints[40], result.checkpoints[40])
     assert len(log.maps) == len(result.maps) == 2
-    for a, b in zip(log.maps, result.maps, strict=True):
-        assert (a.name, a.model, a.lost_mass, a.params, a.info) == (
-            b.name,
-            b.model,
-            b.lost_mass,
-            b.params,
-            b.info,
-        )
-        for attr in ("x", "y", "theta", "values"):
-            assert exact(getattr(a, attr), getattr(b, attr)), attr
+    vel, odo = log.maps
+    full, marg = result.maps
+    # with log_volume, the full (x, y, θ) array, bit for bit
+    assert (vel.name, vel.model, vel.lost_mass, vel.params, vel.info) == (
+        full.name, full.model, full.lost_mass, full.params, full.info)  # fmt: skip
+    for attr in ("x", "y", "theta", "values"):
+        assert exact(getattr(vel, attr), getattr(full, attr)), attr
+    # by default, the exact θ-marginal and the sha256 of the full array (what --verify compares)
+    assert exact(odo.marginal_xy(), marg.marginal_xy())
+    assert odo.values.shape == (*marg.values.shape[:2], 1)
+    assert odo.info[runlog.VOLUME_SHA256] == runlog.volume_sha256(marg.values)
+    assert odo.info["theta_cells"] == marg.theta.size
+    assert exact(odo.x, marg.x)
+    assert exact(odo.y, marg.y)
     assert log.metrics == result.metrics
     assert log.metric_units == result.metric_units
     assert log.metric_definitions == result.metric_definitions
@@ -430,7 +437,10 @@ def test_computed_maps_round_trip(tmp_path: Path) -> None:
     log = open_run(write_run(tmp_path / "maps.mcap", res))
     assert runlog.compare_results(log, res) == []
     for a, b in zip(log.maps, res.maps, strict=True):
-        assert exact(a.values, b.values)
+        # the log holds the exact θ-marginal and the digest of the full array (no log_volume)
+        assert exact(a.marginal_xy(), b.marginal_xy())
+        assert a.info.pop(runlog.VOLUME_SHA256) == runlog.volume_sha256(b.values)
+        assert a.info.pop("theta_cells") == b.theta.size
         assert exact(a.center, b.center)
         assert a.info == b.info
         assert a.params == b.params

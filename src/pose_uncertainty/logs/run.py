@@ -200,7 +200,10 @@ class MapConfig:
         spread, a number = a fixed square grid of that side centred between the
         start and the noiseless end). Every map also has ``n_sampler`` [1]
         (default :data:`MAP_SAMPLES`): draws of the model's own sampler along the
-        same controls, logged with the map and compared with it (0: none).
+        same controls, logged with the map and compared with it (0: none); and
+        ``log_volume`` (default false): log the full ``(x, y, θ)`` array, lossless but
+        large (``nx·ny·nθ·8`` bytes); otherwise the log holds the exact θ-marginal
+        and the sha256 of the full array, which ``replay --verify`` compares.
     """
 
     name: str
@@ -248,6 +251,8 @@ def _map_defaults(model: str, kind: str) -> dict[str, Any]:
         "alphas": [0.05] * (6 if model == "velocity" else 4),
         # draws of the model's own sampler along the run's controls (the map's Monte Carlo truth)
         "n_sampler": MAP_SAMPLES,
+        # the full (x, y, θ) array in the log (else its exact θ-marginal and its sha256)
+        "log_volume": False,
     }
     if kind == "single":
         fns: tuple[Any, ...] = (maps.single_step_map, Grid.centered)
@@ -275,6 +280,8 @@ def _map_params(where: str, model: str, params: dict[str, Any], n_steps: int) ->
         )
     full = jsonable({**defaults, **params})
     full["n_sampler"] = _int(f"{where}.n_sampler", full["n_sampler"])
+    if not isinstance(full["log_volume"], bool):
+        raise _fail(f"{where}.log_volume", "true or false", full["log_volume"])
     try:
         maps.check_alphas(full["alphas"], 6 if model == "velocity" else 4)
     except ValueError as exc:
@@ -471,6 +478,8 @@ class RunConfig:
                 "max_cells": "1",
                 "n_nodes_max": "1",
                 "variance_from": "- (hypothesis | odometry | null)",
+                "n_sampler": "1 (draws of the model's own sampler)",
+                "log_volume": "- (bool: the full (x, y, theta) array in the log)",
                 "size": "m",
                 "resolution": "m",
                 "theta_resolution": "rad",
@@ -614,7 +623,7 @@ def _compute_map(mcfg: MapConfig, traj: trajectories.Trajectory) -> ProbabilityM
     (exact-arc) end pose; a longer one the multi-step map along all its controls
     (on a growing grid unless ``size`` is set). The map's centre is that end pose.
     """
-    params = {k: v for k, v in mcfg.params.items() if k != "n_sampler"}
+    params = {k: v for k, v in mcfg.params.items() if k not in ("n_sampler", "log_volume")}
     end = np.asarray(traj.poses[-1], dtype=np.float64)
     if map_kind(traj.n_steps) == "single":
         grid_kw = {k: params.pop(k) for k in ("size", "resolution", "theta_resolution")}

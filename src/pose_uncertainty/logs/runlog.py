@@ -50,6 +50,8 @@ incomplete file holds (whole, CRC-checked chunks only) and warns with
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import io
 import json
 import math
@@ -306,7 +308,30 @@ def _grid(mp: ProbabilityMap, t_ns: int) -> Any:
     return msg
 
 
+#: ``info`` key of a logged map read back without its full array: the sha256 of that array.
+VOLUME_SHA256 = "volume_sha256"
+
+
+def volume_sha256(values: NDArray[np.float64]) -> str:
+    """sha256 (hex) of a map's full ``(x, y, θ)`` array as little-endian float64 in C order."""
+    return hashlib.sha256(np.ascontiguousarray(values, dtype="<f8").tobytes()).hexdigest()
+
+
+def logged_form(mp: ProbabilityMap) -> ProbabilityMap:
+    """The map as its log holds it: itself with ``log_volume``, else its θ-marginal and digest.
+
+    Without ``log_volume`` (the default) the log keeps the exact θ-marginal (one heading
+    cell, ``theta = [nan]``) and the sha256 of the full array in ``info``; a map already
+    in that form is returned as it is.
+    """
+    if mp.params.get("log_volume", False) or VOLUME_SHA256 in mp.info:
+        return mp
+    info = {**mp.info, VOLUME_SHA256: volume_sha256(mp.values), "theta_cells": int(mp.theta.size)}
+    return dataclasses.replace(mp, values=mp.marginal_xy()[:, :, None], theta=np.array([np.nan]), info=info)
+
+
 def _volume(mp: ProbabilityMap, t_ns: int) -> Any:
+    mp = logged_form(mp)
     msg = ProbabilityMap3D(
         frame_id=WORLD,
         name=mp.name,
@@ -996,7 +1021,7 @@ def compare_results(logged: RunResult, fresh: RunResult) -> list[str]:
     if [m.name for m in logged.maps] != [m.name for m in fresh.maps]:
         out.append(f"maps: {[m.name for m in logged.maps]} != {[m.name for m in fresh.maps]}")
     else:
-        for a, b in zip(logged.maps, fresh.maps, strict=True):
+        for a, b in zip(map(logged_form, logged.maps), map(logged_form, fresh.maps), strict=True):
             for attr in ("x", "y", "theta", "values", "center"):
                 d = _diff(f"map {a.name}.{attr}", getattr(a, attr), getattr(b, attr))
                 if d:
