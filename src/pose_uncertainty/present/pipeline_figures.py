@@ -233,8 +233,9 @@ def expcoords_figure(data: Mapping[str, Any]) -> Figure:
     Draws the logged results of the ``expcoords_regions`` study
     (:func:`pose_uncertainty.analysis.studies.expcoords_regions`), one panel per
     case: the cloud, Method A's Pr-ellipse (red), the boundary of the
-    exponential-coordinates Gaussian's planar Pr highest-density region (blue) and
-    the nominal path; the legend gives the logged share of the cloud inside each.
+    exponential-coordinates Gaussian's planar Pr highest-density region (blue),
+    Method C's Pr-ellipse about its mean (green, dash-dot) and the nominal path; the
+    legend gives the logged share of the cloud inside each.
     """
     cases = data["cases"]
     pr, n = float(data["pr"]), int(data["n"])
@@ -252,6 +253,11 @@ def expcoords_figure(data: Mapping[str, Any]) -> Figure:
             ax.plot(poly[:, 0], poly[:, 1], color="tab:blue", lw=1.2,
                     label=f"exp. coords {100 * pr:.2f} % (holds {100 * case['inside_banana']:.1f} %)"
                     if i == 0 else None)  # fmt: skip
+        if "c_ellipse_xy" in case:  # Method C (issue 11), in logs that have it
+            cel, cm = np.asarray(case["c_ellipse_xy"]), case["c_mean"]
+            ax.plot(cel[:, 0], cel[:, 1], color="tab:green", lw=1.2, ls="-.",
+                    label=f"Method C ellipse {100 * pr:.2f} % (holds {100 * case['inside_c']:.1f} %)")
+            ax.plot([cm[0]], [cm[1]], marker="x", color="tab:green", ms=7, ls="none")
         ax.plot(path[:, 0], path[:, 1], color="k", lw=0.6, ls="--", label="noiseless path")
         ax.plot([end[0]], [end[1]], marker="+", color="k", ms=8)
         ax.set_aspect("equal", adjustable="datalim")
