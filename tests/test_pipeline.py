@@ -266,7 +266,7 @@ def test_quick_pipeline_end_to_end(quick: Path) -> None:
 
 
 def test_report_has_the_studies_sections(quick: Path) -> None:
-    from pose_uncertainty.present.pipeline_figures import render_expcoords_figure
+    from pose_uncertainty.present.pipeline_figures import render_study_figure
 
     html = (quick / "reports/comparison.html").read_text(encoding="utf-8")
     for sid in ("studies", "accuracy", "accuracy-distance", "expcoords", "fig-studies-expcoords",
@@ -277,7 +277,7 @@ def test_report_has_the_studies_sections(quick: Path) -> None:
         assert studies[key], key
     # the figure is drawn from the study's log alone: the same bytes when drawn again from it
     again = quick / "expcoords_again.png"
-    render_expcoords_figure(quick / "data/studies/expcoords_regions.json", again)
+    render_study_figure(quick / "data/studies/expcoords_regions.json", again)
     assert again.read_bytes() == (quick / "reports/figures/studies/expcoords_regions.png").read_bytes()
     assert "pose-uncertainty calibrate runs.csv" in html
 

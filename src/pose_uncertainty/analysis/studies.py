@@ -15,6 +15,8 @@
   and polar ``(r, φ)`` coordinates about the start.
 * :func:`growth_laws` — how σ_along, σ_across, σ_θ and the credible-region
   area grow with distance: log-log power-law fits against exponential fits.
+* ``umbmark`` (:func:`pose_uncertainty.analysis.umbmark.umbmark_experiment`) — the
+  UMBmark squares of a robot with known systematic errors, before and after the correction;
 * :func:`calibration_demo` — ``k`` fitted back from Monte Carlo end poses
   with both models; :func:`coverage_vs_distance` — coverage along a path.
 * :func:`accuracy_case` — coverage and distances of the three Gaussian methods
@@ -51,6 +53,7 @@ from ..methods import unscented as ut
 from ..methods import wheel_noise as wn
 from . import accuracy as ac
 from . import calibration as cb
+from . import umbmark as um
 
 __all__ = [
     "NUMBER_TYPES",
@@ -873,6 +876,7 @@ STUDIES: dict[str, Any] = {
     "calibration_demo": calibration_demo,
     "accuracy_vs_distance": _accuracy_vs_distance,
     "expcoords_regions": expcoords_regions,
+    "umbmark": um.umbmark_experiment,  # issue 11: systematic errors, UMBmark before/after correction
 }
 
 
@@ -891,7 +895,9 @@ def summarize(results: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
     ``accuracy`` — Method A's worst 98.89 % coverage and its case, the banana's range, the
     rows by case; ``distance`` — first and last rows of the coverage along a path;
     ``growth`` — in how many fits the power law has the smaller rms log residual, and the
-    median residuals; ``calibration`` — the equal-k row of each model.
+    median residuals; ``calibration`` — the equal-k row of each model; ``umbmark`` — the
+    first UMBmark study's name, E_max before and after the correction, their ratio and
+    which delta intervals hold the true values.
     """
     studies: dict[str, Any] = {name: r["results"] for name, r in results.items()}
     table = [r["results"] for r in results.values() if r["study"] == "accuracy_case"]
@@ -917,7 +923,23 @@ def summarize(results: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
     cal = next((r["results"] for r in results.values() if r["study"] == "calibration_demo"), None)
     if cal:
         out["calibration"] = {r["coords"]: r for r in cal["rows"] if r["equal"]}
+    umb = next((name for name, r in results.items() if r["study"] == "umbmark"), None)
+    if umb:
+        out["umbmark"] = _umbmark_summary(umb, results[umb]["results"])
     return {"studies": studies, "summary": out}
+
+
+def _umbmark_summary(name: str, res: Mapping[str, Any]) -> dict[str, Any]:
+    """The UMBmark study's headline numbers: E_max before/after and how many intervals hold the truth."""
+    est = res["umbmark"]["estimates"]
+    before, after = est["E_max_before"]["value"], res["umbmark"]["E_max_after_measured"]["value"]
+    rows = {r["quantity"]: r for r in res["recovered"]}
+    return {
+        "study": name, "E_max_before": before, "E_max_after": after, "improvement": before / after,
+        "n_covered": sum(r["delta_covers"] for r in res["recovered"]), "n_quantities": len(rows),
+        "umbmark_covers": {q: rows[q]["delta_covers"] for q in ("E_d", "E_b") if q in rows},
+        "fit_covers": {q: rows[q]["delta_covers"] for q in ("E_d_fit", "E_b_fit") if q in rows},
+    }  # fmt: skip
 
 
 def _accuracy_summary(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:

@@ -6,7 +6,11 @@
   over the runs of a set;
 * :func:`cloud_polar_figure` — seed 001's Cartesian and polar views of the end-pose clouds;
 * :func:`expcoords_figure` — long-path Monte Carlo clouds with Method A's ellipse and the
-  exponential-coordinates Gaussian's region (the banana) drawn over them.
+  exponential-coordinates Gaussian's region (the banana) drawn over them;
+* :func:`umbmark_figure` — the classic UMBmark figure: the cw and ccw return-position
+  errors before and after the correction, with their centres of gravity;
+* :func:`render_study_figure` — a study's figure from its log alone, by the study's kind
+  (:data:`STUDY_FIGURES`).
 
 Every figure is saved by :func:`pose_uncertainty.present.figures.save_figure` (deterministic bytes).
 """
@@ -29,14 +33,16 @@ from ..methods.covariance import ellipse_polyline
 from . import figures
 
 __all__ = [
+    "STUDY_FIGURES",
     "cloud_polar_figure",
     "expcoords_figure",
     "growth_figure",
     "map_cloud_figure",
-    "render_expcoords_figure",
     "render_run_figure",
     "render_run_figures",
     "render_set_figure",
+    "render_study_figure",
+    "umbmark_figure",
 ]
 
 def render_run_figure(log: str | os.PathLike[str], kind: str, out: str | os.PathLike[str]) -> Path:
@@ -269,13 +275,6 @@ def expcoords_figure(data: Mapping[str, Any]) -> Figure:
     return fig
 
 
-def render_expcoords_figure(study_log: str | os.PathLike[str], out: str | os.PathLike[str]) -> Path:
-    """Draw :func:`expcoords_figure` from an ``expcoords_regions`` study log and save it."""
-    fig = expcoords_figure(read_study(study_log)["results"])
-    Path(out).parent.mkdir(parents=True, exist_ok=True)
-    return figures.save_figure(fig, out)
-
-
 def render_set_figure(
     kind: str, logs: Sequence[str | os.PathLike[str]], out: str | os.PathLike[str], title: str = ""
 ) -> Path:
@@ -286,5 +285,71 @@ def render_set_figure(
         fig = cloud_polar_figure(logs, title)
     else:
         raise ValueError(f"set figure kind must be 'growth' or 'cloud_polar', got {kind!r}")
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    return figures.save_figure(fig, out)
+
+
+# --- the UMBmark figure, and a study's figure by its kind (issue 11) ------------------------------
+
+
+def umbmark_figure(data: Mapping[str, Any]) -> Figure:
+    """The classic UMBmark figure from the logged results of an ``umbmark`` study.
+
+    Return-position errors ε = (x_abs − x_calc, y_abs − y_calc) [m] of the cw (blue) and
+    ccw (red) squares before the correction (filled) and after it (hollow), with each
+    cluster's centre of gravity (large markers) and the circles of radius E_max,syst
+    before and after (:func:`pose_uncertainty.analysis.umbmark.umbmark_experiment`).
+    """
+    umb = data["umbmark"]
+    e_before = umb["estimates"]["E_max_before"]["value"]
+    e_after = umb["E_max_after_measured"]["value"]
+    fig = figures.new_figure((6.4, 6.0))
+    ax = fig.add_subplot()
+    colours = {"cw": "tab:blue", "ccw": "tab:red"}
+    for d, col in colours.items():
+        b, a = np.asarray(data["before"][d]), np.asarray(data["after"][d])
+        cb, ca = data["centres_before"][d], data["centres_after"][d]
+        ax.scatter(b[:, 0], b[:, 1], s=22, color=col, marker="o", label=f"{d}, before ({b.shape[0]} runs)")
+        ax.scatter(a[:, 0], a[:, 1], s=22, facecolors="none", edgecolors=col, marker="o",
+                   label=f"{d}, after correction")  # fmt: skip
+        ax.plot([cb[0]], [cb[1]], marker="X", color=col, ms=11, mec="k", ls="none",
+                label=f"{d} centre of gravity, before")  # fmt: skip
+        ax.plot([ca[0]], [ca[1]], marker="X", color="white", ms=11, mec=col, ls="none",
+                label=f"{d} centre of gravity, after")  # fmt: skip
+    t = np.linspace(0.0, 2.0 * math.pi, 361)
+    for r, ls, what in ((e_before, "--", "before"), (e_after, ":", "after")):
+        ax.plot(r * np.cos(t), r * np.sin(t), color="0.4", lw=0.8, ls=ls,
+                label=f"E_max,syst {what} = {100 * r:.3g} cm")  # fmt: skip
+    ax.axhline(0.0, color="k", lw=0.5)
+    ax.axvline(0.0, color="k", lw=0.5)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("return error x [m] (along the first leg)")
+    ax.set_ylabel("return error y [m] (to its left)")
+    tr_ = data["true"]
+    ax.set_title(f"UMBmark, {data['side']:g} m square: true E_d = {tr_['E_d']:g}, E_b = {tr_['E_b']:g}, "
+                 f"k = {data['k']:g} m", fontsize="medium")  # fmt: skip
+    ax.grid(True, lw=0.3, alpha=0.5)
+    ax.legend(fontsize="x-small", loc="best")
+    return fig
+
+
+#: The figure of a study by the study's kind (a key of pose_uncertainty.analysis.studies.STUDIES):
+#: the key the report shows it under (``build_report``'s ``studies_figures``) and the function
+#: drawing it from the study's logged results.
+STUDY_FIGURES: dict[str, tuple[str, Any]] = {
+    "expcoords_regions": ("expcoords", expcoords_figure),
+    "umbmark": ("umbmark", umbmark_figure),
+}
+
+
+def render_study_figure(study_log: str | os.PathLike[str], out: str | os.PathLike[str]) -> Path:
+    """Draw a study's figure from its log alone (the function of :data:`STUDY_FIGURES` for its kind)."""
+    doc = read_study(study_log)
+    kind = doc["study"]
+    if kind not in STUDY_FIGURES:
+        raise ValueError(
+            f"{study_log}: a {kind!r} study has no figure (allowed: {', '.join(sorted(STUDY_FIGURES))})"
+        )
+    fig = STUDY_FIGURES[kind][1](doc["results"])
     Path(out).parent.mkdir(parents=True, exist_ok=True)
     return figures.save_figure(fig, out)
