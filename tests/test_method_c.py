@@ -221,3 +221,43 @@ def test_method_guide_c_advice_from_the_logs_directly(logs: dict[str, Path]) -> 
     # where it still fails: on the 4 m line the banana holds more than C's ellipse
     r4 = runs["straight4"].metrics
     assert r4["accuracy_expcoords_coverage_xy_98_89"] > r4["accuracy_unscented_coverage_xy_98_89"]
+
+
+# --- Method C in the studies, and its step dependence ----------------------------------------------
+
+
+def test_c_along_track_excess_is_proportional_to_the_step() -> None:
+    """C's mean and across-track spread hardly depend on Δt; its along-track excess over A's does, ∝ Δt.
+
+    Each step re-forms a Gaussian, which cannot carry the correlation of the along error with θ²:
+    every step adds Var(Δs cos θ) ≈ Δs² σ_θ⁴ afresh, and Σ Δs² f(s) = Δs ∫ f ds — proportional to
+    Δs = speed·Δt. From Δt = 0.1 to 0.02 s the excess must shrink 5-fold (to the O(Δs) corrections
+    of that sum: 1 % here), while the mean and σ_across move by less than 0.2 %.
+    """
+    out = {}
+    for dt in (0.1, 0.02):
+        t = trajectories.straight(20.0, dt=dt, track=0.2)
+        C, A = unscented.propagate(t, 5e-4, 5e-4), covariance.propagate(t, 5e-4, 5e-4)
+        out[dt] = (C.covs[-1, 0, 0] - A.covs[-1, 0, 0], C.covs[-1, 1, 1], C.poses[-1, 0])
+    assert_allclose(out[0.1][0] / out[0.02][0], 5.0, rtol=0.01)
+    assert_allclose(out[0.1][1:], out[0.02][1:], rtol=2e-3)
+
+
+def test_growth_laws_and_accuracy_case_carry_method_c() -> None:
+    from pose_uncertainty.analysis import studies as st
+
+    t = trajectories.straight(8.0, dt=0.05, track=0.2)
+    g = st.growth_laws(t, 5e-4, 5e-4, n_points=8)
+    # the heading is linear in the wheel travels: C's σ_θ is A's (closed form √(2ks)/b) exactly
+    assert_allclose(g["method_c"]["sigma_theta"], g["method_a"]["sigma_theta"], rtol=1e-12)
+    assert_allclose(g["method_c"]["sigma_theta"], np.sqrt(2 * 5e-4 * np.asarray(g["distance"])) / 0.2, rtol=1e-9)
+    # the UT's across-track spread stays below A's linearisation as σ_θ grows (E[cos θ] < 1)
+    assert np.all(np.asarray(g["method_c"]["sigma_across"][1:]) < np.asarray(g["method_a"]["sigma_across"][1:]))
+    assert set(st._growth_laws(trajectory={"name": "straight", "length": 4.0, "dt": 0.1, "track": 0.2},
+                               n_particles=200)) == {"method_a", "method_c", "monte_carlo"}  # fmt: skip
+    row = st.accuracy_case({"name": "straight", "length": 4.0, "dt": 0.05, "track": 0.2}, n=500, n_bins=20,
+                           n_threshold=5000, seed=1)  # fmt: skip
+    tt = trajectories.straight(4.0, dt=0.05, track=0.2)
+    C = unscented.propagate(tt, 5e-4, 5e-4)
+    s = sample_end_poses(tt, 5e-4, 5e-4, 500, np.random.default_rng(1))
+    assert row["unscented"] == accuracy.evaluate_cartesian(s, C.poses[-1], C.covs[-1], Grid.covering(s[:, :2], 20))
