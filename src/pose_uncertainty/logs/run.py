@@ -2,9 +2,9 @@
 
 A *run* is one parameter point of a sweep: a trajectory, the odometry error
 constants, a seed and what to compute — Method A (covariance propagation with
-its error ellipses), Method C (the unscented transform, always: about 0.15 s per
-1000 steps on the development machine), Monte Carlo end poses under the same model, and optional
-probability maps (Method B). :func:`execute` turns a :class:`RunConfig` into a
+its error ellipses), Method C (the unscented transform, always: a loop over the
+steps, a fraction of a second per 1000 steps), Monte Carlo end poses under the same
+model, and optional probability maps (Method B). :func:`execute` turns a :class:`RunConfig` into a
 :class:`RunResult`; :mod:`pose_uncertainty.logs.runlog` writes and reads results as
 MCAP files, :mod:`pose_uncertainty.present.figures` draws them.
 
