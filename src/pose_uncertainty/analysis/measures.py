@@ -15,7 +15,7 @@ and logs them; everything downstream reads them back. Names:
   Carlo mean lies (:func:`cloud_shift_measures`); ``accuracy_unscented_*`` — Method C against
   the Monte Carlo cloud. The UT on SE(2) (:func:`pose_uncertainty.methods.unscented.propagate_se2`)
   is not logged: its covariance is the exponential-coordinates Gaussian's (the banana's,
-  ``accuracy_expcoords_*``) to a relative 4·10⁻¹¹ on a 64 m line and 2·10⁻⁹ on eight laps of
+  ``accuracy_expcoords_*``) to a relative 4·10⁻¹¹ on a 64 m line and 1.6·10⁻⁹ on eight laps of
   the 1 m circle (k = 5·10⁻⁴ m, b = 0.2 m), at twice Method C's cost.
 
 :func:`describe` gives the unit and definition of any of these names; a name it
