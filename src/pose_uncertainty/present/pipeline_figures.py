@@ -140,8 +140,8 @@ def growth_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") -> Fi
 
     Draws, for every run of the set (sorted by path length), its logged measures:
     Method A's standard deviations along and across the end heading and of θ, the
-    semi-axes of the Pr-ellipse, and the Monte Carlo sample's along/across standard
-    deviations (:mod:`pose_uncertainty.analysis.measures`).
+    semi-axes of the Pr-ellipse, Method C's and the Monte Carlo sample's along/across
+    standard deviations (:mod:`pose_uncertainty.analysis.measures`).
 
     Parameters
     ----------
@@ -151,7 +151,8 @@ def growth_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") -> Fi
     measures = {"L": "path_length", "A: σ along": "A_sigma_along", "A: σ across": "A_sigma_across",
                 "A: σ_θ [rad]": "A_sigma_theta", "A: ellipse major": "A_ellipse_major",
                 "A: ellipse minor": "A_ellipse_minor", "MC: σ along": "MC_sigma_along",
-                "MC: σ across": "MC_sigma_across"}  # fmt: skip
+                "MC: σ across": "MC_sigma_across", "C: σ along": "C_sigma_along",
+                "C: σ across": "C_sigma_across"}  # fmt: skip
     rows = []
     for p in logs:
         logged = open_run(p).metrics
@@ -168,6 +169,8 @@ def growth_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") -> Fi
         "A: ellipse minor": ("0.6", ":", "v"),
         "MC: σ along": ("tab:blue", "none", "x"),
         "MC: σ across": ("tab:red", "none", "x"),
+        "C: σ along": ("tab:blue", "none", "+"),
+        "C: σ across": ("tab:red", "none", "+"),
     }
     for key, (color, ls, marker) in styles.items():
         vals = np.array([r.get(key, np.nan) for r in rows])
