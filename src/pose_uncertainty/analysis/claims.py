@@ -862,7 +862,7 @@ def _guide_unscented(rows: Rows) -> dict[str, Any] | None:
                     f"{m['n_closer']} ({m['n_closer_where_a_off']} of the {m['n_a_off']} runs where A's is off by "
                     f"more than 3 standard errors). On {sr['run']} ({sr['set']}, L = {sr['path_length']:.3g} m) the "
                     f"Monte Carlo mean lies {100 * sr['shift']['mc_across']:.3g} cm across the path from the nominal "
-                    f"end (standard error {100 * sr['mean_se']['across']:.2g} cm); C puts its mean at "
+                    f"end (positive: to the left; standard error {100 * sr['mean_se']['across']:.2g} cm); C puts its mean at "
                     f"{100 * sr['shift']['c_across']:.3g} cm, A at 0. C's 98.89 % ellipse held a share closer to "
                     f"98.89 % than A's in {cov['n_closer']} of {s['n_runs']} runs; where it held least, "
                     f"{w['run']} ({w['set']}, σ_θ = {w['sigma_theta']:.3g} rad), it held "
