@@ -260,7 +260,7 @@ def test_quick_pipeline_end_to_end(quick: Path) -> None:
 
 
 def test_report_has_the_studies_sections(quick: Path) -> None:
-    from pose_uncertainty.present.pipeline_figures import render_expcoords_figure
+    from pose_uncertainty.present.pipeline_figures import render_study_figure
 
     html = (quick / "reports/comparison.html").read_text(encoding="utf-8")
     for sid in ("studies", "accuracy", "accuracy-distance", "expcoords", "fig-studies-expcoords",
@@ -271,9 +271,33 @@ def test_report_has_the_studies_sections(quick: Path) -> None:
         assert studies[key], key
     # the figure is drawn from the study's log alone: the same bytes when drawn again from it
     again = quick / "expcoords_again.png"
-    render_expcoords_figure(quick / "data/studies/expcoords_regions.json", again)
+    render_study_figure(quick / "data/studies/expcoords_regions.json", again)
     assert again.read_bytes() == (quick / "reports/figures/studies/expcoords_regions.png").read_bytes()
     assert "pose-uncertainty calibrate runs.csv" in html
+
+
+def test_report_has_method_c_and_umbmark(quick: Path) -> None:
+    """Method C in the per-run tables (= the logs), its section, and the UMBmark section with its figure."""
+    from pose_uncertainty.logs.runlog import open_run
+    from pose_uncertainty.present.pipeline_figures import render_study_figure
+
+    html = (quick / "reports/comparison.html").read_text(encoding="utf-8")
+    for sid in ("method-c", "umbmark", "fig-studies-umbmark"):
+        assert f'id="{sid}"' in html, sid
+    assert "<th colspan=\"4\">Method C (sigma points)</th>" in html
+    run = sweep.expand_all(sweep.validate_config(_config("quick.yaml"), SCHEMA))["L_straight"][-1]
+    row = next(r for r in read_table(quick / "reports/tables/L_straight.csv") if r["run"] == run.id)
+    metrics = open_run(quick / run.path).metrics
+    for key in ("C_sigma_along", "C_mean_shift_along", "MC_mean_shift_along", "accuracy_unscented_coverage_xy_98_89"):
+        assert row[key] == metrics[key], key
+    claims = json.loads((quick / "reports/claims.json").read_text(encoding="utf-8"))
+    assert claims["unscented"]["n_runs"] > 0
+    assert any(g["advice"].startswith("Method C") for g in claims["guide"])
+    summary = json.loads((quick / "reports/studies.json").read_text(encoding="utf-8"))["summary"]
+    assert summary["umbmark"]["E_max_after"] < summary["umbmark"]["E_max_before"]
+    again = quick / "umbmark_again.png"
+    render_study_figure(quick / "data/studies/umbmark.json", again)
+    assert again.read_bytes() == (quick / "reports/figures/studies/umbmark.png").read_bytes()
 
 
 def test_no_change_rerun_does_nothing(quick: Path) -> None:

@@ -6,6 +6,7 @@ from pose_uncertainty.logs import sweep as _sweep
 from pose_uncertainty.logs import study as _study
 from pose_uncertainty.logs.provenance import source_sha256
 from pose_uncertainty.core.schema import load_schema
+from pose_uncertainty.present.pipeline_figures import STUDY_FIGURES as _STUDY_FIGURES
 
 # A config file given on the command line (--configfile config/quick.yaml) REPLACES
 # config/config.yaml instead of deep-merging into it (whose sets would otherwise leak in);
@@ -112,10 +113,19 @@ def study_config(wildcards):
     return {"study": kind, **params}
 
 
+def study_kind(wildcards):
+    """The kind of one study (a rule param: the figure it gets)."""
+    return STUDIES[wildcards.study][0]
+
+
 def studies_figures(wildcards=None):
-    """Figures of the studies sections: the exp.-coordinates figure when an expcoords_regions study runs."""
-    names = [n for n, (kind, _) in STUDIES.items() if kind == "expcoords_regions"]
-    return {"expcoords": f"reports/figures/studies/{names[0]}.png"} if names else {}
+    """Figures of the studies sections, by report key: the first study of each kind with a figure
+    (pose_uncertainty.present.pipeline_figures.STUDY_FIGURES: the exp.-coordinates figure, UMBmark's)."""
+    out = {}
+    for name, (kind, _) in STUDIES.items():
+        if kind in _STUDY_FIGURES:
+            out.setdefault(_STUDY_FIGURES[kind][0], f"reports/figures/studies/{name}.png")
+    return out
 
 
 def studies_json(wildcards=None):

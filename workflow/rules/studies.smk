@@ -30,17 +30,19 @@ rule collect_studies:
 
 
 rule render_study_figure:
+    # one rule for every study kind with a figure (pose_uncertainty.present.pipeline_figures.STUDY_FIGURES)
     input:
         log="data/studies/{study}.json",
     output:
         report(
             "reports/figures/studies/{study}.png",
-            caption="../report/expcoords.rst",
+            caption="../report/study.rst",
             category="studies",
-            subcategory="exponential coordinates",
-            labels={"figure": "Method A ellipse vs exp.-coordinates banana"},
+            subcategory="{study}",
+            labels={"figure": "{study}"},
         ),
     params:
+        kind=study_kind,
         source=SOURCE_PRESENT,
     log:
         "logs/render_study_figure/{study}.log",

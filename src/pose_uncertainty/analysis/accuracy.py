@@ -7,8 +7,9 @@ coverage
     the fraction of particles inside the method's Pr-region, for
     ``Pr ∈ {0.5, 0.9, 0.9889}`` (:data:`PRS`), nominal against actual. The
     planar region (``coverage_xy``) of a density ``p(x, y)`` is its highest-density
-    region ``{p ≥ c}`` holding probability Pr — for the Cartesian Gaussian that
-    is the Pr-ellipse, for the exponential-coordinates Gaussian a banana, for a
+    region ``{p ≥ c}`` holding probability Pr — for a Cartesian Gaussian that
+    is the Pr-ellipse (Method A's about the nominal pose, Method C's — the
+    unscented transform — about its own mean), for the exponential-coordinates Gaussian a banana, for a
     gridded map a union of cells. The pose region (``coverage_pose``, Gaussian
     methods) is the 3-D ellipsoid ``εᵀΣ⁻¹ε ≤ χ²₃(Pr)`` in each method's own
     coordinates. The binomial standard error of an actual coverage is
@@ -61,6 +62,7 @@ from ..core.validation import (
 )
 from ..methods import covariance as cv
 from ..methods import expcoords as ec
+from ..methods import unscented as ut
 from ..methods.maps import ProbabilityMap
 from ..methods.sampling import sample_end_poses
 
@@ -371,6 +373,7 @@ def compare_methods(
     prs: Sequence[float] = PRS,
     n_bins: int = 60,
     n_threshold: int = 200_000,
+    unscented: tuple[ArrayLike, ArrayLike] | None = None,
 ) -> dict[str, dict[str, float]]:
     """Every method against one Monte Carlo cloud, on one grid.
 
@@ -383,12 +386,16 @@ def compare_methods(
     densities : mapping name → ProbabilityMap, optional
     prs : probabilities; n_bins : bins per axis of the stated grid
     n_threshold : draws for the banana's density thresholds (:func:`evaluate_expcoords`)
+    unscented : (pose (3,), cov (3, 3)) or None — Method C (the unscented transform): a
+        Cartesian Gaussian about its own mean, measured as :func:`evaluate_cartesian`
+        (uses no randomness: the other entries are the same with or without it)
 
     Returns
     -------
     dict: ``"grid"`` (the binning, with ``n_samples``), ``"monte_carlo"`` (the
     floors and the binomial standard errors ``coverage_se_<pr>``),
-    ``"cartesian"``, ``"expcoords"``, and one entry per gridded density.
+    ``"cartesian"``, ``"expcoords"``, ``"unscented"`` (when given), and one entry per
+    gridded density.
     """
     s = _check_samples(samples)
     grid = Grid.covering(s[:, :2], n_bins=n_bins)
@@ -402,6 +409,9 @@ def compare_methods(
     if expcoords is not None:
         pose_e, cov_e = (np.asarray(v, dtype=float) for v in expcoords)
         res["expcoords"] = evaluate_expcoords(s, pose_e, cov_e, rng, grid, prs, n_threshold=n_threshold)
+    if unscented is not None:  # Method C (issue 11)
+        pose_c, cov_c = (np.asarray(v, dtype=float) for v in unscented)
+        res["unscented"] = evaluate_cartesian(s, pose_c, cov_c, grid, prs)
     for name, dens in (densities or {}).items():
         res[name] = evaluate_gridded(dens, s, grid, prs)
     return res
@@ -428,7 +438,7 @@ def accuracy_vs_distance(
     prs: Sequence[float] = PRS,
     n_bins: int = 60,
 ) -> list[dict[str, Any]]:
-    """Accuracy of both Gaussian methods at evenly spaced points along a trajectory.
+    """Accuracy of the three Gaussian methods (A, banana, C) at evenly spaced points along a trajectory.
 
     Draws ``n`` Monte Carlo runs (midpoint integration, ``regime``), keeps the
     clouds at ``n_checkpoints`` steps (the last is the end), and runs
@@ -446,6 +456,7 @@ def accuracy_vs_distance(
     clouds = sample_end_poses(trajectory, k_r, k_l, n, rng, regime=regime, checkpoints=steps)
     A = cv.propagate(trajectory, k_r, k_l)
     E = ec.propagate(trajectory, k_r, k_l)
+    C = ut.propagate(trajectory, k_r, k_l)
     dist = np.concatenate([[0.0], np.cumsum(np.abs(trajectory.ds))])
     rows = []
     for c, st in enumerate(steps):
@@ -456,6 +467,7 @@ def accuracy_vs_distance(
             rng,
             prs=prs,
             n_bins=n_bins,
+            unscented=(C.poses[st], C.covs[st]),
         )
         rows.append({"step": st, "distance": float(dist[st]), **res})
     return rows

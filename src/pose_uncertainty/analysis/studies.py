@@ -15,10 +15,12 @@
   and polar ``(r, φ)`` coordinates about the start.
 * :func:`growth_laws` — how σ_along, σ_across, σ_θ and the credible-region
   area grow with distance: log-log power-law fits against exponential fits.
+* ``umbmark`` (:func:`pose_uncertainty.analysis.umbmark.umbmark_experiment`) — the
+  UMBmark squares of a robot with known systematic errors, before and after the correction;
 * :func:`calibration_demo` — ``k`` fitted back from Monte Carlo end poses
   with both models; :func:`coverage_vs_distance` — coverage along a path.
-* :func:`accuracy_case` — coverage and distances of both Gaussian methods on
-  one path (the pipeline runs the long paths: straight 1, 5, 20 m; 1 and 3 laps
+* :func:`accuracy_case` — coverage and distances of the three Gaussian methods
+  (A, the banana, C) on one path (the pipeline runs the long paths: straight 1, 5, 20 m; 1 and 3 laps
   of a circle; larger k); :func:`expcoords_regions` — the data of the figure of
   clouds, ellipses and bananas.
 
@@ -47,9 +49,11 @@ from ..methods import expcoords as ec
 from ..methods import maps
 from ..methods import motion_models as mm
 from ..methods import sampling as sp
+from ..methods import unscented as ut
 from ..methods import wheel_noise as wn
 from . import accuracy as ac
 from . import calibration as cb
+from . import umbmark as um
 
 __all__ = [
     "NUMBER_TYPES",
@@ -575,21 +579,25 @@ def growth_laws(
     heading), σ_θ, and the area of the 98.89 % ellipse ``π k √det Σ_xy`` — a
     power law and an exponential are fitted (:func:`fit_growth`). With
     ``n_particles > 0`` the same measures of the Monte Carlo cloud (its sample
-    covariance) are fitted too. (The exponential-coordinates Gaussian has the
-    same second moments as Method A to first order, so it is not repeated.)
+    covariance) are fitted too, and always those of Method C (the unscented
+    transform, :func:`pose_uncertainty.methods.unscented.propagate`; along and
+    across the nominal heading, as A's). (The exponential-coordinates Gaussian has
+    the same second moments as Method A to first order, so it is not repeated.)
 
     Returns
     -------
-    dict: ``distance`` list; ``method_a`` and possibly ``monte_carlo``:
+    dict: ``distance`` list; ``method_a``, ``method_c`` and possibly ``monte_carlo``:
     {measure: values list, ``fits``: {measure: fit}}
     """
     A = cv.propagate(trajectory, k_r, k_l)
+    C = ut.propagate(trajectory, k_r, k_l)
     dist = np.concatenate([[0.0], np.cumsum(np.abs(trajectory.ds))])
     targets = np.linspace(skip * dist[-1], dist[-1], check_positive_int("n_points", n_points))
     idx = np.unique(np.clip(np.searchsorted(dist, targets), 1, trajectory.n_steps))
     s = dist[idx]
     out: dict[str, Any] = {"distance": s.tolist()}
-    measures = {"method_a": path_spreads(A.poses[idx], A.covs[idx])}
+    measures = {"method_a": path_spreads(A.poses[idx], A.covs[idx]),
+                "method_c": path_spreads(A.poses[idx], C.covs[idx])}  # frame of the nominal heading
     if n_particles > 0:
         clouds = sp.sample_end_poses(
             trajectory, k_r, k_l, n_particles, np.random.default_rng(seed), regime=regime,
@@ -661,12 +669,13 @@ def accuracy_case(
     n_threshold: int = 200_000,
     label: str = "",
 ) -> dict[str, Any]:
-    """Coverage, Hellinger, KL, log-likelihood and NEES of both Gaussian methods on one path.
+    """Coverage, Hellinger, KL, log-likelihood and NEES of the three Gaussian methods on one path.
 
     ``n`` per-step Monte Carlo runs (midpoint integration, ``k_r = k_l = k`` [m])
     of ``trajectory`` (a :func:`pose_uncertainty.core.trajectories.from_config`
-    mapping; default straight 1 m, dt 0.01 s, b 0.2 m) against Method A and the
-    exponential-coordinates Gaussian (:func:`pose_uncertainty.analysis.accuracy.compare_methods`).
+    mapping; default straight 1 m, dt 0.01 s, b 0.2 m) against Method A, the
+    exponential-coordinates Gaussian and Method C (the unscented transform)
+    (:func:`pose_uncertainty.analysis.accuracy.compare_methods`).
 
     Returns
     -------
@@ -677,9 +686,10 @@ def accuracy_case(
     cloud = sp.sample_end_poses(t, k, k, n, rng)
     A = cv.propagate(t, k, k)
     E = ec.propagate(t, k, k)
+    C = ut.propagate(t, k, k)
     res = ac.compare_methods(
         cloud, (A.poses[-1], A.covs[-1]), (E.poses[-1], E.covs[-1]), rng, n_bins=n_bins,
-        n_threshold=n_threshold,
+        n_threshold=n_threshold, unscented=(C.poses[-1], C.covs[-1]),
     )  # fmt: skip
     return {"case": label, "k": k, "length": t.length, **res}
 
@@ -724,12 +734,12 @@ def calibration_demo(
 def coverage_vs_distance(
     trajectory: tr.Trajectory, k_r: float, k_l: float, n: int, seed: int, n_checkpoints: int = 5,
 ) -> list[dict[str, Any]]:
-    """Coverage of both Gaussian methods at checkpoints along a path (:func:`accuracy.accuracy_vs_distance`).
+    """Coverage of the Gaussian methods at checkpoints along a path (:func:`accuracy.accuracy_vs_distance`).
 
     Returns
     -------
     list of dict: ``distance`` [m], ``n``, ``coverage_se_98.89``, and per method
-    (``cartesian``, ``expcoords``) the (x, y) coverages at 50, 90, 98.89 % and
+    (``cartesian``, ``expcoords``, ``unscented``) the (x, y) coverages at 50, 90, 98.89 % and
     the Hellinger distance, with the Monte Carlo ``hellinger_floor``.
     """
     rows = ac.accuracy_vs_distance(
@@ -740,7 +750,7 @@ def coverage_vs_distance(
         {"distance": r["distance"], "n": n,
          "coverage_se_98.89": r["monte_carlo"]["coverage_se_98.89"],
          "hellinger_floor": r["monte_carlo"]["hellinger_floor"],
-         **{m: {key: r[m][key] for key in keep} for m in ("cartesian", "expcoords")}}
+         **{m: {key: r[m][key] for key in keep} for m in ("cartesian", "expcoords", "unscented")}}
         for r in rows
     ]
 
@@ -760,29 +770,31 @@ def expcoords_regions(
     n: int = 5000,
     seed: int = 6,
 ) -> dict[str, Any]:
-    """Monte Carlo clouds of long paths with both Gaussian methods' Pr regions, for the figure.
+    """Monte Carlo clouds of long paths with the Gaussian methods' Pr regions, for the figure.
 
     Per case: ``n`` per-step Monte Carlo end positions (midpoint integration,
     ``k_r = k_l = k`` [m], seeded ``[seed, case index]``), the nominal path,
-    Method A's Pr-ellipse (polyline) and the boundary polygons of the
+    Method A's Pr-ellipse (polyline), the boundary polygons of the
     exponential-coordinates Gaussian's planar Pr highest-density region
-    (:func:`pose_uncertainty.methods.expcoords.pr_region_xy`), and the share of
-    the cloud inside each region.
+    (:func:`pose_uncertainty.methods.expcoords.pr_region_xy`), Method C's
+    Pr-ellipse about its own mean, and the share of the cloud inside each region.
 
     Returns
     -------
     dict: ``k``, ``track``, ``pr``, ``n`` and ``cases`` — list of {``label``,
     ``cloud_xy`` (n, 2), ``path_xy`` (N+1, 2), ``end`` (3,), ``ellipse_xy`` (401, 2),
-    ``banana_xy`` (list of (m, 2)), ``inside_ellipse``, ``inside_banana``} (arrays as lists)
+    ``banana_xy`` (list of (m, 2)), ``c_mean`` (3,), ``c_ellipse_xy`` (401, 2),
+    ``inside_ellipse``, ``inside_banana``, ``inside_c``} (arrays as lists)
     """
     out: dict[str, Any] = {"k": k, "track": track, "pr": pr, "n": n, "cases": []}
     for j, case in enumerate(cases):
         t = tr.from_config({**dict(case["trajectory"]), "dt": dt, "track": track})
         rng = np.random.default_rng([seed, j])
         cloud = sp.sample_end_poses(t, k, k, n, rng)
-        A, E = cv.propagate(t, k, k), ec.propagate(t, k, k)
+        A, E, C = cv.propagate(t, k, k), ec.propagate(t, k, k), ut.propagate(t, k, k)
         end, cov = A.poses[-1], A.covs[-1]
         ellipse = cv.ellipse_polyline(cov[:2, :2], pr, end[:2], 400)
+        c_mean, c_cov = C.poses[-1], C.covs[-1]
         banana = ec.pr_region_xy(E.poses[-1], E.covs[-1], pr, rng, n_grid=240, n=50_000)
         out["cases"].append({
             "label": str(case.get("label", j)),
@@ -790,6 +802,9 @@ def expcoords_regions(
             "ellipse_xy": ellipse.tolist(), "banana_xy": [b.tolist() for b in banana],
             "inside_ellipse": ac.coverage_ellipse(cloud[:, :2], end[:2], cov[:2, :2], (pr,))[ac.pr_label(pr)],
             "inside_banana": _inside_polygons(cloud[:, :2], banana),
+            "c_mean": c_mean.tolist(),
+            "c_ellipse_xy": cv.ellipse_polyline(c_cov[:2, :2], pr, c_mean[:2], 400).tolist(),
+            "inside_c": ac.coverage_ellipse(cloud[:, :2], c_mean[:2], c_cov[:2, :2], (pr,))[ac.pr_label(pr)],
         })  # fmt: skip
     return out
 
@@ -865,7 +880,7 @@ def _growth_laws(
     """The fits of :func:`growth_laws` along a configured trajectory."""
     g = growth_laws(tr.from_config(trajectory), k, k, n_points, n_particles=n_particles, seed=seed,
                     regime=regime)  # fmt: skip
-    return {m: g[m]["fits"] for m in ("method_a", "monte_carlo") if m in g}
+    return {m: g[m]["fits"] for m in ("method_a", "method_c", "monte_carlo") if m in g}
 
 
 def _accuracy_vs_distance(
@@ -892,6 +907,7 @@ STUDIES: dict[str, Any] = {
     "calibration_demo": calibration_demo,
     "accuracy_vs_distance": _accuracy_vs_distance,
     "expcoords_regions": expcoords_regions,
+    "umbmark": um.umbmark_experiment,  # issue 11: systematic errors, UMBmark before/after correction
 }
 
 
@@ -910,7 +926,9 @@ def summarize(results: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
     ``accuracy`` — Method A's worst 98.89 % coverage and its case, the banana's range, the
     rows by case; ``distance`` — first and last rows of the coverage along a path;
     ``growth`` — in how many fits the power law has the smaller rms log residual, and the
-    median residuals; ``calibration`` — the equal-k row of each model.
+    median residuals; ``calibration`` — the equal-k row of each model; ``umbmark`` — the
+    first UMBmark study's name, E_max before and after the correction, their ratio and
+    which delta intervals hold the true values.
     """
     studies: dict[str, Any] = {name: r["results"] for name, r in results.items()}
     table = [r["results"] for r in results.values() if r["study"] == "accuracy_case"]
@@ -936,16 +954,37 @@ def summarize(results: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
     cal = next((r["results"] for r in results.values() if r["study"] == "calibration_demo"), None)
     if cal:
         out["calibration"] = {r["coords"]: r for r in cal["rows"] if r["equal"]}
+    umb = next((name for name, r in results.items() if r["study"] == "umbmark"), None)
+    if umb:
+        out["umbmark"] = _umbmark_summary(umb, results[umb]["results"])
     return {"studies": studies, "summary": out}
+
+
+def _umbmark_summary(name: str, res: Mapping[str, Any]) -> dict[str, Any]:
+    """The UMBmark study's headline numbers: E_max before/after and how many intervals hold the truth."""
+    est = res["umbmark"]["estimates"]
+    before, after = est["E_max_before"]["value"], res["umbmark"]["E_max_after_measured"]["value"]
+    rows = {r["quantity"]: r for r in res["recovered"]}
+    return {
+        "study": name, "E_max_before": before, "E_max_after": after, "improvement": before / after,
+        "n_covered": sum(r["delta_covers"] for r in res["recovered"]), "n_quantities": len(rows),
+        "umbmark_covers": {q: rows[q]["delta_covers"] for q in ("E_d", "E_b") if q in rows},
+        "fit_covers": {q: rows[q]["delta_covers"] for q in ("E_d_fit", "E_b_fit") if q in rows},
+    }  # fmt: skip
 
 
 def _accuracy_summary(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
     key = "coverage_xy_98.89"
     worst = min(rows, key=lambda r: r["cartesian"][key])
     ban = [r["expcoords"][key] for r in rows if "expcoords" in r]
+    c_rows = [r for r in rows if "unscented" in r]  # Method C (issue 11)
+    worst_c = min(c_rows, key=lambda r: r["unscented"][key]) if c_rows else None
     return {
         "worst_a": worst["cartesian"][key], "worst_case": worst["case"],
         "best_a": max(r["cartesian"][key] for r in rows),
         "banana_min": min(ban) if ban else None, "banana_max": max(ban) if ban else None,
+        "worst_c": worst_c["unscented"][key] if worst_c else None,
+        "worst_c_case": worst_c["case"] if worst_c else None,
+        "best_c": max(r["unscented"][key] for r in c_rows) if c_rows else None,
         "n_cases": len(rows), "by_case": {r["case"]: r for r in rows},
     }  # fmt: skip

@@ -93,7 +93,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import stats as sstats
 
 from ..core.validation import check_finite, check_positive, check_probability
-from ..methods.systematic import DIRECTIONS, WheelGeometry, return_errors_noiseless
+from ..methods.systematic import DIRECTIONS, WheelGeometry, return_errors_noiseless, umbmark_runs
 from .calibration import read_csv_columns
 
 __all__ = [
@@ -106,7 +106,9 @@ __all__ = [
     "e_max_syst",
     "quantities",
     "read_returns_csv",
+    "true_quantities",
     "umbmark",
+    "umbmark_experiment",
     "umbmark_parameters",
 ]
 
@@ -551,3 +553,101 @@ def read_returns_csv(path: str | Path) -> dict[str, NDArray[np.float64]]:
             "per direction: the scatter of the runs gives the intervals)"
         )
     return out
+
+
+# --- the simulated experiment (the pipeline's UMBmark study) ----------------------------------
+
+
+def true_quantities(side: float, track: float, E_d: float, E_b: float) -> dict[str, float]:
+    """What UMBmark should recover from a robot with true ``E_d``, ``E_b`` (nominal track ``track``).
+
+    ``alpha = (π/2)(1 − 1/E_b)`` (a commanded π/2 turn in place turns ``(π/2)/E_b``),
+    ``beta = L(c_R − c_L)/(E_b b)`` (the heading change along a leg), ``c_R``, ``c_L``
+    (:meth:`WheelGeometry.from_ratios`), ``track_corrected = E_b b``, the direct fit's
+    targets ``E_d_fit = E_d``, ``E_b_fit = E_b``, and ``E_max_before``: E_max,syst of
+    the noiseless square [m].
+    """
+    g = WheelGeometry.from_ratios(track, E_d, E_b)
+    L = float(check_positive("side", side))
+    noiseless = [
+        return_errors_noiseless(L, d, g.scale_r, g.scale_l, g.track, odometry_track=track) for d in DIRECTIONS
+    ]
+    return {
+        "alpha": (math.pi / 2) * (1.0 - 1.0 / E_b), "beta": L * (g.scale_r - g.scale_l) / g.track,
+        "E_d": float(E_d), "E_b": float(E_b), "c_R": g.scale_r, "c_L": g.scale_l, "track_corrected": g.track,
+        "E_d_fit": float(E_d), "E_b_fit": float(E_b),
+        "E_max_before": float(e_max_syst(noiseless[0], noiseless[1])),
+    }  # fmt: skip
+
+
+def umbmark_experiment(
+    side: float = 4.0,
+    track: float = 0.3,
+    E_d: float = 1.002,
+    E_b: float = 1.01,
+    k: float = 1e-7,
+    n: int = 5,
+    seed: int = 2026,
+    level: float = 0.95,
+    n_boot: int = 2000,
+    speed: float = 0.5,
+    angular_speed: float = 1.0,
+    dt: float = 0.02,
+) -> dict[str, Any]:
+    """UMBmark on a simulated robot with known systematic errors, before and after its correction.
+
+    The robot (:mod:`pose_uncertainty.methods.systematic`) has true wheel-diameter ratio
+    ``E_d`` and track ``E_b·track``; its odometry assumes the nominal geometry. It drives
+    the ``side × side`` square ``n`` times clockwise and ``n`` times counter-clockwise
+    (:func:`~pose_uncertainty.methods.systematic.umbmark_runs`, per-step random error
+    ``k_r = k_l = k`` [m], exact arcs, generator ``default_rng(seed)``; the default
+    ``k = 10⁻⁷`` m, 0.3 mm per metre of travel, leaves the systematic errors dominant, as
+    UMBmark assumes); :func:`umbmark`
+    estimates the errors from those return errors (bootstrap from ``default_rng([seed, 1])``);
+    the robot then drives the squares again with the UMBmark-corrected odometry
+    (generator ``default_rng([seed, 2])``), which gives the measured E_max after.
+
+    Parameters
+    ----------
+    side : float [m]; track : float [m] — nominal b; E_d, E_b : float [1] — the truth
+    k : float [m] — random error constant; n : int — runs per direction; seed : int
+    level : float — confidence level; n_boot : int — bootstrap resamples
+    speed [m/s], angular_speed [rad/s], dt [s] — how the square is driven
+
+    Returns
+    -------
+    dict: the settings; ``true`` (:func:`true_quantities`); ``before`` and ``after`` —
+    ``{"cw": (n, 2), "ccw": (n, 2)}`` return errors [m] and ``centres_before`` /
+    ``centres_after`` their centres of gravity; ``corrected`` — the corrected geometry;
+    ``umbmark`` — :meth:`UmbmarkResult.as_dict` of the estimate (with the measured
+    E_max after); ``recovered`` — one row per quantity: ``quantity``, ``unit``, ``true``,
+    ``estimate``, ``std_error``, ``delta_ci``, ``bootstrap_ci``, ``delta_covers``
+    (whether the delta interval holds the truth).
+    """
+    nominal = WheelGeometry(float(check_positive("track", track)))
+    true = WheelGeometry.from_ratios(track, E_d, E_b)
+    drive = {"k_r": k, "k_l": k, "speed": speed, "angular_speed": angular_speed, "dt": dt}
+    before = umbmark_runs(side, true, nominal, n, np.random.default_rng(seed), **drive)
+    first = umbmark(before, side, track, np.random.default_rng([seed, 1]), level=level, n_boot=0)
+    corrected = first.corrected()
+    after = umbmark_runs(side, true, corrected, n, np.random.default_rng([seed, 2]), **drive)
+    res = umbmark(before, side, track, np.random.default_rng([seed, 1]), level=level, n_boot=n_boot,
+                  after=after)  # fmt: skip
+    truth = true_quantities(side, track, E_d, E_b)
+    recovered = [
+        {"quantity": q, "unit": e.unit, "true": truth[q], "estimate": e.value, "std_error": e.std_error,
+         "delta_ci": list(e.delta), "bootstrap_ci": list(e.bootstrap),
+         "delta_covers": bool(e.delta[0] <= truth[q] <= e.delta[1])}
+        for q, e in res.estimates.items() if q in truth
+    ]  # fmt: skip
+    return {
+        "side": float(side), "track": float(track), "k": float(k), "n": int(n), "level": float(level),
+        "true": truth,
+        "before": {d: v.tolist() for d, v in before.items()},
+        "after": {d: v.tolist() for d, v in after.items()},
+        "centres_before": {d: centres_of_gravity(v).tolist() for d, v in before.items()},
+        "centres_after": {d: centres_of_gravity(v).tolist() for d, v in after.items()},
+        "corrected": {"scale_r": corrected.scale_r, "scale_l": corrected.scale_l, "track": corrected.track},
+        "umbmark": res.as_dict(),
+        "recovered": recovered,
+    }  # fmt: skip

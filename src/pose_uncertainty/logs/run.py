@@ -2,8 +2,9 @@
 
 A *run* is one parameter point of a sweep: a trajectory, the odometry error
 constants, a seed and what to compute — Method A (covariance propagation with
-its error ellipses), Monte Carlo end poses under the same model, and optional
-probability maps (Method B). :func:`execute` turns a :class:`RunConfig` into a
+its error ellipses), Method C (the unscented transform, always: a loop over the
+steps, a fraction of a second per 1000 steps), Monte Carlo end poses under the same
+model, and optional probability maps (Method B). :func:`execute` turns a :class:`RunConfig` into a
 :class:`RunResult`; :mod:`pose_uncertainty.logs.runlog` writes and reads results as
 MCAP files, :mod:`pose_uncertainty.present.figures` draws them.
 
@@ -45,7 +46,7 @@ from ..core import trajectories
 from ..core.grids import Grid
 from ..core.stats import PR_3SIGMA
 from ..core.tables import jsonable
-from ..methods import covariance, expcoords, maps, motion_models, sampling
+from ..methods import covariance, expcoords, maps, motion_models, sampling, unscented
 from ..methods.maps import ProbabilityMap
 from .provenance import provenance
 
@@ -558,6 +559,9 @@ def execute(config: RunConfig) -> RunResult:
         traj = trajectories.from_config(config.trajectory)
     with _timed(timings, "covariance_s"):
         cres = covariance.propagate(traj, config.k_r, config.k_l, cov0=_cov0(config))
+    with _timed(timings, "unscented_s"):  # Method C (issue 11)
+        ures = unscented.propagate(traj, config.k_r, config.k_l, cov0=_cov0(config))
+    c_end = (np.asarray(ures.poses[-1], dtype=np.float64), np.asarray(ures.covs[-1], dtype=np.float64))
     poses = np.ascontiguousarray(cres.poses, dtype=np.float64)
     covs = np.ascontiguousarray(cres.covs, dtype=np.float64)
     end_poses: NDArray[np.float64] | None = None
@@ -571,7 +575,7 @@ def execute(config: RunConfig) -> RunResult:
             maps.append(_compute_map(mcfg, traj))
             samplers[mcfg.name] = _map_sampler(config, mcfg, traj, i)
     with _timed(timings, "measures_s"):
-        metrics = _measures(config, traj, poses, covs, end_poses, maps, samplers)
+        metrics = _measures(config, traj, poses, covs, end_poses, maps, samplers, c_end)
     timings["total_s"] = time.perf_counter() - t_all
     return RunResult(
         config=config, times=np.ascontiguousarray(traj.times, dtype=np.float64), poses=poses,
@@ -667,16 +671,23 @@ def _measures(
     end_poses: NDArray[np.float64] | None,
     maps_: list[ProbabilityMap],
     samplers: dict[str, NDArray[np.float64]],
+    c_end: tuple[NDArray[np.float64], NDArray[np.float64]],
 ) -> dict[str, float]:
-    """Every measure of the run (:mod:`pose_uncertainty.analysis.measures`), computed once here."""
+    """Every measure of the run (:mod:`pose_uncertainty.analysis.measures`), computed once here.
+
+    ``c_end`` is Method C's (mean, covariance) at the end of the path.
+    """
     out = measures.run_measures(traj.length, traj.duration, poses[-1])
     out.update(measures.gaussian_measures(poses[-1], covs[-1], config.pr))
+    out.update(measures.unscented_measures(c_end[0], c_end[1], poses[-1], config.pr))
+    if end_poses is not None and end_poses.shape[0] >= 1:
+        out.update(measures.cloud_shift_measures(end_poses, poses[-1], c_end[0]))
     if end_poses is not None and end_poses.shape[0] >= 3:
         out.update(measures.cloud_measures(end_poses, poses[-1], covs[-1], config.pr))
     for mp in maps_:
         out.update(measures.map_measures(mp, config.pr, samplers.get(mp.name)))
     if end_poses is not None and end_poses.shape[0] >= 10:
-        out.update(_accuracy_metrics(config, traj, poses, covs, end_poses))
+        out.update(_accuracy_metrics(config, traj, poses, covs, end_poses, c_end))
     return out
 
 
@@ -686,11 +697,13 @@ def _accuracy_metrics(
     poses: NDArray[np.float64],
     covs: NDArray[np.float64],
     end_poses: NDArray[np.float64],
+    c_end: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
 ) -> dict[str, float]:
     """How wrong each Gaussian method is against this run's Monte Carlo cloud.
 
-    Method A (Cartesian Gaussian) and the exponential-coordinates Gaussian
-    (the banana) of the same wheel-noise model, against the end-pose cloud
+    Method A (Cartesian Gaussian), the exponential-coordinates Gaussian
+    (the banana) and Method C (``c_end``: the unscented transform's mean and
+    covariance) of the same wheel-noise model, against the end-pose cloud
     (:func:`pose_uncertainty.analysis.accuracy.compare_methods`). Deterministic:
     its own generator is derived from the run's seed.
     """
@@ -704,6 +717,6 @@ def _accuracy_metrics(
     E = expcoords.propagate(traj, config.k_r, config.k_l, cov0=cov0)
     res = accuracy.compare_methods(
         end_poses, (poses[-1], covs[-1]), (E.poses[-1], E.covs[-1]),
-        np.random.default_rng([config.seed, 1]), n_threshold=50_000,
+        np.random.default_rng([config.seed, 1]), n_threshold=50_000, unscented=c_end,
     )  # fmt: skip
     return accuracy.flatten(res)

@@ -30,6 +30,18 @@ UT on SE(2) (:func:`propagate_se2`)
     one step's exponential, a relative difference O(k) with a small constant
     (4·10⁻⁹ for k = 10⁻² on a half circle of radius 1 m, b = 0.2 m).
 
+What the Cartesian UT gets right, and what it cannot
+-----------------------------------------------------
+Its mean carries the second-order shift the heading noise causes (``E[cos φ] ≈ 1 − σ²/2``):
+back along a straight line, inwards on an arc — Method A's mean, the noiseless path, has
+none. Its covariance across the path and its mean hardly depend on the step (2·10⁻³ between
+Δt = 0.1 and 0.002 s on a 20 m line). Its along-track variance beyond Method A's does: the
+Gaussian it keeps after every step cannot hold the correlation of the along-track error
+with ``θ²`` (the banana's bend), so each step adds ``Var(Δs cos θ)`` afresh and the excess
+is proportional to the step length (0.0712, 0.0357, 0.0072, 0.0014 m² for Δt = 0.1, 0.05,
+0.01, 0.002 s at 1 m/s, k = 5·10⁻⁴ m, b = 0.2 m, 20 m): it vanishes as Δt → 0 and is not
+the Monte Carlo's spread along the path, which grows about as ``L^1.8`` there.
+
 Scaled sigma points (van der Merwe)
 -----------------------------------
 With ``n`` the augmented dimension, ``λ = α²(n+κ) − n`` and a square root

@@ -5,8 +5,9 @@ These are the functions the pipeline calls and ``pose-uncertainty replay
 both give the same bytes.
 
 * :func:`trajectory_figure` — the nominal path in black, Pr-ellipses at regular
-  intervals in blue and the final one in red (98.89 % by default, SPEC §4 A1);
-* :func:`cloud_figure` — the Monte Carlo end poses over the final ellipse;
+  intervals in blue and the final one in red (98.89 % by default, SPEC §4 A1),
+  with Method C's final ellipse (green, about its own mean) beside it;
+* :func:`cloud_figure` — the Monte Carlo end poses over the final ellipses (A's, C's);
 * :func:`map_figure` — a probability map (θ marginalised), 1 m × 1 m around the
   noiseless end point, darker = more probable (SPEC §3).
 
@@ -104,8 +105,9 @@ def trajectory_figure(run: RunResult) -> Figure:
     n = run.n_steps
     pts = _polyline(run.covs[n, :2, :2], run.poses[n, :2], cfg.pr)
     ax.plot(
-        pts[:, 0], pts[:, 1], color=_RED, lw=1.4, label=f"final ellipse (t = {run.times[n]:.3g} s)"
+        pts[:, 0], pts[:, 1], color=_RED, lw=1.4, label=f"Method A: final ellipse (t = {run.times[n]:.3g} s)"
     )
+    _method_c_ellipse(ax, run)
     ax.plot(*run.poses[0, :2], marker="o", color=_BLACK, ms=4, ls="none")
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x [m]")
@@ -145,7 +147,7 @@ def cloud_figure(run: RunResult) -> Figure | None:
     )
     pts = _polyline(cov[:2, :2], end[:2], cfg.pr)
     ax.plot(
-        pts[:, 0], pts[:, 1], color=_RED, lw=1.4, label=f"covariance ellipse, Pr = {_pct(cfg.pr)}"
+        pts[:, 0], pts[:, 1], color=_RED, lw=1.4, label=f"Method A (covariance) ellipse, Pr = {_pct(cfg.pr)}"
     )
     m = run.metrics
     if all(k in m for k in ("MC_mean_x", "MC_mean_y", "MC_cov_xx", "MC_cov_xy", "MC_cov_yy")):
@@ -160,6 +162,7 @@ def cloud_figure(run: RunResult) -> Figure | None:
             ls="--",
             label="ellipse of the sample covariance",
         )
+    _method_c_ellipse(ax, run)
     ax.plot(*end[:2], marker="+", color=_RED, ms=10, ls="none", label="noiseless end pose")
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x [m]")
@@ -171,6 +174,31 @@ def cloud_figure(run: RunResult) -> Figure | None:
     ax.grid(True, lw=0.3, alpha=0.5)
     ax.legend(loc="best", fontsize="small")
     return fig
+
+
+# --- Method C, the unscented transform (issue 11) ----------------------------------------------
+
+_GREEN = "tab:green"
+_C_KEYS = ("C_mean_x", "C_mean_y", "C_cov_xx", "C_cov_xy", "C_cov_yy")
+
+
+def _method_c_ellipse(ax: Any, run: RunResult) -> None:
+    """Method C's final Pr-ellipse about its own mean, and that mean, from the logged ``C_*`` measures.
+
+    Nothing is drawn for a run that has not logged them (a log written before Method C).
+    """
+    m = run.metrics
+    if not all(k in m for k in _C_KEYS):
+        return
+    cov = np.array([[m["C_cov_xx"], m["C_cov_xy"]], [m["C_cov_xy"], m["C_cov_yy"]]])
+    mean = np.array([m["C_mean_x"], m["C_mean_y"]])
+    pts = _polyline(cov, mean, run.config.pr)
+    ax.plot(pts[:, 0], pts[:, 1], color=_GREEN, lw=1.2, ls="-.",
+            label=f"Method C (sigma points) ellipse, Pr = {_pct(run.config.pr)}")  # fmt: skip
+    ax.plot(*mean, marker="x", color=_GREEN, ms=8, ls="none", label="Method C's mean")
+
+
+# --- end Method C ---
 
 
 def map_window(mp: ProbabilityMap, center: tuple[float, float], hold: float = 0.99) -> float:

@@ -6,7 +6,11 @@
   over the runs of a set;
 * :func:`cloud_polar_figure` — seed 001's Cartesian and polar views of the end-pose clouds;
 * :func:`expcoords_figure` — long-path Monte Carlo clouds with Method A's ellipse and the
-  exponential-coordinates Gaussian's region (the banana) drawn over them.
+  exponential-coordinates Gaussian's region (the banana) drawn over them;
+* :func:`umbmark_figure` — the classic UMBmark figure: the cw and ccw return-position
+  errors before and after the correction, with their centres of gravity;
+* :func:`render_study_figure` — a study's figure from its log alone, by the study's kind
+  (:data:`STUDY_FIGURES`).
 
 Every figure is saved by :func:`pose_uncertainty.present.figures.save_figure` (deterministic bytes).
 """
@@ -29,14 +33,16 @@ from ..methods.covariance import ellipse_polyline
 from . import figures
 
 __all__ = [
+    "STUDY_FIGURES",
     "cloud_polar_figure",
     "expcoords_figure",
     "growth_figure",
     "map_cloud_figure",
-    "render_expcoords_figure",
     "render_run_figure",
     "render_run_figures",
     "render_set_figure",
+    "render_study_figure",
+    "umbmark_figure",
 ]
 
 def render_run_figure(log: str | os.PathLike[str], kind: str, out: str | os.PathLike[str]) -> Path:
@@ -134,8 +140,8 @@ def growth_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") -> Fi
 
     Draws, for every run of the set (sorted by path length), its logged measures:
     Method A's standard deviations along and across the end heading and of θ, the
-    semi-axes of the Pr-ellipse, and the Monte Carlo sample's along/across standard
-    deviations (:mod:`pose_uncertainty.analysis.measures`).
+    semi-axes of the Pr-ellipse, Method C's and the Monte Carlo sample's along/across
+    standard deviations (:mod:`pose_uncertainty.analysis.measures`).
 
     Parameters
     ----------
@@ -145,7 +151,8 @@ def growth_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") -> Fi
     measures = {"L": "path_length", "A: σ along": "A_sigma_along", "A: σ across": "A_sigma_across",
                 "A: σ_θ [rad]": "A_sigma_theta", "A: ellipse major": "A_ellipse_major",
                 "A: ellipse minor": "A_ellipse_minor", "MC: σ along": "MC_sigma_along",
-                "MC: σ across": "MC_sigma_across"}  # fmt: skip
+                "MC: σ across": "MC_sigma_across", "C: σ along": "C_sigma_along",
+                "C: σ across": "C_sigma_across"}  # fmt: skip
     rows = []
     for p in logs:
         logged = open_run(p).metrics
@@ -162,6 +169,8 @@ def growth_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") -> Fi
         "A: ellipse minor": ("0.6", ":", "v"),
         "MC: σ along": ("tab:blue", "none", "x"),
         "MC: σ across": ("tab:red", "none", "x"),
+        "C: σ along": ("tab:blue", "none", "+"),
+        "C: σ across": ("tab:red", "none", "+"),
     }
     for key, (color, ls, marker) in styles.items():
         vals = np.array([r.get(key, np.nan) for r in rows])
@@ -233,8 +242,9 @@ def expcoords_figure(data: Mapping[str, Any]) -> Figure:
     Draws the logged results of the ``expcoords_regions`` study
     (:func:`pose_uncertainty.analysis.studies.expcoords_regions`), one panel per
     case: the cloud, Method A's Pr-ellipse (red), the boundary of the
-    exponential-coordinates Gaussian's planar Pr highest-density region (blue) and
-    the nominal path; the legend gives the logged share of the cloud inside each.
+    exponential-coordinates Gaussian's planar Pr highest-density region (blue),
+    Method C's Pr-ellipse about its mean (green, dash-dot) and the nominal path; the
+    legend gives the logged share of the cloud inside each.
     """
     cases = data["cases"]
     pr, n = float(data["pr"]), int(data["n"])
@@ -252,6 +262,11 @@ def expcoords_figure(data: Mapping[str, Any]) -> Figure:
             ax.plot(poly[:, 0], poly[:, 1], color="tab:blue", lw=1.2,
                     label=f"exp. coords {100 * pr:.2f} % (holds {100 * case['inside_banana']:.1f} %)"
                     if i == 0 else None)  # fmt: skip
+        if "c_ellipse_xy" in case:  # Method C (issue 11), in logs that have it
+            cel, cm = np.asarray(case["c_ellipse_xy"]), case["c_mean"]
+            ax.plot(cel[:, 0], cel[:, 1], color="tab:green", lw=1.2, ls="-.",
+                    label=f"Method C ellipse {100 * pr:.2f} % (holds {100 * case['inside_c']:.1f} %)")
+            ax.plot([cm[0]], [cm[1]], marker="x", color="tab:green", ms=7, ls="none")
         ax.plot(path[:, 0], path[:, 1], color="k", lw=0.6, ls="--", label="noiseless path")
         ax.plot([end[0]], [end[1]], marker="+", color="k", ms=8)
         ax.set_aspect("equal", adjustable="datalim")
@@ -261,13 +276,6 @@ def expcoords_figure(data: Mapping[str, Any]) -> Figure:
         ax.grid(True, lw=0.3, alpha=0.5)
         ax.legend(fontsize="x-small", loc="lower left")
     return fig
-
-
-def render_expcoords_figure(study_log: str | os.PathLike[str], out: str | os.PathLike[str]) -> Path:
-    """Draw :func:`expcoords_figure` from an ``expcoords_regions`` study log and save it."""
-    fig = expcoords_figure(read_study(study_log)["results"])
-    Path(out).parent.mkdir(parents=True, exist_ok=True)
-    return figures.save_figure(fig, out)
 
 
 def render_set_figure(
@@ -280,5 +288,71 @@ def render_set_figure(
         fig = cloud_polar_figure(logs, title)
     else:
         raise ValueError(f"set figure kind must be 'growth' or 'cloud_polar', got {kind!r}")
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    return figures.save_figure(fig, out)
+
+
+# --- the UMBmark figure, and a study's figure by its kind (issue 11) ------------------------------
+
+
+def umbmark_figure(data: Mapping[str, Any]) -> Figure:
+    """The classic UMBmark figure from the logged results of an ``umbmark`` study.
+
+    Return-position errors ε = (x_abs − x_calc, y_abs − y_calc) [m] of the cw (blue) and
+    ccw (red) squares before the correction (filled) and after it (hollow), with each
+    cluster's centre of gravity (large markers) and the circles of radius E_max,syst
+    before and after (:func:`pose_uncertainty.analysis.umbmark.umbmark_experiment`).
+    """
+    umb = data["umbmark"]
+    e_before = umb["estimates"]["E_max_before"]["value"]
+    e_after = umb["E_max_after_measured"]["value"]
+    fig = figures.new_figure((6.4, 6.0))
+    ax = fig.add_subplot()
+    colours = {"cw": "tab:blue", "ccw": "tab:red"}
+    for d, col in colours.items():
+        b, a = np.asarray(data["before"][d]), np.asarray(data["after"][d])
+        cb, ca = data["centres_before"][d], data["centres_after"][d]
+        ax.scatter(b[:, 0], b[:, 1], s=22, color=col, marker="o", label=f"{d}, before ({b.shape[0]} runs)")
+        ax.scatter(a[:, 0], a[:, 1], s=22, facecolors="none", edgecolors=col, marker="o",
+                   label=f"{d}, after correction")  # fmt: skip
+        ax.plot([cb[0]], [cb[1]], marker="X", color=col, ms=11, mec="k", ls="none",
+                label=f"{d} centre of gravity, before")  # fmt: skip
+        ax.plot([ca[0]], [ca[1]], marker="X", color="white", ms=11, mec=col, ls="none",
+                label=f"{d} centre of gravity, after")  # fmt: skip
+    t = np.linspace(0.0, 2.0 * math.pi, 361)
+    for r, ls, what in ((e_before, "--", "before"), (e_after, ":", "after")):
+        ax.plot(r * np.cos(t), r * np.sin(t), color="0.4", lw=0.8, ls=ls,
+                label=f"E_max,syst {what} = {100 * r:.3g} cm")  # fmt: skip
+    ax.axhline(0.0, color="k", lw=0.5)
+    ax.axvline(0.0, color="k", lw=0.5)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("return error x [m] (along the first leg)")
+    ax.set_ylabel("return error y [m] (to its left)")
+    tr_ = data["true"]
+    ax.set_title(f"UMBmark, {data['side']:g} m square: true E_d = {tr_['E_d']:g}, E_b = {tr_['E_b']:g}, "
+                 f"k = {data['k']:g} m", fontsize="medium")  # fmt: skip
+    ax.grid(True, lw=0.3, alpha=0.5)
+    ax.legend(fontsize="x-small", loc="best")
+    return fig
+
+
+#: The figure of a study by the study's kind (a key of pose_uncertainty.analysis.studies.STUDIES):
+#: the key the report shows it under (``build_report``'s ``studies_figures``) and the function
+#: drawing it from the study's logged results.
+STUDY_FIGURES: dict[str, tuple[str, Any]] = {
+    "expcoords_regions": ("expcoords", expcoords_figure),
+    "umbmark": ("umbmark", umbmark_figure),
+}
+
+
+def render_study_figure(study_log: str | os.PathLike[str], out: str | os.PathLike[str]) -> Path:
+    """Draw a study's figure from its log alone (the function of :data:`STUDY_FIGURES` for its kind)."""
+    doc = read_study(study_log)
+    kind = doc["study"]
+    if kind not in STUDY_FIGURES:
+        raise ValueError(
+            f"{study_log}: a {kind!r} study has no figure (allowed: {', '.join(sorted(STUDY_FIGURES))})"
+        )
+    fig = STUDY_FIGURES[kind][1](doc["results"])
     Path(out).parent.mkdir(parents=True, exist_ok=True)
     return figures.save_figure(fig, out)

@@ -5,7 +5,7 @@
 
 * the per-set tables (:mod:`pose_uncertainty.logs.tables`: every number a logged
   measure of a run, under its own name);
-* ``reports/claims.json`` — the claims and the method guide
+* ``reports/claims.json`` — the claims, the method guide and the Method C summary
   (:func:`pose_uncertainty.analysis.claims.write_claims`);
 * ``reports/studies.json`` — the studies' logged results and the numbers their text
   quotes (:func:`pose_uncertainty.logs.study.collect_studies`);
@@ -157,6 +157,7 @@ def build_report(
         sets=_sets(manifest, tables),
         claims=claims["claims"],
         guide=claims["guide"],
+        unscented=claims.get("unscented"),  # Method C (issue 11): analysis.claims.unscented_summary
         provenance=prov,
         package=prov.get("package_version", {}).get("value", "unknown"),
         git_commit=prov.get("git_commit", {}).get("value", "unknown"),
