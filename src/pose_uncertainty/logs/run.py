@@ -31,7 +31,6 @@ import contextlib
 import dataclasses
 import inspect
 import math
-import re
 import time
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
@@ -47,6 +46,11 @@ from ..core.stats import PR_3SIGMA
 from ..core.tables import jsonable
 from ..methods import covariance, expcoords, maps, motion_models, sampling
 from ..methods.maps import ProbabilityMap
+from .config_checks import check_keys as _check_keys
+from .config_checks import fail as _fail
+from .config_checks import integer as _int
+from .config_checks import name as _name
+from .config_checks import real as _float
 from .provenance import provenance
 
 __all__ = [
@@ -58,8 +62,6 @@ __all__ = [
     "map_kind",
 ]
 
-
-_NAME_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$")
 
 #: Units of the trajectory builder parameters (SPEC §1, pose_uncertainty.core.trajectories).
 TRAJECTORY_UNITS: dict[str, str] = {
@@ -78,47 +80,6 @@ TRAJECTORY_UNITS: dict[str, str] = {
     "profile": "- (constant | ramp)",
     "start": "(m, m, rad)",
 }
-
-
-def _fail(key: str, rule: str, value: Any) -> ValueError:
-    return ValueError(f"config key {key!r} must be {rule}, got {value!r}")
-
-
-def _check_keys(where: str, data: Mapping[str, Any], allowed: tuple[str, ...]) -> None:
-    if not isinstance(data, Mapping):
-        raise _fail(where or "config", "a mapping", data)
-    unknown = sorted(set(data) - set(allowed))
-    if unknown:
-        prefix = f"{where}." if where else ""
-        raise ValueError(
-            f"unknown config key(s) {', '.join(repr(prefix + k) for k in unknown)} "
-            f"(allowed: {', '.join(allowed)})"
-        )
-
-
-def _float(key: str, value: Any, *, positive: bool = False, nonneg: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
-        raise _fail(key, "a real number", value)
-    v = float(value)
-    if not math.isfinite(v):
-        raise _fail(key, "finite", value)
-    if positive and not v > 0:
-        raise _fail(key, "> 0 (allowed: (0, inf))", value)
-    if nonneg and not v >= 0:
-        raise _fail(key, ">= 0 (allowed: [0, inf))", value)
-    return v
-
-
-def _int(key: str, value: Any, *, minimum: int = 0) -> int:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
-        raise _fail(key, f"an integer >= {minimum}", value)
-    return int(value)
-
-
-def _name(key: str, value: Any) -> str:
-    if not isinstance(value, str) or not _NAME_RE.match(value):
-        raise _fail(key, "a name of letters, digits, '_', '.', '-'", value)
-    return value
 
 
 @dataclass(frozen=True)
