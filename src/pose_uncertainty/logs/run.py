@@ -51,6 +51,13 @@ from .config_checks import fail as _fail
 from .config_checks import integer as _int
 from .config_checks import name as _name
 from .config_checks import real as _float
+from .drive_config import DriveConfig, check_path
+from .drive_run import DriveSetup
+from .drive_run import expcoords as drive_expcoords
+from .drive_run import measures as drive_measures
+from .drive_run import method_a as drive_method_a
+from .drive_run import sample as drive_sample
+from .drive_run import setup as drive_setup
 from .provenance import provenance
 
 __all__ = [
@@ -298,6 +305,11 @@ class RunConfig:
     maps : tuple of MapConfig
     name : str
         Run identifier.
+    drive : DriveConfig or None
+        The robot's drive (:mod:`pose_uncertainty.logs.drive_config`): its type,
+        geometry and odometry errors; the trajectory is then the path it follows.
+        None (no ``drive`` key) = the differential drive of ``trajectory.track``
+        with ``k_r``, ``k_l``, logged exactly as before the drives existed.
     """
 
     trajectory: dict[str, Any]
@@ -310,6 +322,7 @@ class RunConfig:
     monte_carlo: MonteCarloConfig = field(default_factory=MonteCarloConfig)
     maps: tuple[MapConfig, ...] = ()
     name: str = "run"
+    drive: DriveConfig | None = None
 
     KEYS = (
         "name",
@@ -322,6 +335,7 @@ class RunConfig:
         "n_ellipses",
         "monte_carlo",
         "maps",
+        "drive",
     )
 
     @classmethod
@@ -373,6 +387,10 @@ class RunConfig:
         if len(set(names)) != len(names):
             raise _fail("maps[].name", "unique", names)
         name = _name("name", data.get("name", "run"))
+        drive = None
+        if data.get("drive") is not None:
+            drive = DriveConfig.from_dict(data["drive"])
+            check_path(drive, traj, k_r, k_l)  # the drive can follow the path (vectorised, cheap)
         return cls(
             trajectory=traj,
             k_r=k_r,
@@ -384,6 +402,7 @@ class RunConfig:
             monte_carlo=mc,
             maps=maps,
             name=name,
+            drive=drive,
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -399,12 +418,13 @@ class RunConfig:
             "n_ellipses": self.n_ellipses,
             "monte_carlo": self.monte_carlo.to_dict(),
             "maps": [m.to_dict() for m in self.maps],
+            # only when configured: a run without a drive logs exactly what it logged before
+            **({} if self.drive is None else {"drive": self.drive.to_dict()}),
         }
 
-    @staticmethod
-    def units() -> dict[str, Any]:
+    def units(self) -> dict[str, Any]:
         """Unit of every configuration key (``"1"`` = dimensionless, ``"-"`` = not a number)."""
-        return {
+        units: dict[str, Any] = {
             "name": "-",
             "seed": "1",
             "trajectory": dict(TRAJECTORY_UNITS),
@@ -437,6 +457,9 @@ class RunConfig:
                 "theta_resolution": "rad",
             },
         }
+        if self.drive is not None:  # only when configured (the logged units of other runs are unchanged)
+            units["drive"] = DriveConfig.units()
+        return units
 
 
 @dataclass(frozen=True, eq=False)
@@ -508,22 +531,29 @@ def execute(config: RunConfig) -> RunResult:
     t_all = time.perf_counter()
     with _timed(timings, "trajectory_s"):
         traj = trajectories.from_config(config.trajectory)
+        ds = None if config.drive is None else drive_setup(config.drive, traj, config.k_r, config.k_l)
     with _timed(timings, "covariance_s"):
-        cres = covariance.propagate(traj, config.k_r, config.k_l, cov0=_cov0(config))
+        if ds is None:
+            cres = covariance.propagate(traj, config.k_r, config.k_l, cov0=_cov0(config))
+        else:  # the drive following the path (logs/drive_run.py)
+            cres = drive_method_a(ds, _cov0(config))
     poses = np.ascontiguousarray(cres.poses, dtype=np.float64)
     covs = np.ascontiguousarray(cres.covs, dtype=np.float64)
     end_poses: NDArray[np.float64] | None = None
     checkpoints: dict[int, NDArray[np.float64]] = {}
     if config.monte_carlo.n_particles > 0:
         with _timed(timings, "monte_carlo_s"):
-            end_poses, checkpoints = _monte_carlo(config, traj)
+            end_poses, checkpoints = _monte_carlo(config, traj, ds)
     maps, samplers = [], {}
     for i, mcfg in enumerate(config.maps):
         with _timed(timings, f"map_{mcfg.name}_s"):
             maps.append(_compute_map(mcfg, traj))
             samplers[mcfg.name] = _map_sampler(config, mcfg, traj, i)
     with _timed(timings, "measures_s"):
-        metrics = _measures(config, traj, poses, covs, end_poses, maps, samplers)
+        metrics = _measures(config, traj, poses, covs, end_poses, maps, samplers, ds)
+        if ds is not None:  # the growth laws and the skid-steer's turn bias
+            metrics.update(drive_measures(ds, poses, covs, config.monte_carlo.checkpoints,
+                                          checkpoints, end_poses))  # fmt: skip
     timings["total_s"] = time.perf_counter() - t_all
     return RunResult(
         config=config, times=np.ascontiguousarray(traj.times, dtype=np.float64), poses=poses,
@@ -550,16 +580,20 @@ def _cov0(config: RunConfig) -> NDArray[np.float64] | None:
 
 
 def _monte_carlo(
-    config: RunConfig, traj: trajectories.Trajectory
+    config: RunConfig, traj: trajectories.Trajectory, ds: DriveSetup | None = None
 ) -> tuple[NDArray[np.float64], dict[int, NDArray[np.float64]]]:
-    """Monte Carlo end poses (n, 3) and the clouds at the checkpoint steps."""
+    """Monte Carlo end poses (n, 3) and the clouds at the checkpoint steps (of the drive, if any)."""
     mc = config.monte_carlo
     rng = np.random.default_rng(config.seed)
     steps = [*mc.checkpoints, traj.n_steps] if mc.checkpoints else None
-    out = sampling.sample_end_poses(
-        traj, config.k_r, config.k_l, mc.n_particles, rng,
-        regime=mc.regime, method=mc.method, cov0=config.cov0, checkpoints=steps,
-    )  # fmt: skip
+    if ds is None:
+        out = sampling.sample_end_poses(
+            traj, config.k_r, config.k_l, mc.n_particles, rng,
+            regime=mc.regime, method=mc.method, cov0=config.cov0, checkpoints=steps,
+        )  # fmt: skip
+    else:
+        out = drive_sample(ds, mc.n_particles, rng, regime=mc.regime, method=mc.method,
+                           cov0=_cov0(config), checkpoints=steps)  # fmt: skip
     if steps is None:  # the sampler's fast path: end poses only, (n, 3)
         return np.ascontiguousarray(out, dtype=np.float64), {}
     # (n, C, 3): the clouds at the checkpoints, then at the end
@@ -619,6 +653,7 @@ def _measures(
     end_poses: NDArray[np.float64] | None,
     maps_: list[ProbabilityMap],
     samplers: dict[str, NDArray[np.float64]],
+    ds: DriveSetup | None = None,
 ) -> dict[str, float]:
     """Every measure of the run (:mod:`pose_uncertainty.analysis.measures`), computed once here."""
     out = measures.run_measures(traj.length, traj.duration, poses[-1])
@@ -628,7 +663,7 @@ def _measures(
     for mp in maps_:
         out.update(measures.map_measures(mp, config.pr, samplers.get(mp.name)))
     if end_poses is not None and end_poses.shape[0] >= 10:
-        out.update(_accuracy_metrics(config, traj, poses, covs, end_poses))
+        out.update(_accuracy_metrics(config, traj, poses, covs, end_poses, ds))
     return out
 
 
@@ -638,6 +673,7 @@ def _accuracy_metrics(
     poses: NDArray[np.float64],
     covs: NDArray[np.float64],
     end_poses: NDArray[np.float64],
+    ds: DriveSetup | None = None,
 ) -> dict[str, float]:
     """How wrong each Gaussian method is against this run's Monte Carlo cloud.
 
@@ -653,9 +689,13 @@ def _accuracy_metrics(
         c, s = math.cos(traj.start[2]), math.sin(traj.start[2])
         T = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         cov0 = T.T @ np.asarray(config.cov0, dtype=np.float64) @ T
-    E = expcoords.propagate(traj, config.k_r, config.k_l, cov0=cov0)
+    if ds is None:
+        E = expcoords.propagate(traj, config.k_r, config.k_l, cov0=cov0)
+    else:  # the drive's own banana
+        E = drive_expcoords(ds, cov0)
     res = accuracy.compare_methods(
         end_poses, (poses[-1], covs[-1]), (E.poses[-1], E.covs[-1]),
         np.random.default_rng([config.seed, 1]), n_threshold=50_000,
     )  # fmt: skip
     return accuracy.flatten(res)
+
