@@ -260,6 +260,16 @@ class DriveConfig:
             raise ValueError(f"config key 'drive.errors' ({drive.kind}): {exc}") from None
         return model
 
+    def describe(self) -> str:
+        """One line for summaries and figure titles: the type and its geometry with units."""
+        unit = {"track": "m", "wheelbase": "m", "max_steering": "rad", "chi": "", "x_icr": "m",
+                "radius": "m", "wheels": "m"}  # fmt: skip
+        parts = []
+        for key, value in self.geometry.items():
+            text = "trajectory's" if value is None else (f"{value:g}" if isinstance(value, float) else str(value))
+            parts.append(f"{key} {text} {unit[key]}".rstrip())
+        return f"{self.type} drive" + (f" ({', '.join(parts)})" if parts else "")
+
     @staticmethod
     def units() -> dict[str, Any]:
         """Unit of every key of a ``drive`` section."""

@@ -680,7 +680,9 @@ def _accuracy_metrics(
     Method A (Cartesian Gaussian) and the exponential-coordinates Gaussian
     (the banana) of the same wheel-noise model, against the end-pose cloud
     (:func:`pose_uncertainty.analysis.accuracy.compare_methods`). Deterministic:
-    its own generator is derived from the run's seed.
+    its own generator is derived from the run's seed. Empty when either Gaussian is
+    degenerate (a drive that never turns, the synchro drive, has no heading spread):
+    the comparison needs a density.
     """
     cov0 = None
     if config.cov0 is not None:
@@ -693,9 +695,19 @@ def _accuracy_metrics(
         E = expcoords.propagate(traj, config.k_r, config.k_l, cov0=cov0)
     else:  # the drive's own banana
         E = drive_expcoords(ds, cov0)
+    if not (_positive_definite(covs[-1]) and _positive_definite(E.covs[-1])):
+        return {}
     res = accuracy.compare_methods(
         end_poses, (poses[-1], covs[-1]), (E.poses[-1], E.covs[-1]),
         np.random.default_rng([config.seed, 1]), n_threshold=50_000,
     )  # fmt: skip
     return accuracy.flatten(res)
 
+
+def _positive_definite(cov: NDArray[np.float64]) -> bool:
+    """Whether a covariance has a Cholesky factor (what the accuracy comparison's densities need)."""
+    try:
+        np.linalg.cholesky(cov)
+    except np.linalg.LinAlgError:
+        return False
+    return True

@@ -6,7 +6,9 @@
   over the runs of a set;
 * :func:`cloud_polar_figure` — seed 001's Cartesian and polar views of the end-pose clouds;
 * :func:`expcoords_figure` — long-path Monte Carlo clouds with Method A's ellipse and the
-  exponential-coordinates Gaussian's region (the banana) drawn over them.
+  exponential-coordinates Gaussian's region (the banana) drawn over them;
+* :func:`drives_figure` — σ along and across the path per drive, one panel per path, from the
+  logged measures of runs with a drive.
 
 Every figure is saved by :func:`pose_uncertainty.present.figures.save_figure` (deterministic bytes).
 """
@@ -22,6 +24,7 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..core.drives import DRIVES
 from ..core.stats import COVERAGE_LEVELS
 from ..logs.runlog import open_run
 from ..logs.study import read_study
@@ -30,6 +33,7 @@ from . import figures
 
 __all__ = [
     "cloud_polar_figure",
+    "drives_figure",
     "expcoords_figure",
     "growth_figure",
     "map_cloud_figure",
@@ -270,15 +274,63 @@ def render_expcoords_figure(study_log: str | os.PathLike[str], out: str | os.Pat
     return figures.save_figure(fig, out)
 
 
+def drives_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") -> Figure:
+    """σ along and across the path at its end, per drive, one panel per path (log scale).
+
+    Bars: Method A's logged ``A_sigma_along`` (light) and ``A_sigma_across`` (dark); markers:
+    the Monte Carlo's ``MC_sigma_along`` / ``MC_sigma_across`` (:mod:`pose_uncertainty.analysis.measures`).
+    Runs without a drive section are drawn as ``differential``. Drives in the order of
+    :data:`pose_uncertainty.core.drives.DRIVES`; paths in the order they first appear.
+
+    Parameters
+    ----------
+    logs : sequence of paths to run logs
+    title : str
+    """
+    panels: dict[str, dict[str, dict[str, float]]] = {}
+    for p in logs:
+        run = open_run(p)
+        traj = run.config.trajectory
+        m = run.metrics
+        label = f"{traj['name']}, {m.get('path_length', math.nan):.3g} m"
+        kind = "differential" if run.config.drive is None else run.config.drive.type
+        panels.setdefault(label, {})[kind] = m
+    order = [k for k in DRIVES if any(k in runs for runs in panels.values())]
+    fig = figures.new_figure((3.6 * max(len(panels), 1) + 0.6, 4.6))
+    bars = (("A_sigma_along", "MC_sigma_along", "σ along", "tab:blue", -0.2),
+            ("A_sigma_across", "MC_sigma_across", "σ across", "tab:red", 0.2))  # fmt: skip
+    for j, (label, runs) in enumerate(panels.items()):
+        ax = fig.add_subplot(1, len(panels), j + 1)
+        for a_key, mc_key, name, color, dx in bars:
+            xs = [i + dx for i, k in enumerate(order) if k in runs]
+            a = [runs[k].get(a_key, math.nan) for k in order if k in runs]
+            mc = [runs[k].get(mc_key, math.nan) for k in order if k in runs]
+            ax.bar(xs, a, width=0.4, color=color, alpha=0.55, label=f"Method A: {name}")
+            ax.plot(xs, mc, ls="none", marker="x", color="k", ms=5,
+                    label="Monte Carlo" if name == "σ along" else None)  # fmt: skip
+        ax.set_yscale("log")
+        ax.set_xticks(range(len(order)), order, rotation=45, ha="right", fontsize="small")
+        ax.set_title(label, fontsize="medium")
+        ax.set_ylabel("standard deviation at the end [m]")
+        ax.grid(True, axis="y", which="both", lw=0.3, alpha=0.5)
+        if j == 0:
+            ax.legend(fontsize="x-small", loc="lower left")
+    if title:
+        fig.suptitle(title)
+    return fig
+
+
 def render_set_figure(
     kind: str, logs: Sequence[str | os.PathLike[str]], out: str | os.PathLike[str], title: str = ""
 ) -> Path:
-    """Draw a set-level figure (``growth`` or ``cloud_polar``) and save it."""
+    """Draw a set-level figure (``growth``, ``cloud_polar`` or ``drives``) and save it."""
     if kind == "growth":
         fig = growth_figure(logs, title)
     elif kind == "cloud_polar":
         fig = cloud_polar_figure(logs, title)
+    elif kind == "drives":
+        fig = drives_figure(logs, title)
     else:
-        raise ValueError(f"set figure kind must be 'growth' or 'cloud_polar', got {kind!r}")
+        raise ValueError(f"set figure kind must be 'growth', 'cloud_polar' or 'drives', got {kind!r}")
     Path(out).parent.mkdir(parents=True, exist_ok=True)
     return figures.save_figure(fig, out)
