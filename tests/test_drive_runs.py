@@ -330,10 +330,11 @@ def test_table_columns_equal_the_logged_metrics_of_drive_runs(drive_logs, tmp_pa
 def test_drives_figure_draws_the_logged_measures(drive_logs) -> None:
     paths = [p for _, p in drive_logs.values()]
     fig = drives_figure(paths)
-    heights = sorted(round(b.get_height(), 15) for ax in fig.axes for b in ax.patches)
-    logged = sorted(round(open_run(p).metrics[k], 15) for p in paths for k in ("A_sigma_along", "A_sigma_across"))
-    assert heights == logged
     assert [ax.get_title() for ax in fig.axes] == ["straight, 4 m", "arc, 1.57 m"]
+    keys = ("A_sigma_along", "A_sigma_across", "MC_sigma_along", "MC_sigma_across")
+    for ax, path in zip(fig.axes, paths, strict=True):  # one run per panel here
+        drawn = [float(line.get_ydata()[0]) for line in ax.lines]
+        assert drawn == [open_run(path).metrics[k] for k in keys]
 
 
 def test_follow_is_what_the_run_drives() -> None:
@@ -341,3 +342,33 @@ def test_follow_is_what_the_run_drives() -> None:
     res = execute(RunConfig.from_dict(_config(TRICYCLE, ARC, monte_carlo={"n_particles": 0})))
     path = dr.follow(dr.Tricycle(0.2, math.pi / 2), tr.from_config(res.config.trajectory))
     assert_allclose(res.poses, path.poses_by("midpoint"), rtol=0, atol=1e-12)
+
+
+def test_report_section_formats_the_logged_drive_measures(drive_logs, tmp_path: Path) -> None:
+    """The section "Beyond the differential drive" shows the table's numbers, formatted, and nothing else."""
+    from pose_uncertainty.analysis.claims import write_claims
+    from pose_uncertainty.logs.summary import summarize_pipeline
+    from pose_uncertainty.present.pipeline_figures import render_set_figure
+    from pose_uncertainty.present.report import _fmt, build_report
+
+    paths = [p for _, p in drive_logs.values()]
+    table = tables.collect_table("D", paths, None, tmp_path / "D.csv")
+    fig = render_set_figure("drives", paths, tmp_path / "drives.png", "D")
+    runs = [{"id": r.config.name, "log": str(p), "swept": {}, "config": r.config.to_dict(), "figures": {}}
+            for r, p in drive_logs.values()]  # fmt: skip
+    manifest = {"sets": [{"name": "D", "title": "D", "source": "", "description": "", "table": str(table),
+                          "figures": {"drives": str(fig)}, "runs": runs}], "config": {}}  # fmt: skip
+    html = build_report(
+        manifest, {"D": table}, write_claims({"D": table}, tmp_path / "claims.json"),
+        summarize_pipeline({"D": table}, [], [], tmp_path / "pipeline.json"), tmp_path / "r.html",
+    ).read_text(encoding="utf-8")  # fmt: skip
+    section = html[html.index('<h2 id="drives">'):html.index('<h2 id="reproducibility">')]
+    tri = drive_logs["tricycle"][0].metrics
+    skid = drive_logs["skid_arc"][0].metrics
+    for value in (tri["A_sigma_across"], tri["MC_sigma_across"], tri["A_growth_sigma_across"],
+                  tri["MC_growth_sigma_along"], skid["drive_plain_odometry_position_error"],
+                  skid["drive_plain_odometry_mahalanobis"], skid["drive_plain_odometry_max_heading_error"]):  # fmt: skip
+        assert _fmt(value, 3) in section, value
+    assert "The skid-steer's odometry is not trustworthy in turns." in section
+    assert '<a href="#drives">Beyond the differential drive</a>' in html
+    assert section.count('<img src="data:image/png;base64,') == 1

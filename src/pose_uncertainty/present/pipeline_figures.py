@@ -277,10 +277,11 @@ def render_expcoords_figure(study_log: str | os.PathLike[str], out: str | os.Pat
 def drives_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") -> Figure:
     """σ along and across the path at its end, per drive, one panel per path (log scale).
 
-    Bars: Method A's logged ``A_sigma_along`` (light) and ``A_sigma_across`` (dark); markers:
-    the Monte Carlo's ``MC_sigma_along`` / ``MC_sigma_across`` (:mod:`pose_uncertainty.analysis.measures`).
-    Runs without a drive section are drawn as ``differential``. Drives in the order of
-    :data:`pose_uncertainty.core.drives.DRIVES`; paths in the order they first appear.
+    Filled markers: Method A's logged ``A_sigma_along`` (blue circles) and ``A_sigma_across``
+    (red squares); crosses: the Monte Carlo's ``MC_sigma_along`` / ``MC_sigma_across``
+    (:mod:`pose_uncertainty.analysis.measures`). Runs without a drive section are drawn as
+    ``differential``. Drives in the order of :data:`pose_uncertainty.core.drives.DRIVES`; paths
+    in the order they first appear.
 
     Parameters
     ----------
@@ -290,31 +291,31 @@ def drives_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") -> Fi
     panels: dict[str, dict[str, dict[str, float]]] = {}
     for p in logs:
         run = open_run(p)
-        traj = run.config.trajectory
         m = run.metrics
-        label = f"{traj['name']}, {m.get('path_length', math.nan):.3g} m"
+        label = f"{run.config.trajectory['name']}, {m.get('path_length', math.nan):.3g} m"
         kind = "differential" if run.config.drive is None else run.config.drive.type
         panels.setdefault(label, {})[kind] = m
-    order = [k for k in DRIVES if any(k in runs for runs in panels.values())]
-    fig = figures.new_figure((3.6 * max(len(panels), 1) + 0.6, 4.6))
-    bars = (("A_sigma_along", "MC_sigma_along", "σ along", "tab:blue", -0.2),
-            ("A_sigma_across", "MC_sigma_across", "σ across", "tab:red", 0.2))  # fmt: skip
+    fig = figures.new_figure((3.4 * max(len(panels), 1) + 0.6, 4.8))
+    series = (("A_sigma_along", "tab:blue", "o", "Method A: σ along"),
+              ("A_sigma_across", "tab:red", "s", "Method A: σ across"),
+              ("MC_sigma_along", "tab:blue", "x", "Monte Carlo: σ along"),
+              ("MC_sigma_across", "tab:red", "x", "Monte Carlo: σ across"))  # fmt: skip
     for j, (label, runs) in enumerate(panels.items()):
         ax = fig.add_subplot(1, len(panels), j + 1)
-        for a_key, mc_key, name, color, dx in bars:
-            xs = [i + dx for i, k in enumerate(order) if k in runs]
-            a = [runs[k].get(a_key, math.nan) for k in order if k in runs]
-            mc = [runs[k].get(mc_key, math.nan) for k in order if k in runs]
-            ax.bar(xs, a, width=0.4, color=color, alpha=0.55, label=f"Method A: {name}")
-            ax.plot(xs, mc, ls="none", marker="x", color="k", ms=5,
-                    label="Monte Carlo" if name == "σ along" else None)  # fmt: skip
+        order = [k for k in DRIVES if k in runs]
+        for key, color, marker, name in series:
+            filled = marker != "x"
+            ax.plot(range(len(order)), [runs[k].get(key, math.nan) for k in order], ls="none", marker=marker,
+                    ms=7 if filled else 9, color=color, alpha=0.6 if filled else 1.0,
+                    label=name if j == 0 else None)  # fmt: skip
         ax.set_yscale("log")
+        ax.set_xlim(-0.6, len(order) - 0.4)
         ax.set_xticks(range(len(order)), order, rotation=45, ha="right", fontsize="small")
         ax.set_title(label, fontsize="medium")
-        ax.set_ylabel("standard deviation at the end [m]")
-        ax.grid(True, axis="y", which="both", lw=0.3, alpha=0.5)
         if j == 0:
-            ax.legend(fontsize="x-small", loc="lower left")
+            ax.set_ylabel("standard deviation at the end [m]")
+        ax.grid(True, which="both", lw=0.3, alpha=0.5)
+    fig.legend(loc="outside lower center", ncols=4, fontsize="x-small")
     if title:
         fig.suptitle(title)
     return fig
