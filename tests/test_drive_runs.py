@@ -159,7 +159,9 @@ def test_the_schema_checks_the_drive_section() -> None:
     base = {"experiment_sets": {"S": {"base": {"trajectory": {"name": "arc"}, "monte_carlo": {"n_particles": 0}},
                                       "sweep": [{"drive": [{"type": "tricycle"}, {"type": "omni3", "radius": 0.1}]}]}}}  # fmt: skip
     full = sweep.validate_config(copy.deepcopy(base), schema)
-    assert [r.config["drive"]["type"] for r in sweep.expand_all(full)["S"]] == ["tricycle", "omni3"]
+    runs = sweep.expand_all(full)["S"]
+    assert [r.config["drive"]["type"] for r in runs] == ["tricycle", "omni3"]
+    assert [r.id for r in runs] == ["tricycle", "omni3-r0.1"]  # the drive type reads bare in a run id
     for drive, pattern in (
         ({"type": "tricycle", "max_steering": 2.0}, r"drive\.max_steering.*2\.0; allowed: > 0 and <= 1\.5707963267948966"),
         ({"type": "bicycle"}, r"drive\.type.*\"bicycle\".*allowed: one of \"differential\""),
