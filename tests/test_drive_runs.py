@@ -374,3 +374,13 @@ def test_report_section_formats_the_logged_drive_measures(drive_logs, tmp_path: 
     assert "The skid-steer's odometry is not trustworthy in turns." in section
     assert '<a href="#drives">Beyond the differential drive</a>' in html
     assert section.count('<img src="data:image/png;base64,') == 1
+
+
+def test_a_track_left_to_the_trajectory_is_checked_with_it() -> None:
+    """Ackermann's inner wheel stays within 90° iff tan(max_steering) ≤ 2d/b: with b from the trajectory."""
+    arc = {**ARC, "track": 0.05}  # 2d/b = 4 ≥ tan(1.2) = 2.57
+    drive = {"type": "ackermann", "wheelbase": 0.1, "max_steering": 1.2}
+    cfg = RunConfig.from_dict(_config(drive, arc))
+    assert cfg.drive.drive(arc["track"]).track == 0.05  # type: ignore[union-attr]
+    with pytest.raises(ValueError, match=r"tan\(max_steering\) <= 2·wheelbase/track = 1,"):
+        RunConfig.from_dict(_config(drive, {**ARC, "track": 0.2}))

@@ -218,7 +218,8 @@ class DriveConfig:
             default = None if key == "track" else jsonable(getattr(proto, key))
             geometry[key] = _geometry_value(key, data.get(key, default))
         out = cls(type=kind, geometry=geometry, errors=DriveErrors.from_dict(data.get("errors") or {}))
-        out.drive(0.2)  # the geometry as a whole (e.g. Ackermann's steering limit), any track
+        if geometry.get("track", 0.0) is not None:  # else the trajectory's track: check_path checks it
+            out.drive(math.nan)  # the geometry as a whole (e.g. Ackermann's steering limit)
         return out
 
     def to_dict(self) -> dict[str, Any]:

@@ -20,6 +20,11 @@ A configuration is written as a plain mapping (YAML or JSON)::
     maps:
       - {name: velocity, model: velocity, alpha: [0.05, 0.05, 0.05, 0.05, 0.05, 0.05]}
 
+An optional ``drive`` section (:mod:`pose_uncertainty.logs.drive_config`) makes the
+robot any drive of thesis 002; the trajectory is then the path it follows and
+:mod:`pose_uncertainty.logs.drive_run` computes the drive's Method A, Monte Carlo and
+banana. Without it the run is the differential drive of ``k_r``, ``k_l``.
+
 :meth:`RunConfig.to_dict` returns *every* parameter, defaults included (the
 trajectory builder's defaults too), so that a logged configuration re-runs the
 same computation; :meth:`RunConfig.units` gives the unit of each key.
