@@ -404,3 +404,21 @@ def test_speed_results_are_read_for_the_report(tmp_path: Path) -> None:
     assert [r["benchmark"] for r in res] == ["foundation", "b"]
     assert res[0]["results"] == {"mc": {"vectorised_s": 2.3, "speedup": 49.0}, "x": {"value": 1.5}}
     assert "error" in res[1]
+
+
+def test_report_has_the_drives_section(quick: Path) -> None:
+    """"Beyond the differential drive" formats the D_drives table: its numbers, from the logged measures."""
+    from pose_uncertainty.present.report import _fmt
+
+    html = (quick / "reports/comparison.html").read_text(encoding="utf-8")
+    section = html[html.index('<h2 id="drives">'):html.index('<h2 id="reproducibility">')]
+    rows = {r["run"]: r for r in read_table(quick / "reports/tables/D_drives.csv")}
+    for run in ("differential_straight", "tricycle_straight", "synchro_straight"):
+        r = rows[run]
+        assert f'<a href="#run-D_drives-{run}">' in section
+        for key in ("A_sigma_across", "MC_sigma_across", "A_growth_sigma_across", "MC_growth_sigma_along"):
+            assert _fmt(r[key], 3) in section, (run, key)
+    arc = rows["skid_steer_arc"]
+    assert arc["drive_plain_odometry_mahalanobis"] > 3  # the turn bias is outside the 98.89 % ellipse
+    assert f"{_fmt(arc['drive_plain_odometry_mahalanobis'], 3)} standard deviations" in section
+    assert 'id="fig-D_drives-set-drives"' in html

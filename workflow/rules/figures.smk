@@ -70,3 +70,26 @@ rule render_cloud_polar_figure:
         "data/benchmarks/render_cloud_polar_figure/{set}.tsv"
     script:
         "../scripts/render_set_figure.py"
+
+
+rule render_drives_figure:
+    input:
+        logs=lambda w: run_logs(w.set),
+    output:
+        report(
+            "reports/figures/{set}/drives.png",
+            caption="../report/drives.rst",
+            category="{set}",
+            subcategory="set figures",
+            labels={"figure": "sigma along and across per drive"},
+        ),
+    params:
+        source=SOURCE_PRESENT,
+        kind="drives",
+        title=lambda w: config["experiment_sets"][w.set]["title"],
+    log:
+        "logs/render_drives_figure/{set}.log",
+    benchmark:
+        "data/benchmarks/render_drives_figure/{set}.tsv"
+    script:
+        "../scripts/render_set_figure.py"

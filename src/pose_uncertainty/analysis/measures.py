@@ -8,7 +8,7 @@ and logs them; everything downstream reads them back. Names:
 * ``MC_*`` — the Monte Carlo end-pose cloud against Method A (:func:`cloud_measures`);
 * ``map_<name>_*`` — a probability map and its model's own sampler (:func:`map_measures`);
 * ``accuracy_<method>_*`` — how far each Gaussian method is from the run's
-  Monte Carlo (:func:`pose_uncertainty.analysis.accuracy.compare_methods`).
+  Monte Carlo (:func:`pose_uncertainty.analysis.accuracy.compare_methods`);
 * ``C_*`` — Method C, the unscented transform, at the end of the path
   (:func:`unscented_measures`): as ``A_*``, plus its mean, its covariance and the mean's
   shift from the nominal end; ``MC_mean_shift_*``, ``MC_mean_offset_C`` — where the Monte
@@ -16,7 +16,12 @@ and logs them; everything downstream reads them back. Names:
   the Monte Carlo cloud. The UT on SE(2) (:func:`pose_uncertainty.methods.unscented.propagate_se2`)
   is not logged: its covariance is the exponential-coordinates Gaussian's (the banana's,
   ``accuracy_expcoords_*``) to a relative 4·10⁻¹¹ on a 64 m line and 1.6·10⁻⁹ on eight laps of
-  the 1 m circle (k = 5·10⁻⁴ m, b = 0.2 m), at twice Method C's cost.
+  the 1 m circle (k = 5·10⁻⁴ m, b = 0.2 m), at twice Method C's cost;
+* runs with a ``drive`` section only (:mod:`pose_uncertainty.logs.drive_run`):
+  ``A_growth_*``, ``MC_growth_*`` — power-law exponents of the spreads against
+  path length (:func:`pose_uncertainty.analysis.drives.growth_measures`), and for a
+  skid-steer drive ``drive_plain_odometry_*`` — the bias of plain differential
+  odometry (:func:`pose_uncertainty.analysis.drives.plain_odometry_measures`).
 
 :func:`describe` gives the unit and definition of any of these names; a name it
 does not know raises ``KeyError`` (a run cannot log an undefined number).
@@ -148,6 +153,26 @@ _DEFINITIONS: tuple[tuple[str, str, str], ...] = (
      "mean log-likelihood of the Monte Carlo end {2}s under the {1} Gaussian"),
     (r"accuracy_(cartesian|expcoords)_nees_(pose|xy)", "1",
      "mean normalised estimation error squared of the {1} Gaussian ({2}; 3 or 2 if consistent)"),
+    # --- runs with a drive section (issue 12; pose_uncertainty.logs.drive_run) ---
+    (r"A_growth_(sigma_along|sigma_across|sigma_theta)", "1",
+     ("exponent p of the power law {1} ∝ s^p fitted (least squares, log-log) to Method A's {1} against "
+     "the path length s at the growth points: the Monte Carlo checkpoints and the end, or without "
+     "two checkpoints 20 poses evenly spaced from 5 % of the path to its end")),
+    (r"MC_growth_(sigma_along|sigma_across|sigma_theta)", "1",
+     ("exponent p of the power law {1} ∝ s^p fitted (least squares, log-log) to the Monte Carlo "
+     "clouds' {1} (sample covariance, frame of the nominal heading) at the checkpoints and the end")),
+    (r"(A|MC)_growth_(sigma_along|sigma_across|sigma_theta)_residual", "1",
+     "rms residual of ln σ of the power law fitted in {1}_growth_{2}"),
+    (r"drive_plain_odometry_position_error", "m",
+     ("distance of the end position that plain differential odometry (χ = 1, x_ICR = 0) reports from "
+     "the skid-steer drive's true (ICR-model) end position, on the nominal track travels")),
+    (r"drive_plain_odometry_heading_error", "rad",
+     "end heading reported by plain differential odometry minus the skid-steer drive's true end heading"),
+    (r"drive_plain_odometry_max_heading_error", "rad",
+     "largest |heading error| of plain differential odometry on a skid-steer drive along the path"),
+    (r"drive_plain_odometry_mahalanobis", "1",
+     ("Mahalanobis distance of plain odometry's end position from the true one under Method A's "
+     "(x, y) covariance at the end: its bias in standard deviations of the uncertainty (3 at 98.89 %)")),
 )
 
 # --- Method C, the unscented transform (issue 11): C_*, the mean shifts, accuracy_unscented_* ---

@@ -21,6 +21,11 @@ A configuration is written as a plain mapping (YAML or JSON)::
     maps:
       - {name: velocity, model: velocity, alpha: [0.05, 0.05, 0.05, 0.05, 0.05, 0.05]}
 
+An optional ``drive`` section (:mod:`pose_uncertainty.logs.drive_config`) makes the
+robot any drive of thesis 002; the trajectory is then the path it follows and
+:mod:`pose_uncertainty.logs.drive_run` computes the drive's Method A, Monte Carlo and
+banana. Without it the run is the differential drive of ``k_r``, ``k_l``.
+
 :meth:`RunConfig.to_dict` returns *every* parameter, defaults included (the
 trajectory builder's defaults too), so that a logged configuration re-runs the
 same computation; :meth:`RunConfig.units` gives the unit of each key.
@@ -32,7 +37,6 @@ import contextlib
 import dataclasses
 import inspect
 import math
-import re
 import time
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
@@ -48,6 +52,18 @@ from ..core.stats import PR_3SIGMA
 from ..core.tables import jsonable
 from ..methods import covariance, expcoords, maps, motion_models, sampling, unscented
 from ..methods.maps import ProbabilityMap
+from .config_checks import check_keys as _check_keys
+from .config_checks import fail as _fail
+from .config_checks import integer as _int
+from .config_checks import name as _name
+from .config_checks import real as _float
+from .drive_config import DriveConfig, check_path
+from .drive_run import DriveSetup
+from .drive_run import expcoords as drive_expcoords
+from .drive_run import measures as drive_measures
+from .drive_run import method_a as drive_method_a
+from .drive_run import sample as drive_sample
+from .drive_run import setup as drive_setup
 from .provenance import provenance
 
 __all__ = [
@@ -59,8 +75,6 @@ __all__ = [
     "map_kind",
 ]
 
-
-_NAME_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$")
 
 #: Units of the trajectory builder parameters (SPEC §1, pose_uncertainty.core.trajectories).
 TRAJECTORY_UNITS: dict[str, str] = {
@@ -79,47 +93,6 @@ TRAJECTORY_UNITS: dict[str, str] = {
     "profile": "- (constant | ramp)",
     "start": "(m, m, rad)",
 }
-
-
-def _fail(key: str, rule: str, value: Any) -> ValueError:
-    return ValueError(f"config key {key!r} must be {rule}, got {value!r}")
-
-
-def _check_keys(where: str, data: Mapping[str, Any], allowed: tuple[str, ...]) -> None:
-    if not isinstance(data, Mapping):
-        raise _fail(where or "config", "a mapping", data)
-    unknown = sorted(set(data) - set(allowed))
-    if unknown:
-        prefix = f"{where}." if where else ""
-        raise ValueError(
-            f"unknown config key(s) {', '.join(repr(prefix + k) for k in unknown)} "
-            f"(allowed: {', '.join(allowed)})"
-        )
-
-
-def _float(key: str, value: Any, *, positive: bool = False, nonneg: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
-        raise _fail(key, "a real number", value)
-    v = float(value)
-    if not math.isfinite(v):
-        raise _fail(key, "finite", value)
-    if positive and not v > 0:
-        raise _fail(key, "> 0 (allowed: (0, inf))", value)
-    if nonneg and not v >= 0:
-        raise _fail(key, ">= 0 (allowed: [0, inf))", value)
-    return v
-
-
-def _int(key: str, value: Any, *, minimum: int = 0) -> int:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
-        raise _fail(key, f"an integer >= {minimum}", value)
-    return int(value)
-
-
-def _name(key: str, value: Any) -> str:
-    if not isinstance(value, str) or not _NAME_RE.match(value):
-        raise _fail(key, "a name of letters, digits, '_', '.', '-'", value)
-    return value
 
 
 @dataclass(frozen=True)
@@ -345,6 +318,11 @@ class RunConfig:
     maps : tuple of MapConfig
     name : str
         Run identifier.
+    drive : DriveConfig or None
+        The robot's drive (:mod:`pose_uncertainty.logs.drive_config`): its type,
+        geometry and odometry errors; the trajectory is then the path it follows.
+        None (no ``drive`` key) = the differential drive of ``trajectory.track``
+        with ``k_r``, ``k_l``, logged exactly as before the drives existed.
     """
 
     trajectory: dict[str, Any]
@@ -357,6 +335,7 @@ class RunConfig:
     monte_carlo: MonteCarloConfig = field(default_factory=MonteCarloConfig)
     maps: tuple[MapConfig, ...] = ()
     name: str = "run"
+    drive: DriveConfig | None = None
 
     KEYS = (
         "name",
@@ -369,6 +348,7 @@ class RunConfig:
         "n_ellipses",
         "monte_carlo",
         "maps",
+        "drive",
     )
 
     @classmethod
@@ -420,6 +400,10 @@ class RunConfig:
         if len(set(names)) != len(names):
             raise _fail("maps[].name", "unique", names)
         name = _name("name", data.get("name", "run"))
+        drive = None
+        if data.get("drive") is not None:
+            drive = DriveConfig.from_dict(data["drive"])
+            check_path(drive, traj, k_r, k_l)  # the drive can follow the path (vectorised, cheap)
         return cls(
             trajectory=traj,
             k_r=k_r,
@@ -431,6 +415,7 @@ class RunConfig:
             monte_carlo=mc,
             maps=maps,
             name=name,
+            drive=drive,
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -446,12 +431,13 @@ class RunConfig:
             "n_ellipses": self.n_ellipses,
             "monte_carlo": self.monte_carlo.to_dict(),
             "maps": [m.to_dict() for m in self.maps],
+            # only when configured: a run without a drive logs exactly what it logged before
+            **({} if self.drive is None else {"drive": self.drive.to_dict()}),
         }
 
-    @staticmethod
-    def units() -> dict[str, Any]:
+    def units(self) -> dict[str, Any]:
         """Unit of every configuration key (``"1"`` = dimensionless, ``"-"`` = not a number)."""
-        return {
+        units: dict[str, Any] = {
             "name": "-",
             "seed": "1",
             "trajectory": dict(TRAJECTORY_UNITS),
@@ -486,6 +472,9 @@ class RunConfig:
                 "theta_resolution": "rad",
             },
         }
+        if self.drive is not None:  # only when configured (the logged units of other runs are unchanged)
+            units["drive"] = DriveConfig.units()
+        return units
 
 
 @dataclass(frozen=True, eq=False)
@@ -557,25 +546,34 @@ def execute(config: RunConfig) -> RunResult:
     t_all = time.perf_counter()
     with _timed(timings, "trajectory_s"):
         traj = trajectories.from_config(config.trajectory)
+        ds = None if config.drive is None else drive_setup(config.drive, traj, config.k_r, config.k_l)
     with _timed(timings, "covariance_s"):
-        cres = covariance.propagate(traj, config.k_r, config.k_l, cov0=_cov0(config))
-    with _timed(timings, "unscented_s"):  # Method C (issue 11)
-        ures = unscented.propagate(traj, config.k_r, config.k_l, cov0=_cov0(config))
-    c_end = (np.asarray(ures.poses[-1], dtype=np.float64), np.asarray(ures.covs[-1], dtype=np.float64))
+        if ds is None:
+            cres = covariance.propagate(traj, config.k_r, config.k_l, cov0=_cov0(config))
+        else:  # the drive following the path (logs/drive_run.py)
+            cres = drive_method_a(ds, _cov0(config))
+    c_end = None
+    if ds is None:  # Method C (issue 11), on the differential drive's wheel-noise model
+        with _timed(timings, "unscented_s"):
+            ures = unscented.propagate(traj, config.k_r, config.k_l, cov0=_cov0(config))
+        c_end = (np.asarray(ures.poses[-1], dtype=np.float64), np.asarray(ures.covs[-1], dtype=np.float64))
     poses = np.ascontiguousarray(cres.poses, dtype=np.float64)
     covs = np.ascontiguousarray(cres.covs, dtype=np.float64)
     end_poses: NDArray[np.float64] | None = None
     checkpoints: dict[int, NDArray[np.float64]] = {}
     if config.monte_carlo.n_particles > 0:
         with _timed(timings, "monte_carlo_s"):
-            end_poses, checkpoints = _monte_carlo(config, traj)
+            end_poses, checkpoints = _monte_carlo(config, traj, ds)
     maps, samplers = [], {}
     for i, mcfg in enumerate(config.maps):
         with _timed(timings, f"map_{mcfg.name}_s"):
             maps.append(_compute_map(mcfg, traj))
             samplers[mcfg.name] = _map_sampler(config, mcfg, traj, i)
     with _timed(timings, "measures_s"):
-        metrics = _measures(config, traj, poses, covs, end_poses, maps, samplers, c_end)
+        metrics = _measures(config, traj, poses, covs, end_poses, maps, samplers, c_end, ds)
+        if ds is not None:  # the growth laws and the skid-steer's turn bias
+            metrics.update(drive_measures(ds, poses, covs, config.monte_carlo.checkpoints,
+                                          checkpoints, end_poses))  # fmt: skip
     timings["total_s"] = time.perf_counter() - t_all
     return RunResult(
         config=config, times=np.ascontiguousarray(traj.times, dtype=np.float64), poses=poses,
@@ -602,16 +600,20 @@ def _cov0(config: RunConfig) -> NDArray[np.float64] | None:
 
 
 def _monte_carlo(
-    config: RunConfig, traj: trajectories.Trajectory
+    config: RunConfig, traj: trajectories.Trajectory, ds: DriveSetup | None = None
 ) -> tuple[NDArray[np.float64], dict[int, NDArray[np.float64]]]:
-    """Monte Carlo end poses (n, 3) and the clouds at the checkpoint steps."""
+    """Monte Carlo end poses (n, 3) and the clouds at the checkpoint steps (of the drive, if any)."""
     mc = config.monte_carlo
     rng = np.random.default_rng(config.seed)
     steps = [*mc.checkpoints, traj.n_steps] if mc.checkpoints else None
-    out = sampling.sample_end_poses(
-        traj, config.k_r, config.k_l, mc.n_particles, rng,
-        regime=mc.regime, method=mc.method, cov0=config.cov0, checkpoints=steps,
-    )  # fmt: skip
+    if ds is None:
+        out = sampling.sample_end_poses(
+            traj, config.k_r, config.k_l, mc.n_particles, rng,
+            regime=mc.regime, method=mc.method, cov0=config.cov0, checkpoints=steps,
+        )  # fmt: skip
+    else:
+        out = drive_sample(ds, mc.n_particles, rng, regime=mc.regime, method=mc.method,
+                           cov0=_cov0(config), checkpoints=steps)  # fmt: skip
     if steps is None:  # the sampler's fast path: end poses only, (n, 3)
         return np.ascontiguousarray(out, dtype=np.float64), {}
     # (n, C, 3): the clouds at the checkpoints, then at the end
@@ -671,23 +673,26 @@ def _measures(
     end_poses: NDArray[np.float64] | None,
     maps_: list[ProbabilityMap],
     samplers: dict[str, NDArray[np.float64]],
-    c_end: tuple[NDArray[np.float64], NDArray[np.float64]],
+    c_end: tuple[NDArray[np.float64], NDArray[np.float64]] | None,
+    ds: DriveSetup | None = None,
 ) -> dict[str, float]:
     """Every measure of the run (:mod:`pose_uncertainty.analysis.measures`), computed once here.
 
-    ``c_end`` is Method C's (mean, covariance) at the end of the path.
+    ``c_end`` is Method C's (mean, covariance) at the end of the path (None with a drive:
+    Method C is the differential drive's); ``ds`` the drive following the path, if any.
     """
     out = measures.run_measures(traj.length, traj.duration, poses[-1])
     out.update(measures.gaussian_measures(poses[-1], covs[-1], config.pr))
-    out.update(measures.unscented_measures(c_end[0], c_end[1], poses[-1], config.pr))
-    if end_poses is not None and end_poses.shape[0] >= 1:
-        out.update(measures.cloud_shift_measures(end_poses, poses[-1], c_end[0]))
+    if c_end is not None:
+        out.update(measures.unscented_measures(c_end[0], c_end[1], poses[-1], config.pr))
+        if end_poses is not None and end_poses.shape[0] >= 1:
+            out.update(measures.cloud_shift_measures(end_poses, poses[-1], c_end[0]))
     if end_poses is not None and end_poses.shape[0] >= 3:
         out.update(measures.cloud_measures(end_poses, poses[-1], covs[-1], config.pr))
     for mp in maps_:
         out.update(measures.map_measures(mp, config.pr, samplers.get(mp.name)))
     if end_poses is not None and end_poses.shape[0] >= 10:
-        out.update(_accuracy_metrics(config, traj, poses, covs, end_poses, c_end))
+        out.update(_accuracy_metrics(config, traj, poses, covs, end_poses, c_end, ds))
     return out
 
 
@@ -698,6 +703,7 @@ def _accuracy_metrics(
     covs: NDArray[np.float64],
     end_poses: NDArray[np.float64],
     c_end: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+    ds: DriveSetup | None = None,
 ) -> dict[str, float]:
     """How wrong each Gaussian method is against this run's Monte Carlo cloud.
 
@@ -705,7 +711,9 @@ def _accuracy_metrics(
     (the banana) and Method C (``c_end``: the unscented transform's mean and
     covariance) of the same wheel-noise model, against the end-pose cloud
     (:func:`pose_uncertainty.analysis.accuracy.compare_methods`). Deterministic:
-    its own generator is derived from the run's seed.
+    its own generator is derived from the run's seed. Empty when either Gaussian is
+    degenerate (a drive that never turns, the synchro drive, has no heading spread):
+    the comparison needs a density.
     """
     cov0 = None
     if config.cov0 is not None:
@@ -714,9 +722,23 @@ def _accuracy_metrics(
         c, s = math.cos(traj.start[2]), math.sin(traj.start[2])
         T = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         cov0 = T.T @ np.asarray(config.cov0, dtype=np.float64) @ T
-    E = expcoords.propagate(traj, config.k_r, config.k_l, cov0=cov0)
+    if ds is None:
+        E = expcoords.propagate(traj, config.k_r, config.k_l, cov0=cov0)
+    else:  # the drive's own banana
+        E = drive_expcoords(ds, cov0)
+    if not (_positive_definite(covs[-1]) and _positive_definite(E.covs[-1])):
+        return {}
     res = accuracy.compare_methods(
         end_poses, (poses[-1], covs[-1]), (E.poses[-1], E.covs[-1]),
         np.random.default_rng([config.seed, 1]), n_threshold=50_000, unscented=c_end,
     )  # fmt: skip
     return accuracy.flatten(res)
+
+
+def _positive_definite(cov: NDArray[np.float64]) -> bool:
+    """Whether a covariance has a Cholesky factor (what the accuracy comparison's densities need)."""
+    try:
+        np.linalg.cholesky(cov)
+    except np.linalg.LinAlgError:
+        return False
+    return True

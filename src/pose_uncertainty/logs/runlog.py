@@ -948,6 +948,8 @@ def format_summary(log: RunLog) -> str:
     for key in PROVENANCE_KEYS:
         if key in log.provenance:
             lines.append(f"  {key}: {log.provenance[key]}")
+    if log.config.drive is not None:
+        lines.append(f"drive     {log.config.drive.describe()}")
     lines.append("config")
     lines.extend(f"  {ln}" for ln in _flatten(log.config.to_dict(), log.config.units()))
     lines.append("topics")

@@ -74,7 +74,7 @@ ABBREVIATIONS: dict[str, str] = {
 }
 
 #: Keys whose value alone is readable (no ``key`` prefix in the id).
-BARE_KEYS: frozenset[str] = frozenset({"name", "profile", "method", "regime", "model"})
+BARE_KEYS: frozenset[str] = frozenset({"name", "profile", "method", "regime", "model", "type"})
 
 _SAFE = re.compile(r"[^A-Za-z0-9_.-]+")
 
@@ -224,8 +224,10 @@ def label_value(value: Any) -> str:
             parts.append(label_value(value["name"]))
         if "model" in value:
             parts.append(label_value(value["model"]))
+        if "type" in value:  # a drive section: its type first
+            parts.append(label_value(value["type"]))
         for k in sorted(value):
-            if k in ("name", "model"):
+            if k in ("name", "model", "type"):
                 continue
             parts.append(run_label(k, value[k]))
         return "-".join(p for p in parts if p)

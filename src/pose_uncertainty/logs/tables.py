@@ -4,7 +4,7 @@ Every column of a row comes from one logged source of its run:
 
 * ``set``, ``run``, ``seed``, ``n_steps`` — the run's identity (config and data);
 * ``param.<key>`` — the logged run configuration (nested keys joined by dots,
-  lists as JSON);
+  lists as JSON; ``param.drive.*`` for a run with a drive section);
 * ``provenance.<key>`` — the log's provenance (package version, git commit,
   environment.lock sha256, ...);
 * ``<measure>`` — every metric logged on ``/metrics`` under its own name, e.g.
@@ -44,8 +44,9 @@ def run_row(log: str | os.PathLike[str] | RunLog, timings: str | os.PathLike[str
     run = log if isinstance(log, RunLog) else open_run(log)
     cfg = run.config.to_dict()
     row: dict[str, Any] = {"run": run.config.name, "seed": run.config.seed, "n_steps": run.n_steps}
-    for key in ("trajectory", "k_r", "k_l", "cov0", "pr", "n_ellipses", "monte_carlo"):
-        _flat(f"param.{key}", cfg[key], row)
+    for key in ("trajectory", "k_r", "k_l", "cov0", "pr", "n_ellipses", "monte_carlo", "drive"):
+        if key in cfg:  # ``drive`` only when the run configures one
+            _flat(f"param.{key}", cfg[key], row)
     for key, value in sorted(run.provenance.items()):
         row[f"provenance.{key}"] = value
     row.update({k: float(v) for k, v in sorted(run.metrics.items())})

@@ -112,9 +112,16 @@ def trajectory_figure(run: RunResult) -> Figure:
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
-    ax.set_title(
-        f"{cfg.name}: {cfg.trajectory['name']}, Pr = {_pct(cfg.pr)}, k_r = {cfg.k_r:g} m, k_l = {cfg.k_l:g} m"
-    )
+    if cfg.drive is None:
+        ax.set_title(
+            f"{cfg.name}: {cfg.trajectory['name']}, Pr = {_pct(cfg.pr)}, k_r = {cfg.k_r:g} m, k_l = {cfg.k_l:g} m"
+        )
+    else:  # name the drive (its geometry in a second line)
+        ax.set_title(
+            f"{cfg.name}: {cfg.drive.type} drive on {cfg.trajectory['name']}, Pr = {_pct(cfg.pr)}\n"
+            f"{cfg.drive.describe()}",
+            fontsize="medium",
+        )
     ax.grid(True, lw=0.3, alpha=0.5)
     ax.legend(loc="best", fontsize="small")
     return fig
@@ -170,7 +177,8 @@ def cloud_figure(run: RunResult) -> Figure | None:
     cov_note = ""
     if "MC_coverage_pr" in run.metrics:
         cov_note = f"; inside: {100.0 * run.metrics['MC_coverage_pr']:.2f} %"
-    ax.set_title(f"{cfg.name}: end poses, {cfg.monte_carlo.regime}{cov_note}")
+    drive = "" if cfg.drive is None else f" ({cfg.drive.type} drive)"
+    ax.set_title(f"{cfg.name}{drive}: end poses, {cfg.monte_carlo.regime}{cov_note}")
     ax.grid(True, lw=0.3, alpha=0.5)
     ax.legend(loc="best", fontsize="small")
     return fig

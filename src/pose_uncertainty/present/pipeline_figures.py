@@ -11,6 +11,8 @@
   errors before and after the correction, with their centres of gravity;
 * :func:`render_study_figure` — a study's figure from its log alone, by the study's kind
   (:data:`STUDY_FIGURES`).
+* :func:`drives_figure` — σ along and across the path per drive, one panel per path, from the
+  logged measures of runs with a drive.
 
 Every figure is saved by :func:`pose_uncertainty.present.figures.save_figure` (deterministic bytes).
 """
@@ -26,6 +28,7 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..core.drives import DRIVES
 from ..core.stats import COVERAGE_LEVELS
 from ..logs.runlog import open_run
 from ..logs.study import read_study
@@ -35,6 +38,7 @@ from . import figures
 __all__ = [
     "STUDY_FIGURES",
     "cloud_polar_figure",
+    "drives_figure",
     "expcoords_figure",
     "growth_figure",
     "map_cloud_figure",
@@ -278,16 +282,65 @@ def expcoords_figure(data: Mapping[str, Any]) -> Figure:
     return fig
 
 
+def drives_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") -> Figure:
+    """σ along and across the path at its end, per drive, one panel per path (log scale).
+
+    Filled markers: Method A's logged ``A_sigma_along`` (blue circles) and ``A_sigma_across``
+    (red squares); crosses: the Monte Carlo's ``MC_sigma_along`` / ``MC_sigma_across``
+    (:mod:`pose_uncertainty.analysis.measures`). Runs without a drive section are drawn as
+    ``differential``. Drives in the order of :data:`pose_uncertainty.core.drives.DRIVES`; paths
+    in the order they first appear.
+
+    Parameters
+    ----------
+    logs : sequence of paths to run logs
+    title : str
+    """
+    panels: dict[str, dict[str, dict[str, float]]] = {}
+    for p in logs:
+        run = open_run(p)
+        m = run.metrics
+        label = f"{run.config.trajectory['name']}, {m.get('path_length', math.nan):.3g} m"
+        kind = "differential" if run.config.drive is None else run.config.drive.type
+        panels.setdefault(label, {})[kind] = m
+    fig = figures.new_figure((3.4 * max(len(panels), 1) + 0.6, 4.8))
+    series = (("A_sigma_along", "tab:blue", "o", "Method A: σ along"),
+              ("A_sigma_across", "tab:red", "s", "Method A: σ across"),
+              ("MC_sigma_along", "tab:blue", "x", "Monte Carlo: σ along"),
+              ("MC_sigma_across", "tab:red", "x", "Monte Carlo: σ across"))  # fmt: skip
+    for j, (label, runs) in enumerate(panels.items()):
+        ax = fig.add_subplot(1, len(panels), j + 1)
+        order = [k for k in DRIVES if k in runs]
+        for key, color, marker, name in series:
+            filled = marker != "x"
+            ax.plot(range(len(order)), [runs[k].get(key, math.nan) for k in order], ls="none", marker=marker,
+                    ms=7 if filled else 9, color=color, alpha=0.6 if filled else 1.0,
+                    label=name if j == 0 else None)  # fmt: skip
+        ax.set_yscale("log")
+        ax.set_xlim(-0.6, len(order) - 0.4)
+        ax.set_xticks(range(len(order)), order, rotation=45, ha="right", fontsize="small")
+        ax.set_title(label, fontsize="medium")
+        if j == 0:
+            ax.set_ylabel("standard deviation at the end [m]")
+        ax.grid(True, which="both", lw=0.3, alpha=0.5)
+    fig.legend(loc="outside lower center", ncols=4, fontsize="x-small")
+    if title:
+        fig.suptitle(title)
+    return fig
+
+
 def render_set_figure(
     kind: str, logs: Sequence[str | os.PathLike[str]], out: str | os.PathLike[str], title: str = ""
 ) -> Path:
-    """Draw a set-level figure (``growth`` or ``cloud_polar``) and save it."""
+    """Draw a set-level figure (``growth``, ``cloud_polar`` or ``drives``) and save it."""
     if kind == "growth":
         fig = growth_figure(logs, title)
     elif kind == "cloud_polar":
         fig = cloud_polar_figure(logs, title)
+    elif kind == "drives":
+        fig = drives_figure(logs, title)
     else:
-        raise ValueError(f"set figure kind must be 'growth' or 'cloud_polar', got {kind!r}")
+        raise ValueError(f"set figure kind must be 'growth', 'cloud_polar' or 'drives', got {kind!r}")
     Path(out).parent.mkdir(parents=True, exist_ok=True)
     return figures.save_figure(fig, out)
 

@@ -11,6 +11,8 @@
   quotes (:func:`pose_uncertainty.logs.study.collect_studies`);
 * ``reports/pipeline.json`` — provenance read from every log, seeds and per-rule
   times (:func:`pose_uncertainty.logs.summary.summarize_pipeline`);
+* the runs with a drive section, arranged by drive and path for the section "Beyond the
+  differential drive" (their table rows as they are);
 * the figures (inlined as ``data:`` URIs: no network request, works offline) and
   the speed benchmarks' result files when ``make bench`` has written them.
 
@@ -32,6 +34,7 @@ from typing import Any
 
 import jinja2
 
+from ..core.drives import DRIVES
 from ..core.stats import COVERAGE_LEVELS
 from ..core.tables import read_table
 
@@ -119,6 +122,33 @@ def _sets(manifest: Mapping[str, Any], tables: Mapping[str, str | os.PathLike[st
     return sets
 
 
+def _drive_runs(sets: list[dict[str, Any]]) -> dict[str, Any]:
+    """The runs with a drive section, arranged for "Beyond the differential drive" (selection only).
+
+    Returns ``{"drives": [type, ...] (in DRIVES order), "paths": [trajectory name, ...] (first
+    appearance), "by": {type: {path: run}}, "sets": [set name, ...], "figures": {set: path}}``;
+    a run is ``{"set", "id", "path", "drive" (its logged section), "m" (its table row)}``. The first run of a
+    (drive, path) pair wins.
+    """
+    by: dict[str, dict[str, dict[str, Any]]] = {}
+    paths: list[str] = []
+    names: list[str] = []
+    figs: dict[str, str] = {}
+    for s in sets:
+        for r in s["runs"]:
+            drive = r["config"].get("drive")
+            if not drive:
+                continue
+            path = r["config"]["trajectory"]["name"]
+            paths += [] if path in paths else [path]
+            names += [] if s["name"] in names else [s["name"]]
+            run = {"set": s["name"], "id": r["id"], "path": path, "drive": drive, "m": r["m"]}
+            by.setdefault(drive["type"], {}).setdefault(path, run)
+            if "drives" in s["figures"]:
+                figs[s["name"]] = s["figures"]["drives"]
+    return {"drives": [d for d in DRIVES if d in by], "paths": paths, "by": by, "sets": names, "figures": figs}
+
+
 def build_report(
     manifest: Mapping[str, Any],
     tables: Mapping[str, str | os.PathLike[str]],
@@ -152,9 +182,11 @@ def build_report(
     pipeline = _read_json(pipeline_path)
     studies = _read_json(studies_path) or {"studies": None, "summary": {}}
     prov = pipeline["provenance"]
+    sets = _sets(manifest, tables)
     text = _environment().get_template("comparison.html.j2").render(
         title=title,
-        sets=_sets(manifest, tables),
+        sets=sets,
+        drives=_drive_runs(sets),
         claims=claims["claims"],
         guide=claims["guide"],
         unscented=claims.get("unscented"),  # Method C (issue 11): analysis.claims.unscented_summary

@@ -1,0 +1,66 @@
+"""Checks of run-configuration values: one-line errors naming the key, the value and what is allowed.
+
+Shared by :mod:`pose_uncertainty.logs.run` (the run configuration) and
+:mod:`pose_uncertainty.logs.drive_config` (its ``drive`` section). Every error has
+the form ``"config key '<dotted.key>' must be <rule>, got <value>"`` or, for
+unknown keys, ``"unknown config key(s) '<dotted.key>' (allowed: ...)"``.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+__all__ = ["check_keys", "fail", "integer", "name", "real"]
+
+_NAME_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$")
+
+
+def fail(key: str, rule: str, value: Any) -> ValueError:
+    """The error for a bad value: ``config key '<key>' must be <rule>, got <value>``."""
+    return ValueError(f"config key {key!r} must be {rule}, got {value!r}")
+
+
+def check_keys(where: str, data: Mapping[str, Any], allowed: tuple[str, ...]) -> None:
+    """Require a mapping whose keys are among ``allowed``; ``where`` is its dotted key ('' = the root)."""
+    if not isinstance(data, Mapping):
+        raise fail(where or "config", "a mapping", data)
+    unknown = sorted(set(data) - set(allowed))
+    if unknown:
+        prefix = f"{where}." if where else ""
+        raise ValueError(
+            f"unknown config key(s) {', '.join(repr(prefix + k) for k in unknown)} "
+            f"(allowed: {', '.join(allowed)})"
+        )
+
+
+def real(key: str, value: Any, *, positive: bool = False, nonneg: bool = False) -> float:
+    """A finite real number (not a bool), optionally > 0 or >= 0."""
+    if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
+        raise fail(key, "a real number", value)
+    v = float(value)
+    if not math.isfinite(v):
+        raise fail(key, "finite", value)
+    if positive and not v > 0:
+        raise fail(key, "> 0 (allowed: (0, inf))", value)
+    if nonneg and not v >= 0:
+        raise fail(key, ">= 0 (allowed: [0, inf))", value)
+    return v
+
+
+def integer(key: str, value: Any, *, minimum: int = 0) -> int:
+    """An integer (not a bool) >= ``minimum``."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
+        raise fail(key, f"an integer >= {minimum}", value)
+    return int(value)
+
+
+def name(key: str, value: Any) -> str:
+    """A name of letters, digits, ``_``, ``.``, ``-`` (not starting with ``.`` or ``-``)."""
+    if not isinstance(value, str) or not _NAME_RE.match(value):
+        raise fail(key, "a name of letters, digits, '_', '.', '-'", value)
+    return value

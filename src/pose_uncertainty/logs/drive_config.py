@@ -1,0 +1,342 @@
+"""The ``drive`` section of a run configuration: which drive, its geometry, its odometry errors.
+
+Without a ``drive`` section a run is the differential drive of the trajectory's
+track with the wheel constants ``k_r``, ``k_l`` (today's runs, logged exactly as
+before). With one, the trajectory is the geometric path that the drive follows
+(:func:`pose_uncertainty.core.drives.follow`), and Method A, Monte Carlo and
+the exponential-coordinates Gaussian are those of the drive
+(:mod:`pose_uncertainty.logs.drive_run`)::
+
+    drive:
+      type: tricycle          # differential | skid_steer | tricycle | ackermann | two_axle
+                              # | synchro | mdof | omni3
+      wheelbase: 0.2          # m
+      max_steering: 1.5708    # rad, in (0, π/2]
+      errors:
+        k: null               # m per metre of travel of every travel channel (null: k_r, k_l)
+        steer_var: 0.02       # rad², per step, on every steering angle
+        steer_bias: 0.0       # rad, true minus reported
+        encoder: null         # seed 001's encoder sources instead of k (mapping, see below)
+        slip: null            # skid_steer only: {chi_var [1], x_icr_var [m²]}
+
+Geometry keys per type (:data:`GEOMETRY`; a key of another type is rejected):
+``differential`` track; ``skid_steer`` track, chi, x_icr; ``tricycle`` wheelbase,
+max_steering; ``ackermann`` wheelbase, track, max_steering; ``two_axle``
+wheelbase, max_steering; ``synchro`` none; ``mdof`` wheels; ``omni3`` radius.
+``track: null`` (the default) is the trajectory's track; every other key left
+out takes the drive class's default (:mod:`pose_uncertainty.core.drives`), and
+:meth:`DriveConfig.to_dict` writes it out.
+
+Errors (:class:`pose_uncertainty.methods.drive_noise.DriveErrorModel`): ``k``
+null takes the run's ``k_r``, ``k_l`` — one ``k`` for every travel channel when
+they are equal, else ``k_r`` on the right and ``k_l`` on the left channel of a
+drive that has them (differential, skid_steer, ackermann); a number or one
+number per travel channel sets it directly. ``steer_var`` and ``steer_bias`` act
+on the steering angles and must be 0 for a drive without any.
+``encoder`` takes the keys of :class:`pose_uncertainty.methods.wheel_noise.WheelErrorSources`
+(defaults: seed 001's chassis) and replaces ``k``.
+
+A drive that cannot follow the configured path (a rotation in place with
+limited steering, a sideways step of a car) is rejected when the configuration
+is read, with the one-line error of :func:`~pose_uncertainty.core.drives.follow`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
+from typing import Any
+
+from ..core import trajectories
+from ..core.drives import DRIVES, Drive, follow
+from ..core.tables import jsonable
+from ..methods.drive_noise import DriveErrorModel, IcrSlip, channels
+from ..methods.wheel_noise import WheelErrorSources
+from .config_checks import check_keys, fail, integer, real
+
+__all__ = ["GEOMETRY", "DriveConfig", "DriveErrors", "check_path"]
+
+#: Geometry keys of each drive type (the fields of its class in ``core.drives``).
+GEOMETRY: dict[str, tuple[str, ...]] = {
+    kind: tuple(f.name for f in fields(cls))  # type: ignore[arg-type]
+    for kind, cls in DRIVES.items()
+}
+
+#: Keys of a ``drive`` section (geometry keys apply to some types only).
+KEYS: tuple[str, ...] = ("type", "track", "wheelbase", "max_steering", "chi", "x_icr", "radius",
+                         "wheels", "errors")  # fmt: skip
+
+_ERROR_KEYS = ("k", "steer_var", "steer_bias", "encoder", "slip")
+_ENCODER_KEYS = tuple(f.name for f in fields(WheelErrorSources))
+_SLIP_KEYS = ("chi_var", "x_icr_var")
+
+#: Right and left travel channels, for ``k`` taken from ``k_r``, ``k_l``.
+_RIGHT, _LEFT = ("ds_r", "ds_right"), ("ds_l", "ds_left")
+
+
+def _numbers(key: str, value: Any, *, nonneg: bool) -> float | tuple[float, ...]:
+    """One real number or a non-empty list of them."""
+    if isinstance(value, list | tuple):
+        if not value:
+            raise fail(key, "a number or a non-empty list of numbers", value)
+        return tuple(real(f"{key}[{i}]", v, nonneg=nonneg) for i, v in enumerate(value))
+    return real(key, value, nonneg=nonneg)
+
+
+def _plain(value: float | tuple[float, ...] | None) -> Any:
+    return list(value) if isinstance(value, tuple) else value
+
+
+@dataclass(frozen=True)
+class DriveErrors:
+    """The ``drive.errors`` section (module docstring); units: k [m], steer_var [rad²], steer_bias [rad].
+
+    Attributes
+    ----------
+    k : float, tuple of float or None — travel variance per metre; None = the run's k_r, k_l
+    steer_var, steer_bias : float or tuple of float — per steering channel or one for all
+    encoder : dict or None — every field of WheelErrorSources
+    slip : dict or None — ``chi_var`` [1], ``x_icr_var`` [m²]
+    """
+
+    k: float | tuple[float, ...] | None = None
+    steer_var: float | tuple[float, ...] = 0.0
+    steer_bias: float | tuple[float, ...] = 0.0
+    encoder: dict[str, Any] | None = None
+    slip: dict[str, float] | None = None
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> DriveErrors:
+        """Validate ``drive.errors``; unknown keys and bad values raise a one-line ValueError."""
+        check_keys("drive.errors", data, _ERROR_KEYS)
+        k = data.get("k")
+        encoder = data.get("encoder")
+        slip = data.get("slip")
+        return cls(
+            k=None if k is None else _numbers("drive.errors.k", k, nonneg=True),
+            steer_var=_numbers("drive.errors.steer_var", data.get("steer_var", 0.0), nonneg=True),
+            steer_bias=_numbers("drive.errors.steer_bias", data.get("steer_bias", 0.0), nonneg=False),
+            encoder=None if encoder is None else _encoder(encoder),
+            slip=None if slip is None else _slip(slip),
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain mapping with every parameter."""
+        return {
+            "k": _plain(self.k),
+            "steer_var": _plain(self.steer_var),
+            "steer_bias": _plain(self.steer_bias),
+            "encoder": None if self.encoder is None else dict(self.encoder),
+            "slip": None if self.slip is None else dict(self.slip),
+        }
+
+
+def _encoder(data: Any) -> dict[str, Any]:
+    """``drive.errors.encoder``: every WheelErrorSources field, seed 001's defaults filled in."""
+    check_keys("drive.errors.encoder", data, _ENCODER_KEYS)
+    full = {f.name: data.get(f.name, f.default) for f in fields(WheelErrorSources)}
+    where = "drive.errors.encoder."
+    full["pulses_per_rev"] = integer(where + "pulses_per_rev", full["pulses_per_rev"], minimum=1)
+    for key in ("wheel_diameter", "integration_time"):
+        full[key] = real(where + key, full[key], positive=True)
+    for key in ("surface_rel_std", "additive_std"):
+        full[key] = real(where + key, full[key], nonneg=True)
+    if not isinstance(full["quantisation"], bool):
+        raise fail(where + "quantisation", "true or false", full["quantisation"])
+    return full
+
+
+def _slip(data: Any) -> dict[str, float]:
+    check_keys("drive.errors.slip", data, _SLIP_KEYS)
+    return {k: real(f"drive.errors.slip.{k}", data.get(k, 0.0), nonneg=True) for k in _SLIP_KEYS}
+
+
+def _geometry_value(key: str, value: Any) -> Any:
+    """One geometry value, checked; ``track`` may be None (the trajectory's)."""
+    where = f"drive.{key}"
+    if key == "track" and value is None:
+        return None
+    if key in ("track", "wheelbase", "chi", "radius"):
+        return real(where, value, positive=True)
+    if key == "max_steering":
+        v = real(where, value)
+        if not 0.0 < v <= math.pi / 2:
+            raise fail(where, f"in (0, π/2] rad (allowed: steering up to ±90° = {math.pi / 2!r} rad)", value)
+        return v
+    if key == "x_icr":
+        return real(where, value)
+    # wheels: (x, y) body positions [m]
+    if not isinstance(value, list | tuple) or len(value) < 2:
+        raise fail(where, "a list of n >= 2 wheel positions [x, y] [m]", value)
+    out = []
+    for i, p in enumerate(value):
+        if not isinstance(p, list | tuple) or len(p) != 2:
+            raise fail(f"{where}[{i}]", "a position [x, y] [m]", p)
+        out.append([real(f"{where}[{i}][0]", p[0]), real(f"{where}[{i}][1]", p[1])])
+    return out
+
+
+@dataclass(frozen=True)
+class DriveConfig:
+    """A run's drive: type, geometry (every parameter of the type) and error sources.
+
+    Attributes
+    ----------
+    type : str — a key of :data:`pose_uncertainty.core.drives.DRIVES`
+    geometry : dict — the type's geometry keys (:data:`GEOMETRY`) with their values
+        [m, rad, 1]; ``track`` None = the trajectory's track
+    errors : DriveErrors
+    """
+
+    type: str
+    geometry: dict[str, Any] = field(default_factory=dict)
+    errors: DriveErrors = field(default_factory=DriveErrors)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> DriveConfig:
+        """Validate a ``drive`` mapping and fill in every default of its type.
+
+        Raises
+        ------
+        ValueError — one line naming the key (``drive.wheelbase``), the value and what is allowed.
+        """
+        check_keys("drive", data, KEYS)
+        kind = data.get("type", "differential")
+        if kind not in DRIVES:
+            raise fail("drive.type", f"one of {tuple(DRIVES)}", kind)
+        allowed = GEOMETRY[kind]
+        extra = sorted(k for k in data if k not in ("type", "errors", *allowed))
+        if extra:
+            raise ValueError(
+                f"config key 'drive.{extra[0]}' does not apply to a {kind} drive "
+                f"(allowed for {kind}: type, {', '.join((*allowed, 'errors'))})"
+            )
+        proto = DRIVES[kind]()  # the class's defaults (every drive has them)
+        geometry: dict[str, Any] = {}
+        for key in allowed:
+            default = None if key == "track" else jsonable(getattr(proto, key))
+            geometry[key] = _geometry_value(key, data.get(key, default))
+        out = cls(type=kind, geometry=geometry, errors=DriveErrors.from_dict(data.get("errors") or {}))
+        if geometry.get("track", 0.0) is not None:  # else the trajectory's track: check_path checks it
+            out.drive(math.nan)  # the geometry as a whole (e.g. Ackermann's steering limit)
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain mapping with every parameter (round-trips via :meth:`from_dict`)."""
+        return {"type": self.type, **jsonable(self.geometry), "errors": self.errors.to_dict()}
+
+    def drive(self, track: float) -> Drive:
+        """The drive; ``track`` [m] is used where the configured track is None (the trajectory's)."""
+        geometry = dict(self.geometry)
+        if "track" in geometry and geometry["track"] is None:
+            geometry["track"] = track
+        if "wheels" in geometry:
+            geometry["wheels"] = tuple(tuple(p) for p in geometry["wheels"])
+        try:
+            return DRIVES[self.type](**geometry)
+        except ValueError as exc:
+            raise ValueError(f"config key 'drive' ({self.type}): {exc}") from None
+
+    def error_model(self, drive: Drive, k_r: float, k_l: float) -> DriveErrorModel:
+        """The drive's error model; ``k`` None takes ``k_r``, ``k_l`` (module docstring)."""
+        e = self.errors
+        k = _k_of(drive, e.k, k_r, k_l)
+        has_angle = "angle" in drive.kinds
+        for key in ("steer_var", "steer_bias"):
+            if not has_angle and any(v != 0 for v in _as_tuple(getattr(e, key))):
+                raise fail(f"drive.errors.{key}", f"0: the {drive.kind} drive has no steering angle",
+                           _plain(getattr(e, key)))  # fmt: skip
+        if e.slip is not None and drive.kind != "skid_steer":
+            raise fail("drive.errors.slip", f"null: slip applies to a skid_steer drive, not {drive.kind}",
+                       e.slip)  # fmt: skip
+        model = DriveErrorModel(
+            k=k, steer_var=e.steer_var, steer_bias=e.steer_bias,
+            encoder=None if e.encoder is None else WheelErrorSources(**e.encoder),
+            slip=None if e.slip is None else IcrSlip(**e.slip),
+        )  # fmt: skip
+        try:
+            channels(drive, model)
+        except ValueError as exc:
+            raise ValueError(f"config key 'drive.errors' ({drive.kind}): {exc}") from None
+        return model
+
+    def describe(self) -> str:
+        """One line for summaries and figure titles: the type and its geometry with units."""
+        unit = {"track": "m", "wheelbase": "m", "max_steering": "rad", "chi": "", "x_icr": "m",
+                "radius": "m", "wheels": "m"}  # fmt: skip
+        parts = []
+        for key, value in self.geometry.items():
+            text = "trajectory's" if value is None else (f"{value:g}" if isinstance(value, float) else str(value))
+            parts.append(f"{key} {text} {unit[key]}".rstrip())
+        return f"{self.type} drive" + (f" ({', '.join(parts)})" if parts else "")
+
+    @staticmethod
+    def units() -> dict[str, Any]:
+        """Unit of every key of a ``drive`` section."""
+        return {
+            "type": "- (" + " | ".join(DRIVES) + ")",
+            "track": "m (null = trajectory.track)",
+            "wheelbase": "m",
+            "max_steering": "rad",
+            "chi": "1 (ICR expansion factor)",
+            "x_icr": "m (longitudinal ICR offset)",
+            "radius": "m (omni wheels from the centre)",
+            "wheels": "m (body positions [x, y] of the wheels)",
+            "errors": {
+                "k": "m (travel variance per metre of each travel channel; null = k_r, k_l)",
+                "steer_var": "rad^2 (per-step variance of each steering angle)",
+                "steer_bias": "rad (steering bias, true minus reported)",
+                "encoder": {
+                    "pulses_per_rev": "1/rev",
+                    "wheel_diameter": "m",
+                    "integration_time": "s",
+                    "surface_rel_std": "1 (relative to the speed)",
+                    "additive_std": "m/s",
+                    "quantisation": "- (bool)",
+                },
+                "slip": {"chi_var": "1 (variance of chi)", "x_icr_var": "m^2 (variance of x_icr)"},
+            },
+        }
+
+
+def _as_tuple(value: float | tuple[float, ...]) -> tuple[float, ...]:
+    return value if isinstance(value, tuple) else (value,)
+
+
+def _k_of(
+    drive: Drive, k: float | tuple[float, ...] | None, k_r: float, k_l: float
+) -> float | tuple[float, ...]:
+    """``k`` as configured, or from the run's ``k_r``, ``k_l`` when it is None."""
+    if k is not None:
+        return k
+    if k_r == k_l:
+        return k_r
+    travel = [c for c, kind in zip(drive.channels, drive.kinds, strict=True) if kind == "travel"]
+    if len(travel) == 2 and {travel[0], travel[1]} & set(_RIGHT) and {travel[0], travel[1]} & set(_LEFT):
+        return tuple(k_r if c in _RIGHT else k_l for c in travel)
+    raise ValueError(
+        f"config key 'drive.errors.k' is null and k_r = {k_r!r} != k_l = {k_l!r}, but the "
+        f"{drive.kind} drive's travel channels {', '.join(travel)} have no right and left "
+        "(allowed: k_r == k_l, or drive.errors.k)"
+    )
+
+
+def check_path(config: DriveConfig, trajectory: Mapping[str, Any], k_r: float, k_l: float) -> None:
+    """Raise a one-line ValueError if the drive cannot follow the trajectory or its errors do not fit.
+
+    Parameters
+    ----------
+    config : DriveConfig
+    trajectory : mapping — the run's trajectory parameters (every default filled in)
+    k_r, k_l : float — the run's wheel constants [m] (for ``errors.k`` None)
+    """
+    traj = trajectories.from_config(trajectory)
+    drive = config.drive(traj.track)
+    config.error_model(drive, k_r, k_l)
+    try:
+        follow(drive, traj)
+    except ValueError as exc:
+        raise ValueError(
+            f"config key 'drive' ({config.type} on trajectory {trajectory['name']!r}): {exc}"
+        ) from None
