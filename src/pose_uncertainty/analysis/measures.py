@@ -394,23 +394,28 @@ def unscented_measures(mean: ArrayLike, cov: ArrayLike, nominal: ArrayLike, pr: 
     return out
 
 
-def cloud_shift_measures(cloud: ArrayLike, nominal: ArrayLike, c_mean: ArrayLike) -> dict[str, float]:
+def cloud_shift_measures(
+    cloud: ArrayLike, nominal: ArrayLike, c_mean: ArrayLike | None = None
+) -> dict[str, float]:
     """Where the Monte Carlo mean lies: its shift along/across from the nominal end, its distance from C's mean.
 
     Parameters
     ----------
     cloud : array_like, shape (n, 3), n ≥ 1 — end poses
-    nominal : array_like, shape (3,) — the nominal end pose; c_mean : array_like, shape (3,) — C's mean
+    nominal : array_like, shape (3,) — the nominal end pose
+    c_mean : array_like, shape (3,), optional — Method C's mean (``MC_mean_offset_C`` only with it)
     """
     s = check_last_axis("cloud", cloud, 3).reshape(-1, 3)
     if s.shape[0] < 1:
         raise ValueError(f"cloud must hold at least one pose, got shape {s.shape}")
-    n, c = check_last_axis("nominal", nominal, 3), check_last_axis("c_mean", c_mean, 3)
+    n = check_last_axis("nominal", nominal, 3)
     mean = s.mean(axis=0)
     along, across = _shift(mean, n)
     out: dict[str, float] = {}
-    _put(out, MC_mean_shift_along=along, MC_mean_shift_across=across,
-         MC_mean_offset_C=math.hypot(mean[0] - c[0], mean[1] - c[1]))  # fmt: skip
+    _put(out, MC_mean_shift_along=along, MC_mean_shift_across=across)
+    if c_mean is not None:
+        c = check_last_axis("c_mean", c_mean, 3)
+        out["MC_mean_offset_C"] = math.hypot(mean[0] - c[0], mean[1] - c[1])
     return out
 
 

@@ -685,8 +685,8 @@ def _measures(
     out.update(measures.gaussian_measures(poses[-1], covs[-1], config.pr))
     if c_end is not None:
         out.update(measures.unscented_measures(c_end[0], c_end[1], poses[-1], config.pr))
-        if end_poses is not None and end_poses.shape[0] >= 1:
-            out.update(measures.cloud_shift_measures(end_poses, poses[-1], c_end[0]))
+    if end_poses is not None and end_poses.shape[0] >= 1:
+        out.update(measures.cloud_shift_measures(end_poses, poses[-1], None if c_end is None else c_end[0]))
     if end_poses is not None and end_poses.shape[0] >= 3:
         out.update(measures.cloud_measures(end_poses, poses[-1], covs[-1], config.pr))
     for mp in maps_:
