@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core.atomic import atomic_write_text
 from ..core.tables import read_table
 
 __all__ = ["CLAIM_SETS", "VERDICTS", "Claim", "evaluate_claims", "power_vs_exponential", "write_claims"]
@@ -644,5 +645,5 @@ def write_claims(tables: Mapping[str, str | os.PathLike[str]], out: str | os.Pat
     claims = evaluate_claims(rows)
     p = Path(out)
     p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(json.dumps([asdict(c) for c in claims], indent=1, sort_keys=True) + "\n", encoding="utf-8")
+    atomic_write_text(p, json.dumps([asdict(c) for c in claims], indent=1, sort_keys=True) + "\n")
     return p

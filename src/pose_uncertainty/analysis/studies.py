@@ -38,6 +38,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import stats as sstats
 
 from ..core import trajectories as tr
+from ..core.atomic import atomic_write_text
 from ..core.kinematics import METHODS
 from ..core.validation import check_choice, check_positive, check_positive_int
 from ..methods import covariance as cv
@@ -813,8 +814,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = p.parse_args(argv)
     text = json.dumps(run_all(args.quick), indent=1)
     if args.output:
-        with open(args.output, "w", encoding="utf-8") as fh:
-            fh.write(text)
+        atomic_write_text(args.output, text)
     sys.stdout.write(text + "\n")
     return 0
 

@@ -14,6 +14,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from .atomic import atomic_write
+
 __all__ = ["read_table", "write_table"]
 
 
@@ -38,7 +40,7 @@ def write_table(
     cols = [k for k in first if k in keys] + [k for k in keys if k not in first]
     p = Path(out)
     p.parent.mkdir(parents=True, exist_ok=True)
-    with open(p, "w", newline="", encoding="utf-8") as fh:
+    with atomic_write(p, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh, lineterminator="\n")
         w.writerow(cols)
         for r in rows:

@@ -53,7 +53,6 @@ import io
 import json
 import math
 import os
-import tempfile
 import warnings
 import zlib
 from collections import Counter
@@ -82,6 +81,7 @@ from mcap_protobuf.schema import build_file_descriptor_set
 from numpy.typing import NDArray
 
 from .. import __version__
+from ..core.atomic import atomic_write
 from ..methods import covariance
 from .run import MapRecord, RunConfig, RunResult
 
@@ -533,8 +533,9 @@ def write_run(
     """Write a run log atomically.
 
     The log is written to a hidden temporary file beside ``path``
-    (``.<name>.<random>.part``), flushed and fsynced, then renamed over ``path``
-    (the parent directory is created if missing). An interrupted write never
+    (``.<name>.<host>-<pid>-<random>.part``), flushed and fsynced, then renamed over
+    ``path`` (:func:`pose_uncertainty.core.atomic.atomic_write`; the parent directory
+    is created if missing). An interrupted write never
     leaves a file at ``path``: on an exception the temporary file is removed; a
     killed process leaves only the ``.part`` file, which :func:`open_run`
     rejects as truncated and ``open_run(..., recover=True)`` can read.
@@ -552,34 +553,9 @@ def write_run(
     -------
     Path — ``path``
     """
-    dest = Path(path)
-    parent = dest.parent
-    parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".part", dir=parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            _write_stream(fh, result, include_timings)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, dest)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
-    try:  # make the rename itself durable
-        dir_fd = os.open(parent, os.O_RDONLY)
-    except OSError:
-        return dest
-    try:
-        os.fsync(dir_fd)
-    except OSError:
-        pass
-    finally:
-        os.close(dir_fd)
-    return dest
+    with atomic_write(path, "wb") as fh:
+        _write_stream(fh, result, include_timings)
+    return Path(path)
 
 
 # --- reading -----------------------------------------------------------------------------

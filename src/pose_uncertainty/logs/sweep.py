@@ -37,6 +37,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ..core.atomic import atomic_write_text
+
 __all__ = [
     "ConfigError",
     "Run",
@@ -443,8 +445,8 @@ def simulate(config: Mapping[str, Any], out: str | Path, timings_out: str | Path
     Path(out).parent.mkdir(parents=True, exist_ok=True)
     path = write_run(out, result)
     if timings_out is not None:
-        Path(timings_out).write_text(
+        atomic_write_text(
+            timings_out,
             json.dumps({k: float(v) for k, v in sorted(result.timings.items())}, indent=1) + "\n",
-            encoding="utf-8",
         )
     return path

@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core.atomic import atomic_write_text
 from ..core.tables import read_table, write_table
 
 __all__ = [
@@ -269,7 +270,7 @@ def run_studies(out: str | os.PathLike[str], quick: bool = False) -> Path:
     result = studies.run_all(quick)
     p = Path(out)
     p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(json.dumps(result, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+    atomic_write_text(p, json.dumps(result, indent=1, sort_keys=True) + "\n")
     return p
 
 
@@ -476,7 +477,7 @@ def build_report(
     )
     p = Path(out)
     p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(text, encoding="utf-8")
+    atomic_write_text(p, text)
     return p
 
 
