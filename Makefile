@@ -7,6 +7,8 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 CORES  ?= all
+# holds a flock for the whole run, clears what a killed run left (workflow/run-locked.sh)
+LOCKED := workflow/run-locked.sh
 
 .PHONY: report test quick bench lint venv lock clean
 
@@ -19,10 +21,10 @@ $(STAMP): environment.lock pyproject.toml
 	@touch $@
 
 report: $(STAMP)
-	$(BIN)/snakemake --profile workflow/profiles/default --cores $(CORES)
+	$(LOCKED) $(BIN)/snakemake --profile workflow/profiles/default --cores $(CORES)
 
 quick: $(STAMP)
-	$(BIN)/snakemake --profile workflow/profiles/default --cores $(CORES) --configfile config/quick.yaml
+	$(LOCKED) $(BIN)/snakemake --profile workflow/profiles/default --cores $(CORES) --configfile config/quick.yaml
 
 test: $(STAMP)
 	$(BIN)/python -m pytest

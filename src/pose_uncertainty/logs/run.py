@@ -43,6 +43,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ..core.validation import NUMBER_HINT, parse_number
+
 __all__ = [
     "DEFAULT_PR",
     "MapConfig",
@@ -98,8 +100,9 @@ def _check_keys(where: str, data: Mapping[str, Any], allowed: tuple[str, ...]) -
 
 
 def _float(key: str, value: Any, *, positive: bool = False, nonneg: bool = False) -> float:
+    value = parse_number(value)  # "5e-4": YAML 1.1 reads a float without a dot as text
     if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
-        raise _fail(key, "a real number", value)
+        raise _fail(key, f"a real number {NUMBER_HINT}", value)
     v = float(value)
     if not math.isfinite(v):
         raise _fail(key, "finite", value)
@@ -111,9 +114,18 @@ def _float(key: str, value: Any, *, positive: bool = False, nonneg: bool = False
 
 
 def _int(key: str, value: Any, *, minimum: int = 0) -> int:
+    value = parse_number(value, like=0)  # "1e5" → 100000
     if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
         raise _fail(key, f"an integer >= {minimum}", value)
     return int(value)
+
+
+def _numbers(value: Any, like: Any = None) -> Any:
+    """``parse_number`` through lists (``alphas``, ``start``): numbers written as text → numbers."""
+    if isinstance(value, list | tuple):
+        item = like[0] if isinstance(like, list | tuple) and like else None
+        return [_numbers(v, item) for v in value]
+    return parse_number(value, like)
 
 
 def _name(key: str, value: Any) -> str:
@@ -280,6 +292,7 @@ def _map_params(where: str, model: str, params: dict[str, Any], n_steps: int) ->
             f"unknown config key(s) {', '.join(repr(f'{where}.{k}') for k in unknown)} "
             f"(allowed for a {kind}-step {model} map: name, model, {', '.join(sorted(defaults))})"
         )
+    params = {k: _numbers(v, defaults[k]) for k, v in params.items()}
     full = _plain({**defaults, **params})
     try:
         maps.check_alphas(full["alphas"], 6 if model == "velocity" else 4)
@@ -312,12 +325,13 @@ def _trajectory_params(data: Any) -> tuple[dict[str, Any], int]:
             f"unknown config key(s) {', '.join(repr('trajectory.' + k) for k in unknown)} "
             f"(allowed for trajectory {name!r}: {', '.join(sorted(defaults))})"
         )
+    params = {k: _numbers(v, defaults[k]) for k, v in params.items()}
     full = {"name": name, **_plain({**defaults, **params})}
-    try:
-        traj = builder(**{k: v for k, v in full.items() if k != "name"})
+    try:  # validated and counted without building it (the cost guard comes first)
+        n = trajectories.n_steps(name, **{k: v for k, v in full.items() if k != "name"})
     except ValueError as exc:
         raise ValueError(f"config key 'trajectory' ({name}): {exc}") from None
-    return full, traj.n_steps
+    return full, n
 
 
 @dataclass(frozen=True)
@@ -709,10 +723,19 @@ def execute(config: RunConfig) -> RunResult:
     RunResult
         Everything but ``timings`` is a deterministic function of ``config``
         (including its seed), the package version and the environment.
+
+    Raises
+    ------
+    pose_uncertainty.logs.cost.CostError
+        Before anything is allocated, when the run's estimated memory or time
+        exceeds the limits (``POSE_UNCERTAINTY_MAX_MEMORY``, ``POSE_UNCERTAINTY_MAX_SECONDS``).
     """
     from ..core import stats, trajectories
     from ..methods import covariance, sampling
+    from . import cost  # imports this module
+    from .progress import Progress
 
+    cost.check(config)  # the guard: one line naming estimate, limit and drivers
     timings: dict[str, float] = {}
     t_all = time.perf_counter()
 
@@ -740,6 +763,7 @@ def execute(config: RunConfig) -> RunResult:
             out = sampling.sample_end_poses(
                 traj, config.k_r, config.k_l, mc.n_particles, rng,
                 regime=mc.regime, method=mc.method, cov0=config.cov0,
+                progress=Progress(f"{config.name}: Monte Carlo"),
             )  # fmt: skip
             end_poses = np.ascontiguousarray(out, dtype=np.float64)
         else:
@@ -747,6 +771,7 @@ def execute(config: RunConfig) -> RunResult:
             out = sampling.sample_end_poses(
                 traj, config.k_r, config.k_l, mc.n_particles, rng,
                 regime=mc.regime, method=mc.method, checkpoints=steps, cov0=config.cov0,
+                progress=Progress(f"{config.name}: Monte Carlo"),
             )  # (n, C, 3): the clouds at the checkpoints, then at the end  # fmt: skip
             end_poses = np.ascontiguousarray(out[:, -1, :], dtype=np.float64)
             checkpoints = {
@@ -758,7 +783,7 @@ def execute(config: RunConfig) -> RunResult:
     maps: list[MapRecord] = []
     for mcfg in config.maps:
         t0 = time.perf_counter()
-        maps.append(_compute_map(mcfg, traj))
+        maps.append(_compute_map(mcfg, traj, Progress(f"{config.name}: map {mcfg.name}")))
         timings[f"map_{mcfg.name}_s"] = time.perf_counter() - t0
 
     metrics, units = _metrics(config, traj, poses, covs, end_poses, maps, covariance, stats)
@@ -784,7 +809,7 @@ def execute(config: RunConfig) -> RunResult:
     )
 
 
-def _compute_map(mcfg: MapConfig, traj: Any) -> MapRecord:
+def _compute_map(mcfg: MapConfig, traj: Any, progress: Any = None) -> MapRecord:
     """Compute one probability map with ``pose_uncertainty.methods.maps``.
 
     A one-step trajectory gives the single-step map of its control ``(V, ω)``
@@ -812,7 +837,8 @@ def _compute_map(mcfg: MapConfig, traj: Any) -> MapRecord:
                 (mid[0], mid[1], end[2]), size, params["resolution"], params["theta_resolution"]
             )
         pm = maps_mod.multi_step_map(
-            mcfg.model, traj.controls, traj.dt, start=traj.start, grid=grid, **params
+            mcfg.model, traj.controls, traj.dt, start=traj.start, grid=grid, progress=progress,
+            **params,
         )
     return MapRecord.from_probability_map(mcfg.name, pm, mcfg.params, center=end)
 

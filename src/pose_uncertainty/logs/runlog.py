@@ -56,7 +56,7 @@ import os
 import warnings
 import zlib
 from collections import Counter
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -423,7 +423,12 @@ def _metadata(result: RunResult) -> dict[str, str]:
     return meta
 
 
-def _write_stream(stream: Any, result: RunResult, include_timings: bool) -> None:
+def _write_stream(
+    stream: Any,
+    result: RunResult,
+    include_timings: bool,
+    progress: Callable[[int, int], None] | None = None,
+) -> None:
     cfg = result.config
     times, poses, covs = result.times, result.poses, result.covs
     n = times.size
@@ -507,6 +512,8 @@ def _write_stream(stream: Any, result: RunResult, include_timings: bool) -> None
 
         if i in checkpoints:
             log.put(T_CHECK, _cloud(checkpoints[i], ti), ti)
+        if progress is not None:
+            progress(i + 1, n)
 
     if result.end_poses is not None:
         log.put(T_END, _cloud(result.end_poses, t_end), t_end)
@@ -528,7 +535,11 @@ def log_bytes(result: RunResult, *, include_timings: bool = False) -> bytes:
 
 
 def write_run(
-    path: str | os.PathLike[str], result: RunResult, *, include_timings: bool = False
+    path: str | os.PathLike[str],
+    result: RunResult,
+    *,
+    include_timings: bool = False,
+    progress: Callable[[int, int], None] | None = None,
 ) -> Path:
     """Write a run log atomically.
 
@@ -548,13 +559,15 @@ def write_run(
         Also write the wall-clock timings (topic ``/timings``). They differ from
         run to run, so a log with timings is not byte-reproducible; without them
         (the default) the same config and seed give a byte-identical file.
+    progress : callable, optional
+        ``progress(done, N+1)`` after each step's messages (default None: nothing).
 
     Returns
     -------
     Path — ``path``
     """
     with atomic_write(path, "wb") as fh:
-        _write_stream(fh, result, include_timings)
+        _write_stream(fh, result, include_timings, progress)
     return Path(path)
 
 

@@ -39,6 +39,7 @@ Discretisation
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -1021,6 +1022,7 @@ def multi_step_map(
     n_nodes_max: int = 1500,
     diffusion_compensation: bool = True,
     workers: int = -1,
+    progress: Callable[[int, int], None] | None = None,
 ) -> ProbabilityMap:
     """Histogram-filter prediction of the pose distribution along a whole trajectory.
 
@@ -1089,6 +1091,8 @@ def multi_step_map(
         Off: every step's kernel is the cell integral of that step's density.
     workers : int
         FFT threads (``scipy.fft``); results do not depend on it.
+    progress : callable, optional
+        ``progress(done, N)`` after each step (default None: nothing).
 
     Returns
     -------
@@ -1108,7 +1112,7 @@ def multi_step_map(
             resolution=float(check_positive("resolution", resolution)) / over,
             theta_resolution=theta_resolution, oversample=1, max_cells=max_cells * over * over,
             n_nodes_max=n_nodes_max, diffusion_compensation=diffusion_compensation,
-            workers=workers,
+            workers=workers, progress=progress,
         )  # fmt: skip
         return _coarsen(fine, over)
     # --- unpack a Trajectory-like object
@@ -1198,7 +1202,9 @@ def multi_step_map(
     negligible = 0.0
     thetas = g.theta
 
-    for stp in steps:
+    for i_step, stp in enumerate(steps):
+        if progress is not None and i_step:
+            progress(i_step, n_steps)
         kern = _quadrature_kernel(stp, h, ht, n_nodes_max, diffusion_compensation)
         # kernel windows per source heading (cells), from the control box perimeter (+1 for CIC)
         px, py = _rotated_cells(kern, thetas, h, kern.perimeter)
@@ -1332,6 +1338,8 @@ def multi_step_map(
         lost_per_step.append(lost_step)
         lost_total += lost_step
         belief = np.ascontiguousarray(new)
+    if progress is not None:
+        progress(n_steps, n_steps)
 
     info = {
         "lost_per_step": lost_per_step,
