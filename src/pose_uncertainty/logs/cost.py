@@ -16,18 +16,19 @@ Monte Carlo               140 B × n (+ 70 B × n × C checkpoints),      100 ns
                           + the chunks in flight: workers × 80 B ×     50 ns per_run, 220 ns with
                           max(65536, N)                                checkpoints
 accuracy metrics (n≥10)   80 MiB + 60 B × n                            1 s + 10 µs × n
-single-step map           cells × 50 B (velocity), 145 B (odometry)    cells × 80 / 150 (cell-averaged)
-                                                                       / 700 ns (odometry)
-multi-step map            cells × 80 B (cells of the final grid:       cells × N × 120 ns + 5 ms × N
-                          fixed ``size``, or the spread of the model's
-                          noise, at most ``max_cells``)
+single-step map           cells × 50 B (velocity), 160 B (odometry)    cells × 80 ns (velocity), 150 ns
+                                                                       (cell-averaged), 700 ns (odometry)
+multi-step map            (35 + 1.5 M) B × padded cells: the final    cells × N × 120 ns (velocity),
+                          grid (fixed ``size``, or the spread of the   600 ns (odometry), + 5 ms × N
+                          noise, at most ``max_cells``) widened by the
+                          kernel's window, M its heading offsets
 ========================  ===========================================  ==================================
 
 (N steps, n particles, C checkpoints; cells = nx·ny·nθ.) The coefficients were
 measured on this project's 2-core CI machine (the peak resident set size of a
-fresh process, ``ru_maxrss``); ``tests/test_faults.py`` checks the memory
-estimate against the measured peak of representative runs within a factor of
-two. Time is an order of magnitude only (machines differ); it sets a cluster
+fresh process, ``ru_maxrss``); ``tests/test_cost.py`` checks the memory
+estimate against the measured peak of representative runs: within [1/1.1, 2]
+times it (measured here 1.0–1.7). Time is an order of magnitude only (machines differ); it sets a cluster
 job's ``runtime`` with a wide margin and the time guard.
 
 The guard (:func:`check`, called by ``execute`` before anything is allocated)
@@ -56,6 +57,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ..core import trajectories
 from .run import RunConfig, map_kind
@@ -92,9 +94,10 @@ _CHUNK_ELEMENTS = 1 << 16  # pose_uncertainty.methods.sampling._CHUNK_ELEMENTS
 _MC_S = {"per_step": 100e-9, "per_run": 50e-9, "checkpoints": 220e-9}
 _ACCURACY_BYTES, _ACCURACY_PARTICLE_BYTES = 80 * MiB, 60.0
 _ACCURACY_S, _ACCURACY_PARTICLE_S = 1.0, 10e-6
-_SINGLE_CELL_BYTES = {"velocity": 50.0, "odometry": 145.0}
+_SINGLE_CELL_BYTES = {"velocity": 50.0, "odometry": 160.0}
 _SINGLE_CELL_S = {"velocity": 80e-9, "averaged": 150e-9, "odometry": 700e-9}
-_MULTI_CELL_BYTES, _MULTI_CELL_STEP_S, _MULTI_STEP_S = 80.0, 120e-9, 5e-3
+_MULTI_PADDED_BYTES, _MULTI_OFFSET_BYTES, _MULTI_STEP_S = 35.0, 1.5, 5e-3
+_MULTI_CELL_STEP_S = {"velocity": 120e-9, "odometry": 600e-9}
 #: the spread a growing map grid holds, in standard deviations of the model's noise, each side
 _SPREAD_SIGMAS = 6.0
 #: trajectories longer than this are not built to predict a growing map grid (its cap is used)
@@ -113,14 +116,16 @@ class Driver:
     ----------
     name : str — what costs (``"steps"``, ``"Monte Carlo"``, ``"map velocity"``)
     params : str — the parameters that set it, as the config spells them
-    mem_bytes : float — its share of the peak memory [bytes]
+    mem_bytes : float — its own peak memory [bytes]
     seconds : float — its share of the time [s]
+    cells : float — the cells of a map (0 for the other drivers)
     """
 
     name: str
     params: str
     mem_bytes: float
     seconds: float
+    cells: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -224,16 +229,23 @@ def _n_theta(theta_resolution: float) -> int:
     return max(1, math.ceil(2.0 * math.pi / theta_resolution - 1e-9))
 
 
-def _growing_cells(cfg: RunConfig, params: Mapping[str, Any], model: str, n_steps: int) -> float:
-    """Cells of the final grid of a growing multi-step map: the noiseless path's box plus
-    ``_SPREAD_SIGMAS`` standard deviations of the accumulated noise on each side (first
-    order: translation noise plus heading noise times the path still to drive), capped."""
-    over = int(params.get("oversample", 1))
-    h = float(params["resolution"]) / over
-    n_t = _n_theta(float(params["theta_resolution"]))
-    cap = float(params["max_cells"]) * over * over
-    if n_steps > _BUILD_MAX_STEPS:
-        return cap
+@dataclass(frozen=True)
+class _StepNoise:
+    """First-order noise of a map's motion model along the trajectory, per step.
+
+    ds [m] travel; trans [m] std of the travel; head_nodes [rad] std of the heading the
+    position nodes of a step's kernel carry (ω̂ / δrot1); head [rad] std of the whole
+    heading change; span (2,) [m] extent of the noiseless path.
+    """
+
+    ds: NDArray[np.float64]
+    trans: NDArray[np.float64]
+    head_nodes: NDArray[np.float64]
+    head: NDArray[np.float64]
+    span: NDArray[np.float64]
+
+
+def _step_noise(cfg: RunConfig, params: Mapping[str, Any], model: str) -> _StepNoise:
     from ..methods import motion_models as mm
 
     tp = dict(cfg.trajectory)
@@ -243,51 +255,86 @@ def _growing_cells(cfg: RunConfig, params: Mapping[str, Any], model: str, n_step
     if model == "velocity":
         var = mm.velocity_variances(traj.controls, a, params["scaling"])  # (N, 3)
         trans = np.sqrt(var[:, 0]) * traj.dt
+        head_nodes = np.sqrt(var[:, 1]) * traj.dt
         head = np.sqrt(var[:, 1] + var[:, 2]) * traj.dt
     else:
         rot = np.abs(traj.dtheta) / 2.0
         v1, v2, v3 = mm.odometry_variances(rot, ds, rot, a, params["scaling"])
-        trans, head = np.sqrt(v2), np.sqrt(v1 + v3)
-    still = np.cumsum(ds[::-1])[::-1] - ds  # path left after each step [m]
-    sigma = math.sqrt(float(np.sum(trans**2) + np.sum((head * still) ** 2)))
-    reach = float(np.max(trans + head * ds)) * _SPREAD_SIGMAS  # the last kernel's reach
-    poses = traj.poses
-    side = 2.0 * (_SPREAD_SIGMAS * sigma + reach) + 8.0 * h
-    span = np.ptp(poses[:, :2], axis=0)
-    cells = (float(span[0]) + side) / h * (float(span[1]) + side) / h * n_t
-    return min(cells, cap)
+        trans, head_nodes, head = np.sqrt(v2), np.sqrt(v1), np.sqrt(v1 + v3)
+    return _StepNoise(ds, trans, head_nodes, head, np.ptp(traj.poses[:, :2], axis=0))
+
+
+def _multi_map(cfg: RunConfig, i: int, n_steps: int) -> Driver:
+    """A multi-step map: its final grid and the FFT buffers of a step.
+
+    The final grid: fixed (``size``), or the noiseless path's box plus
+    ``_SPREAD_SIGMAS`` standard deviations of the accumulated noise on each side (first
+    order: translation noise plus heading noise times the path still to drive), at most
+    ``max_cells``. A step holds, besides the belief, FFT buffers over the grid padded by
+    the kernel's window (w cells a side: the step's travel and ``2 × _SPREAD_SIGMAS``
+    standard deviations) for every heading, and per source heading the kernel's spectrum
+    for each of its M heading offsets: ``(35 + 1.5 M)`` bytes per padded cell (measured).
+    Trajectories longer than ``_BUILD_MAX_STEPS`` are not built: their grid is the cap.
+    """
+    m = cfg.maps[i]
+    p = m.params
+    over = int(p.get("oversample", 1))
+    h = float(p["resolution"]) / over
+    n_t = _n_theta(float(p["theta_resolution"]))
+    cap = float(p["max_cells"]) * over * over
+    noise = _step_noise(cfg, p, m.model) if n_steps <= _BUILD_MAX_STEPS else None
+    if p.get("size") is not None:
+        n = max(1, round(float(p["size"]) / float(p["resolution"])))
+        n += 1 - n % 2
+        nx = ny = float(n)
+        grid = f"size {p['size']!r} m / resolution {p['resolution']!r} m"
+    elif noise is None:
+        nx = ny = math.sqrt(cap / n_t)
+        grid = f"a growing grid of at most max_cells {p['max_cells']:,}"
+    else:
+        still = np.cumsum(noise.ds[::-1])[::-1] - noise.ds  # path left after each step [m]
+        sigma = math.sqrt(float(np.sum(noise.trans**2) + np.sum((noise.head * still) ** 2)))
+        reach = _SPREAD_SIGMAS * float(np.max(noise.trans + noise.head * noise.ds))
+        side = 2.0 * (_SPREAD_SIGMAS * sigma + reach) + 8.0 * h
+        nx, ny = (float(noise.span[0]) + side) / h, (float(noise.span[1]) + side) / h
+        if nx * ny * n_t > cap:
+            nx, ny = (math.sqrt(cap / n_t),) * 2
+        grid = f"a growing grid at resolution {p['resolution']!r} m"
+    cells = nx * ny * n_t
+    if noise is None:
+        w, offsets = 0.5 * nx, float(n_t)
+    else:
+        spread = noise.ds + 2.0 * _SPREAD_SIGMAS * (noise.trans + noise.head_nodes * noise.ds / 2)
+        w = float(np.max(spread)) / h + 4.0
+        offsets = min(n_t, 2.0 * _SPREAD_SIGMAS * float(np.max(noise.head_nodes)) / (2 * math.pi / n_t) + 2)
+    padded = (nx + w) * (ny + w) * n_t
+    return Driver(
+        f"map {m.name}",
+        f"maps[{i}]: {cells:,.0f} cells ({grid}) × N = {n_steps:,} steps",
+        padded * (_MULTI_PADDED_BYTES + _MULTI_OFFSET_BYTES * offsets),
+        cells * n_steps * _MULTI_CELL_STEP_S[m.model] + n_steps * _MULTI_STEP_S,
+        cells,
+    )
 
 
 def _map(cfg: RunConfig, i: int, n_steps: int) -> Driver:
     m = cfg.maps[i]
     p = m.params
-    if map_kind(n_steps) == "single":
-        n = max(1, round(float(p["size"]) / float(p["resolution"])))
-        n += 1 - n % 2
-        cells = float(n * n * _n_theta(float(p["theta_resolution"])))
-        averaged = p.get("cell_average")
-        averaged = bool(p.get("corrected")) if averaged is None else bool(averaged)
-        speed = _SINGLE_CELL_S["odometry" if m.model == "odometry" else ("averaged" if averaged else "velocity")]
-        return Driver(
-            f"map {m.name}",
-            f"maps[{i}]: {cells:,.0f} cells (size {p['size']!r} m / resolution "
-            f"{p['resolution']!r} m, theta_resolution {p['theta_resolution']:.4g} rad)",
-            cells * _SINGLE_CELL_BYTES[m.model],
-            cells * speed,
-        )
-    if p.get("size") is not None:
-        n = max(1, round(float(p["size"]) / float(p["resolution"])))
-        n += 1 - n % 2
-        cells = float(n * n * _n_theta(float(p["theta_resolution"])))
-        grid = f"size {p['size']!r} m / resolution {p['resolution']!r} m"
-    else:
-        cells = _growing_cells(cfg, p, m.model, n_steps)
-        grid = f"a growing grid at resolution {p['resolution']!r} m, max_cells {p['max_cells']:,}"
+    if map_kind(n_steps) == "multi":
+        return _multi_map(cfg, i, n_steps)
+    n = max(1, round(float(p["size"]) / float(p["resolution"])))
+    n += 1 - n % 2
+    cells = float(n * n * _n_theta(float(p["theta_resolution"])))
+    averaged = p.get("cell_average")
+    averaged = bool(p.get("corrected")) if averaged is None else bool(averaged)
+    kind = "odometry" if m.model == "odometry" else ("averaged" if averaged else "velocity")
     return Driver(
         f"map {m.name}",
-        f"maps[{i}]: {cells:,.0f} cells ({grid}) × N = {n_steps:,} steps",
-        cells * _MULTI_CELL_BYTES,
-        cells * n_steps * _MULTI_CELL_STEP_S + n_steps * _MULTI_STEP_S,
+        f"maps[{i}]: {cells:,.0f} cells (size {p['size']!r} m / resolution "
+        f"{p['resolution']!r} m, theta_resolution {p['theta_resolution']:.4g} rad)",
+        cells * _SINGLE_CELL_BYTES[m.model],
+        cells * _SINGLE_CELL_S[kind],
+        cells,
     )
 
 
@@ -302,11 +349,14 @@ def estimate(config: RunConfig | Mapping[str, Any]) -> Cost:
     -------
     Cost
         ``mem_bytes`` [bytes] (peak resident set of the process), ``seconds`` [s]
-        (order of magnitude) and the ``drivers`` they sum.
+        (order of magnitude) and their ``drivers``: the peak is the drivers' sum, except
+        that maps, computed one after the other, add beyond the largest only their
+        values (8 B a cell).
     """
     cfg = _config(config)
     tp = cfg.trajectory
     n_steps = trajectories.n_steps(tp["name"], **{k: v for k, v in tp.items() if k != "name"})
+    maps_ = [_map(cfg, i, n_steps) for i in range(len(cfg.maps))]
     drivers = [
         Driver("interpreter", "Python, numpy, scipy, mcap", _BASE_BYTES, _BASE_S),
         Driver(
@@ -316,9 +366,14 @@ def estimate(config: RunConfig | Mapping[str, Any]) -> Cost:
             _STEP_S * (n_steps + 1),
         ),
         *_monte_carlo(cfg, n_steps),
-        *(_map(cfg, i, n_steps) for i in range(len(cfg.maps))),
+        *maps_,
     ]
     mem = sum(d.mem_bytes for d in drivers)
+    if len(maps_) > 1:
+        # maps are computed one after the other: beyond the largest, each keeps only its values
+        kept = [8.0 * d.cells for d in maps_]
+        mem -= sum(d.mem_bytes for d in maps_)
+        mem += sum(kept) + max(d.mem_bytes - k for d, k in zip(maps_, kept, strict=True))
     secs = sum(d.seconds for d in drivers)
     return Cost(mem_bytes=int(min(mem, 2**62)), seconds=float(secs), drivers=tuple(drivers))
 

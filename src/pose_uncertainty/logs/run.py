@@ -253,7 +253,9 @@ def _plain(value: Any) -> Any:
 
 
 #: Parameters of the map builders that the run supplies itself (not configurable).
-_MAP_SUPPLIED = ("model", "start", "control", "controls", "dt", "grid", "odometry", "workers")
+_MAP_SUPPLIED = (
+    "model", "start", "control", "controls", "dt", "grid", "odometry", "workers", "progress",
+)  # fmt: skip
 
 
 def map_kind(n_steps: int) -> str:
