@@ -199,18 +199,28 @@ def _others_in(work: Path) -> list[int]:
     return out
 
 
-def _kill_when(work: Path, pattern: str, delay: float) -> str:
-    """Start `make quick`, SIGKILL its process group ``delay`` s after ``pattern`` is printed."""
+def _kill_when(work: Path, pattern: str, started: str | None, delay: float) -> str:
+    """Start `make quick`; when it has printed ``pattern`` (a job of that rule was started) and,
+    if given, a file matching the glob ``started`` exists (the job's script is running),
+    wait ``delay`` s and SIGKILL its process group. Returns what it printed."""
     proc = _make_quick(work)
     watch = Watch(proc, pattern)
     watch.start()
-    if not watch.hit.wait(timeout=900):
+    try:
+        if not watch.hit.wait(timeout=900):
+            proc.wait()
+            pytest.fail(f"{pattern!r} never printed:\n{''.join(watch.lines)[-4000:]}")
+        for _ in range(6000):
+            if started is None or any(work.glob(started)) or proc.poll() is not None:
+                break
+            time.sleep(0.01)
+        time.sleep(delay)
+        os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
-        pytest.fail(f"{pattern!r} never printed:\n{''.join(watch.lines)[-4000:]}")
-    time.sleep(delay)
-    os.killpg(proc.pid, signal.SIGKILL)
-    proc.wait()
-    watch.join(timeout=10)
+    finally:
+        watch.join(timeout=10)
+        assert proc.stdout is not None
+        proc.stdout.close()
     for _ in range(100):  # the kernel reaps the group's members asynchronously
         if not _others_in(work):
             break
@@ -226,14 +236,14 @@ def test_sigkill_during_simulation_rendering_and_report_then_make_quick_recovers
     work = copy_project(tmp_path / "project")
     t0 = time.perf_counter()
     # 1. during a simulation: its job has started
-    _kill_when(work, r"rule simulate_run:", 1.0)
+    _kill_when(work, r"rule simulate_run:", "logs/simulate_run/*/*.log", 0.5)
     assert any((work / "logs/simulate_run").rglob("*.log"))
     assert any((work / ".snakemake/locks").iterdir()), "the kill should leave Snakemake's lock"
     # 2. during figure rendering (the rerun resumes: Snakemake's lock is stale and removed)
-    out = _kill_when(work, r"rule render_\w+:", 1.0)
+    out = _kill_when(work, r"rule render_\w+:", "logs/render_*/**/*.log", 0.5)
     assert "removing the Snakemake lock left by an interrupted run" in out
     # 3. during the report build: killed before it could write the report
-    out = _kill_when(work, r"rule build_report:", 0.2)
+    out = _kill_when(work, r"rule build_report:", None, 0.2)
     assert not (work / "reports/comparison.html").exists(), "the report was built before the kill"
     # 4. make quick again: it completes
     final = _make_quick(work)
@@ -241,6 +251,8 @@ def test_sigkill_during_simulation_rendering_and_report_then_make_quick_recovers
     watch.start()
     final.wait(timeout=1200)
     watch.join(timeout=10)
+    assert final.stdout is not None
+    final.stdout.close()
     out = "".join(watch.lines)
     print(f"killed three times and recovered in {time.perf_counter() - t0:.0f} s")
     assert final.returncode == 0, out[-6000:]
@@ -287,6 +299,9 @@ def test_a_second_make_quick_says_one_run_is_already_active(tmp_path: Path) -> N
     finally:
         os.killpg(first.pid, signal.SIGKILL)
         first.wait()
+        watch.join(timeout=10)
+        assert first.stdout is not None
+        first.stdout.close()
     assert second.returncode != 0
     ours = [ln for ln in (second.stdout + second.stderr).splitlines() if ln.startswith("run-locked:")]
     assert len(ours) == 1, second.stdout + second.stderr

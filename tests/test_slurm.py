@@ -18,6 +18,8 @@ Without root or without the SLURM binaries the test is skipped with the reason; 
 
 from __future__ import annotations
 
+import ast
+import importlib.util
 import os
 import re
 import shutil
@@ -33,10 +35,47 @@ from test_pipeline import REPO, copy_workflow, quick_pipeline
 
 from pose_uncertainty.logs import cost, sweep
 
-pytestmark = pytest.mark.slow
-
 VENV_BIN = Path(sys.executable).parent
 BINARIES = ("sinfo", "squeue", "sbatch", "scancel", "srun")
+
+
+def _plugin_settings() -> set[str]:
+    """Fields of the installed plugin's ExecutorSettings, read from its source (importing it
+    runs sacct/scontrol to choose a default)."""
+    spec = importlib.util.find_spec("snakemake_executor_plugin_slurm")
+    assert spec is not None, "snakemake-executor-plugin-slurm missing"
+    assert spec.origin is not None
+    tree = ast.parse(Path(spec.origin).read_text(encoding="utf-8"))
+    (cls,) = [n for n in tree.body if isinstance(n, ast.ClassDef) and n.name == "ExecutorSettings"]
+    return {n.target.id for n in cls.body if isinstance(n, ast.AnnAssign) and isinstance(n.target, ast.Name)}
+
+
+def _flat(d: dict, prefix: str = "") -> dict[str, object]:
+    out: dict[str, object] = {}
+    for k, v in d.items():
+        out.update(_flat(v, f"{prefix}{k}.") if isinstance(v, dict) else {f"{prefix}{k}": v})
+    return out
+
+
+def test_test_profile_differs_from_the_site_profile_only_where_the_cluster_must() -> None:
+    site = _flat(yaml.safe_load((REPO / "workflow/profiles/slurm/config.yaml").read_text()))
+    test = _flat(yaml.safe_load((REPO / "workflow/profiles/slurm-test/config.yaml").read_text()))
+    changed = {k for k in site.keys() | test.keys() if site.get(k) != test.get(k)}
+    assert changed == {
+        "latency-wait",  # one machine
+        "default-resources.slurm_account",  # no accounts without a database ...
+        "slurm-no-account",  # ... so none is sent
+        "default-resources.slurm_partition",  # the partition of .ci/slurm-up.sh
+        "slurm-status-command",  # squeue: no accounting database for sacct
+        "slurm-init-seconds-before-status-checks",  # short jobs
+    }
+    # the plugin's own option names (profile key slurm-<name> ↔ ExecutorSettings.<name>)
+    plugin_keys = [k for k in test if k.startswith("slurm-")]
+    settings = _plugin_settings()
+    assert {"status_command", "no_account", "init_seconds_before_status_checks"} <= settings
+    assert plugin_keys
+    for key in plugin_keys:
+        assert key.removeprefix("slurm-").replace("-", "_") in settings, key
 
 
 def _cluster_state() -> str | None:
@@ -129,6 +168,7 @@ def _minutes(text: str) -> float:
     return (int(days or 0) * 24 + h) * 60 + mi + s / 60
 
 
+@pytest.mark.slow
 def test_quick_pipeline_through_slurm(slurm_cluster: object, tmp_path_factory: pytest.TempPathFactory) -> None:
     local = quick_pipeline(tmp_path_factory.getbasetemp())
     work = copy_workflow(tmp_path_factory.mktemp("slurm"))
