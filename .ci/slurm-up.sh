@@ -76,6 +76,10 @@ NodeName=${node} NodeAddr=127.0.0.1 CPUs=${cpus} RealMemory=${real_mb} State=UNK
 # (the plugin backs off 10 s whenever no job finished), so let others use the core meanwhile
 PartitionName=debug Nodes=ALL Default=YES MaxTime=INFINITE State=UP OverSubscribe=FORCE:4
 CONF
+changed=1
+if [ -f "$CONF" ] && cmp -s "$CONF.new" "$CONF"; then
+  changed=0
+fi
 mv "$CONF.new" "$CONF"
 
 install -d -o slurm -g slurm /var/spool/slurmctld /var/log/slurm
@@ -99,6 +103,8 @@ if ! running /run/munge/munged.pid; then
 fi
 if ! running /run/slurmctld.pid; then
   /usr/sbin/slurmctld
+elif [ "$changed" = 1 ]; then
+  scontrol reconfigure
 fi
 if ! running /run/slurmd.pid; then
   /usr/sbin/slurmd

@@ -229,11 +229,14 @@ def test_pipeline_schema_refuses_text_that_is_no_number() -> None:
 
 # --- the memory estimate against the measured peak ---------------------------------------------
 
+#: the peak resident set of the process: VmHWM of its memory map (ru_maxrss would also count
+#: the parent's resident set at the fork, which Linux carries over the exec)
 PEAK = """
-import json, resource, sys
+import json, sys
 from pose_uncertainty.logs.sweep import simulate
 simulate(json.loads(sys.argv[1]), sys.argv[2])
-print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024)  # Linux: KiB
+with open("/proc/self/status") as fh:
+    print(next(int(ln.split()[1]) * 1024 for ln in fh if ln.startswith("VmHWM:")))
 """
 
 #: one representative run per driver, each a few seconds, each peak more than twice the

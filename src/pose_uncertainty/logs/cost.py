@@ -26,7 +26,7 @@ multi-step map            (35 + 1.5 M) B × padded cells: the final    cells × 
 
 (N steps, n particles, C checkpoints; cells = nx·ny·nθ.) The coefficients were
 measured on this project's 2-core CI machine (the peak resident set size of a
-fresh process, ``ru_maxrss``); ``tests/test_cost.py`` checks the memory estimate
+fresh process, ``VmHWM``); ``tests/test_cost.py`` checks the memory estimate
 against the measured peak of representative runs, within [1/1.1, 2] times it
 (1.0–1.7 when measured). Time is an order of magnitude only (machines differ): it
 sets a cluster job's ``runtime``, with a wide margin, and the time guard.
