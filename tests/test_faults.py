@@ -147,6 +147,26 @@ def test_a_run_holding_the_lock_stops_a_second_one_in_one_line(tmp_path: Path) -
     assert line.startswith(f"run-locked: another pipeline run is active in {tmp_path};")
 
 
+def test_a_job_that_outlived_its_snakemake_stops_the_rerun(tmp_path: Path) -> None:
+    """kill -9 of snakemake alone leaves its job scripts running: wait for them, do not rerun."""
+    scripts = tmp_path / ".snakemake/scripts"
+    scripts.mkdir(parents=True)
+    (scripts / "tmpabc.simulate_run.py").write_text("import time\ntime.sleep(60)\n", encoding="utf-8")
+    (tmp_path / ".snakemake/locks").mkdir()
+    (tmp_path / ".snakemake/locks/0.output.lock").write_text("x\n", encoding="utf-8")
+    orphan = subprocess.Popen([sys.executable, ".snakemake/scripts/tmpabc.simulate_run.py"], cwd=tmp_path)
+    try:
+        res = _locked(tmp_path, "sh", "-c", "echo ran")
+    finally:
+        orphan.kill()
+        orphan.wait()
+    assert res.returncode == 75
+    (line,) = res.stderr.strip().splitlines()
+    assert line.startswith(f"run-locked: another snakemake run or its jobs are still working in {tmp_path} (pid")
+    assert str(orphan.pid) in line
+    assert (tmp_path / ".snakemake/locks/0.output.lock").exists()  # not removed under a live job
+
+
 # --- the quick pipeline, killed three times ------------------------------------------------------
 
 

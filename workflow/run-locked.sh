@@ -4,12 +4,13 @@
 #
 #   workflow/run-locked.sh .venv/bin/snakemake --profile workflow/profiles/default ...
 #
-# 1. Take an exclusive flock on .snakemake/run.flock, held for the whole run (the file
-#    descriptor is inherited by snakemake and its jobs; the kernel releases it when the
-#    last of them exits, however they die). Held by another run: print one line, exit 75.
-# 2. With the flock held and no other snakemake process working in this directory, a
-#    Snakemake lock (.snakemake/locks/*) can only have been left by a killed run: remove
-#    it, and the temporary files (.<name>.*.part) its writers left in data/ and reports/.
+# 1. Take an exclusive flock on .snakemake/run.flock, held for the whole run (snakemake
+#    inherits the file descriptor through exec; the kernel releases it when snakemake exits,
+#    however it dies). Held by another run: print one line, exit 75.
+# 2. With the flock held and no snakemake process or job script of another run working in
+#    this directory, a Snakemake lock (.snakemake/locks/*) can only have been left by a
+#    killed run: remove it, and the temporary files (.<name>.*.part) its writers left in
+#    data/ and reports/.
 # 3. exec snakemake; the profiles' rerun-incomplete redoes the jobs the kill interrupted.
 set -euo pipefail
 
@@ -28,7 +29,8 @@ if ! flock --nonblock 9; then
 fi
 echo "$$" >"$state/run.pid"  # exec keeps this pid for snakemake
 
-# Another snakemake started by hand (without this wrapper) in the same directory?
+# Another snakemake started by hand (without this wrapper) in this directory, or a job script
+# that outlived its killed snakemake (kill -9 of snakemake alone)?
 others=""
 for proc in /proc/[0-9]*; do
   pid=${proc#/proc/}
@@ -37,15 +39,15 @@ for proc in /proc/[0-9]*; do
   argv=()
   mapfile -d '' -t argv <"$proc/cmdline" 2>/dev/null || continue
   for a in "${argv[@]:0:3}"; do
-    # the snakemake entry point or `python -m snakemake`, not a job's script
-    if [ "${a##*/}" = snakemake ]; then
+    # the snakemake entry point, `python -m snakemake`, or a job's script
+    if [ "${a##*/}" = snakemake ] || [[ "$a" == *.snakemake/scripts/* ]]; then
       others="$others $pid"
       break
     fi
   done
 done
 if [ -n "$others" ]; then
-  echo "run-locked: snakemake is already running in $PWD (pid$others), started without make; wait for it to finish or stop it, then rerun" >&2
+  echo "run-locked: another snakemake run or its jobs are still working in $PWD (pid$others); wait for them to finish or stop them, then rerun" >&2
   exit 75
 fi
 
