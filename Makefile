@@ -7,8 +7,10 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 CORES  ?= all
+# holds a flock for the whole run, clears what a killed run left (workflow/run-locked.sh)
+LOCKED := workflow/run-locked.sh
 
-.PHONY: report test quick bench lint venv lock clean
+.PHONY: report test quick bench lint venv lock clean slurm-up slurm-down
 
 venv: $(STAMP)
 
@@ -19,10 +21,10 @@ $(STAMP): environment.lock pyproject.toml
 	@touch $@
 
 report: $(STAMP)
-	$(BIN)/snakemake --profile workflow/profiles/default --cores $(CORES)
+	$(LOCKED) $(BIN)/snakemake --profile workflow/profiles/default --cores $(CORES)
 
 quick: $(STAMP)
-	$(BIN)/snakemake --profile workflow/profiles/default --cores $(CORES) --configfile config/quick.yaml
+	$(LOCKED) $(BIN)/snakemake --profile workflow/profiles/default --cores $(CORES) --configfile config/quick.yaml
 
 test: $(STAMP)
 	$(BIN)/python -m pytest
@@ -36,6 +38,14 @@ bench: $(STAMP)
 
 lock:
 	uv pip compile requirements.in --python-version 3.11 --python-platform x86_64-unknown-linux-gnu --generate-hashes -o environment.lock
+
+# A single-node SLURM cluster on this machine (root, Debian packages; tests/test_slurm.py uses it):
+#   sudo make slurm-up && .venv/bin/snakemake --profile workflow/profiles/slurm-test ...
+slurm-up:
+	.ci/slurm-up.sh --install
+
+slurm-down:
+	.ci/slurm-down.sh
 
 clean:
 	rm -rf data reports .snakemake

@@ -1,4 +1,5 @@
 # One run → one MCAP log (byte-reproducible) + its wall-clock timings.
+from pose_uncertainty.logs import cost as _cost
 
 
 rule simulate_run:
@@ -9,6 +10,10 @@ rule simulate_run:
         config=run_config,
         # the code that computes a run: a change to it reruns every simulation (the logs record it)
         source=SOURCE_RUNS,
+    resources:
+        # what the run estimates it needs (a cluster job's --mem and --time)
+        mem_mb=lambda wc: _cost.job_resources(run_config(wc))["mem_mb"],
+        runtime=lambda wc: _cost.job_resources(run_config(wc))["runtime"],
     log:
         "logs/simulate_run/{set}/{run}.log",
     benchmark:

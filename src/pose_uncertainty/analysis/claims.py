@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core.atomic import atomic_write_text
 from ..core.stats import COVERAGE_LEVELS, fit_growth
 from ..core.tables import read_table
 
@@ -627,7 +628,7 @@ def write_claims(tables: Mapping[str, str | os.PathLike[str]], out: str | os.Pat
            "unscented": unscented_summary(rows)}  # fmt: skip
     p = Path(out)
     p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+    atomic_write_text(p, json.dumps(doc, indent=1, sort_keys=True) + "\n")
     return p
 
 

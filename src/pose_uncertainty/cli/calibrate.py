@@ -29,7 +29,7 @@ from ..analysis.umbmark import read_returns_csv, umbmark
 from ..core import trajectories
 from ..core.trajectories import Trajectory
 from ..core.validation import check_probability
-from ..logs.run import RunConfig
+from ..logs.config import RunConfig
 from ..logs.runlog import open_run
 from ._common import load_config_file
 

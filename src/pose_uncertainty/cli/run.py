@@ -5,7 +5,9 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from ..logs.run import RunConfig, execute
+from ..logs.config import RunConfig
+from ..logs.progress import Progress
+from ..logs.run import execute
 from ..logs.runlog import write_run
 from ..present.figures import render_figures
 from ._common import EXIT_OK, CommandError, load_config_file
@@ -36,7 +38,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise CommandError(f"{args.config}: {exc}") from None
     result = execute(config)
-    path = write_run(args.output, result, include_timings=args.timings)
+    path = write_run(
+        args.output, result, include_timings=args.timings,
+        progress=Progress(f"{config.name}: writing the log"),
+    )  # fmt: skip
     print(f"wrote {path} ({path.stat().st_size} bytes, {result.n_steps} steps)")
     if args.figures:
         for fig in render_figures(result, args.figures):

@@ -16,6 +16,8 @@ from typing import Any
 
 import numpy as np
 
+from .atomic import atomic_write
+
 __all__ = ["jsonable", "read_table", "write_table"]
 
 
@@ -51,7 +53,7 @@ def write_table(
     cols = [k for k in first if k in keys] + [k for k in keys if k not in first]
     p = Path(out)
     p.parent.mkdir(parents=True, exist_ok=True)
-    with open(p, "w", newline="", encoding="utf-8") as fh:
+    with atomic_write(p, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh, lineterminator="\n")
         w.writerow(cols)
         for r in rows:

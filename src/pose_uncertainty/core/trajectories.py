@@ -25,6 +25,7 @@ the travel of every segment is exact.
 
 from __future__ import annotations
 
+import inspect
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -43,6 +44,7 @@ from .validation import (
 
 __all__ = [
     "BUILDERS",
+    "DRIVE_KEYS",
     "PROFILES",
     "Arc",
     "Line",
@@ -54,6 +56,7 @@ __all__ = [
     "direct",
     "from_config",
     "from_segments",
+    "n_steps",
     "right_angles",
     "rotation",
     "s_curve",
@@ -245,6 +248,50 @@ def _segment_travel(seg: Segment, track: float) -> tuple[float, float, float]:
     raise ValueError(f"segment must be Line, Arc or Turn, got {seg!r}")
 
 
+#: keywords of :func:`from_segments` (the driving, not the geometry, of a path)
+DRIVE_KEYS: tuple[str, ...] = ("speed", "angular_speed", "dt", "track", "profile", "start", "name")
+
+#: above this many steps a trajectory is refused before any allocation (8 bytes × 2 × 10¹⁵)
+_MAX_STEPS = 10**15
+
+
+def _plan(
+    segments: Sequence[Segment],
+    speed: float,
+    angular_speed: float,
+    dt: float,
+    track: float,
+    profile: str,
+    start: ArrayLike,
+) -> tuple[list[tuple[float, float, int]], float, float]:
+    """Validate the driving of ``segments``: per segment (right travel, left travel, steps).
+
+    Allocates nothing of the size of the trajectory; returns ``(plan, dt, track)``.
+    """
+    v = float(check_positive("speed", speed))
+    w = float(check_positive("angular_speed", angular_speed))
+    step = float(check_positive("dt", dt))
+    b = float(check_positive("track", track))
+    check_choice("profile", profile, PROFILES)
+    p0 = check_finite("start", check_last_axis("start", start, 3))
+    if p0.shape != (3,):
+        raise ValueError(f"start must have shape (3,), got shape {p0.shape}")
+    if len(segments) == 0:
+        raise ValueError("segments must not be empty (allowed: at least one segment), got []")
+    plan = []
+    for seg in segments:
+        total_r, total_l, amount = _segment_travel(seg, b)
+        n_float = amount / (w if isinstance(seg, Turn) else v) / step
+        if not n_float < _MAX_STEPS:
+            raise ValueError(
+                f"dt must give fewer than {_MAX_STEPS:.0e} steps per segment "
+                f"(allowed: duration / dt < {_MAX_STEPS:.0e}), got dt = {step!r} for a segment "
+                f"of {amount!r} {'rad' if isinstance(seg, Turn) else 'm'}"
+            )
+        plan.append((total_r, total_l, max(1, round(n_float))))
+    return plan, step, b
+
+
 def from_segments(
     segments: Sequence[Segment],
     *,
@@ -273,18 +320,9 @@ def from_segments(
     -------
     Trajectory
     """
-    v = float(check_positive("speed", speed))
-    w = float(check_positive("angular_speed", angular_speed))
-    step = float(check_positive("dt", dt))
-    b = float(check_positive("track", track))
-    check_choice("profile", profile, PROFILES)
-    if len(segments) == 0:
-        raise ValueError("segments must not be empty (allowed: at least one segment), got []")
+    plan, step, b = _plan(segments, speed, angular_speed, dt, track, profile, start)
     parts_r, parts_l = [], []
-    for seg in segments:
-        total_r, total_l, amount = _segment_travel(seg, b)
-        duration = amount / (w if isinstance(seg, Turn) else v)
-        n = max(1, round(duration / step))
+    for total_r, total_l, n in plan:
         frac = _profile_fractions(n, profile)
         parts_r.append(total_r * frac)
         parts_l.append(total_l * frac)
@@ -299,63 +337,87 @@ def from_segments(
 
 
 # --- the paths of SPEC §4 -------------------------------------------------------------
+# Each path is its segments (a function of the geometric parameters) driven by from_segments.
+
+
+def _g(value: Any) -> str:
+    """A number for a trajectory's name (``%g``); anything else as its repr (validated later)."""
+    if isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool):
+        return f"{value:g}"
+    return repr(value)
+
+
+def _straight(length: float = 1.0) -> list[Segment]:
+    return [Line(length)]
+
+
+def _arc(radius: float = 1.0, angle: float = math.pi / 2) -> list[Segment]:
+    return [Arc(radius, angle)]
+
+
+def _circle(radius: float = 1.0, laps: float = 1.0, direction: int = 1) -> list[Segment]:
+    if direction not in (1, -1):
+        raise ValueError(f"direction must be 1 or -1 (allowed: 1 = left, -1 = right), got {direction!r}")
+    laps_ = float(check_positive("laps", laps))
+    return [Arc(radius, direction * 2.0 * math.pi * laps_)]
+
+
+def _rotation(angle: float = 2.0 * math.pi) -> list[Segment]:
+    return [Turn(angle)]
+
+
+def _s_curve(radius: float = 1.0) -> list[Segment]:
+    return [Arc(radius, math.pi / 2), Arc(radius, -math.pi / 2)]
+
+
+def _right_angles(dx: float = 2.0, dy: float = 2.0) -> list[Segment]:
+    return [Line(dx), Turn(math.pi / 2), Line(dy), Turn(-math.pi / 2)]
+
+
+def _direct(dx: float = 2.0, dy: float = 2.0) -> list[Segment]:
+    x, y = (float(v) for v in check_finite("(dx, dy)", (dx, dy)))
+    heading = math.atan2(y, x)
+    return [Turn(heading), Line(math.hypot(x, y)), Turn(-heading)]
 
 
 def straight(length: float = 1.0, **kw: Any) -> Trajectory:
     """Straight line of ``length`` [m] (negative = reverse). Keywords as :func:`from_segments`."""
-    return from_segments([Line(length)], name=kw.pop("name", f"straight {length:g} m"), **kw)
+    return from_segments(_straight(length), name=kw.pop("name", f"straight {_g(length)} m"), **kw)
 
 
 def arc(radius: float = 1.0, angle: float = math.pi / 2, **kw: Any) -> Trajectory:
     """Arc of ``radius`` [m] turning by ``angle`` [rad] (positive = left)."""
     return from_segments(
-        [Arc(radius, angle)], name=kw.pop("name", f"arc r={radius:g} m {angle:g} rad"), **kw
+        _arc(radius, angle), name=kw.pop("name", f"arc r={_g(radius)} m {_g(angle)} rad"), **kw
     )
 
 
 def circle(radius: float = 1.0, laps: float = 1.0, direction: int = 1, **kw: Any) -> Trajectory:
     """Full circle(s) of ``radius`` [m]; ``laps`` may be fractional; ``direction`` +1 left, −1 right."""
-    if direction not in (1, -1):
-        raise ValueError(f"direction must be 1 or -1 (allowed: 1 = left, -1 = right), got {direction!r}")
-    laps_ = float(check_positive("laps", laps))
+    segments = _circle(radius, laps, direction)
     return from_segments(
-        [Arc(radius, direction * 2.0 * math.pi * laps_)],
-        name=kw.pop("name", f"circle r={radius:g} m x{laps_:g}"),
-        **kw,
+        segments, name=kw.pop("name", f"circle r={_g(radius)} m x{float(laps):g}"), **kw
     )
 
 
 def rotation(angle: float = 2.0 * math.pi, **kw: Any) -> Trajectory:
     """Rotation in place by ``angle`` [rad] at ``angular_speed``."""
-    return from_segments([Turn(angle)], name=kw.pop("name", f"rotation {angle:g} rad"), **kw)
+    return from_segments(_rotation(angle), name=kw.pop("name", f"rotation {_g(angle)} rad"), **kw)
 
 
 def s_curve(radius: float = 1.0, **kw: Any) -> Trajectory:
     """Two quarter circles, left then right: (0,0,0) → (2r, 2r, 0)."""
-    return from_segments(
-        [Arc(radius, math.pi / 2), Arc(radius, -math.pi / 2)],
-        name=kw.pop("name", "two quarter circles"),
-        **kw,
-    )
+    return from_segments(_s_curve(radius), name=kw.pop("name", "two quarter circles"), **kw)
 
 
 def right_angles(dx: float = 2.0, dy: float = 2.0, **kw: Any) -> Trajectory:
     """Straight ``dx``, turn +90°, straight ``dy``, turn −90°: (0,0,0) → (dx, dy, 0)."""
-    return from_segments(
-        [Line(dx), Turn(math.pi / 2), Line(dy), Turn(-math.pi / 2)],
-        name=kw.pop("name", "right angles"),
-        **kw,
-    )
+    return from_segments(_right_angles(dx, dy), name=kw.pop("name", "right angles"), **kw)
 
 
 def direct(dx: float = 2.0, dy: float = 2.0, **kw: Any) -> Trajectory:
     """Turn towards the target, drive straight, turn back: (0,0,0) → (dx, dy, 0)."""
-    heading = math.atan2(dy, dx)
-    return from_segments(
-        [Turn(heading), Line(math.hypot(dx, dy)), Turn(-heading)],
-        name=kw.pop("name", "direct"),
-        **kw,
-    )
+    return from_segments(_direct(dx, dy), name=kw.pop("name", "direct"), **kw)
 
 
 def square(side: float = 4.0, direction: int = 1, laps: int = 1, **kw: Any) -> Trajectory:
@@ -388,6 +450,39 @@ BUILDERS: dict[str, Callable[..., Trajectory]] = {
     "right_angles": right_angles,
     "direct": direct,
 }
+
+#: the segments of each builder, from its geometric parameters
+_SEGMENTS: dict[str, Callable[..., list[Segment]]] = {
+    "straight": _straight,
+    "arc": _arc,
+    "circle": _circle,
+    "rotation": _rotation,
+    "s_curve": _s_curve,
+    "right_angles": _right_angles,
+    "direct": _direct,
+}
+
+
+def n_steps(name: str, **params: Any) -> int:
+    """Number of steps N of ``build(name, **params)``, without building it (nothing of size N).
+
+    Validates the parameters as the builder does (same ValueError messages), so a
+    configuration can be checked and costed before anything is allocated.
+    """
+    check_choice("trajectory", name, tuple(BUILDERS))
+    geometry = set(inspect.signature(_SEGMENTS[name]).parameters)
+    unknown = sorted(set(params) - geometry - set(DRIVE_KEYS))
+    if unknown:
+        raise ValueError(
+            f"bad parameters for trajectory {name!r}: unexpected keyword(s) {', '.join(unknown)} "
+            f"(allowed: {', '.join(sorted(geometry | set(DRIVE_KEYS)))})"
+        )
+    segments = _SEGMENTS[name](**{k: v for k, v in params.items() if k in geometry})
+    drive = {k: v for k, v in params.items() if k in DRIVE_KEYS and k != "name"}
+    defaults = inspect.signature(from_segments).parameters
+    kw = {k: drive.get(k, defaults[k].default) for k in DRIVE_KEYS if k != "name"}
+    plan, _, _ = _plan(segments, **kw)
+    return sum(n for _, _, n in plan)
 
 
 def build(name: str, **params: Any) -> Trajectory:

@@ -7,12 +7,14 @@ the parameter, the bad value and what is allowed.
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
+    "NUMBER_HINT",
     "as_float_array",
     "check_choice",
     "check_finite",
@@ -22,7 +24,15 @@ __all__ = [
     "check_positive",
     "check_positive_int",
     "check_probability",
+    "parse_number",
 ]
+
+#: a decimal number written as text: ``1e9``, ``5e-4``, ``-2.5E+3``, ``.5``, ``7``
+_NUMBER_TEXT = re.compile(r"^\s*[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?\s*$")
+_INT_TEXT = re.compile(r"^\s*[-+]?\d+\s*$")
+
+#: how to write a number, for messages refusing one
+NUMBER_HINT = "written like 0.0005, 5.0e-4 or 5e-4"
 
 
 def _show(value: Any) -> str:
@@ -38,7 +48,8 @@ def as_float_array(name: str, value: ArrayLike) -> NDArray[np.float64]:
     try:
         return np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be numeric (allowed: real numbers), got {value!r}") from exc
+        hint = f" {NUMBER_HINT}" if isinstance(value, str) else ""
+        raise ValueError(f"{name} must be numeric (allowed: real numbers{hint}), got {value!r}") from exc
 
 
 def check_finite(name: str, value: ArrayLike) -> NDArray[np.float64]:
@@ -122,3 +133,29 @@ def check_pose_cov(name: str, value: ArrayLike | None) -> NDArray[np.float64]:
             f"got eigenvalues {eig.tolist()}"
         )
     return S
+
+
+def parse_number(value: Any, like: Any = None) -> Any:
+    """A number written as text → the number; anything else unchanged.
+
+    YAML 1.1 (PyYAML, hence Snakemake and our config files) reads ``1e9`` and ``5e-4``
+    — a float without a dot — as the *strings* ``"1e9"`` and ``"5e-4"``. Config
+    readers pass every value that should be a number through this function:
+    ``"7"`` → 7, ``"1e9"`` → 1e9; a float equal to an integer becomes an int when
+    ``like`` (the key's default) is an int (``"2e7"`` → 20000000). Strings that are
+    not decimal numbers (``"abc"``, ``"inf"``) are returned unchanged, to be refused
+    by the caller's check.
+    """
+    if isinstance(value, str):
+        if _INT_TEXT.match(value):
+            value = int(value)
+        elif _NUMBER_TEXT.match(value):
+            value = float(value)
+    if (
+        isinstance(like, int)
+        and not isinstance(like, bool)
+        and isinstance(value, float)
+        and value.is_integer()
+    ):
+        return int(value)
+    return value

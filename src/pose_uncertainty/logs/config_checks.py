@@ -15,7 +15,9 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["check_keys", "fail", "integer", "name", "real"]
+from ..core.validation import NUMBER_HINT, parse_number
+
+__all__ = ["check_keys", "fail", "integer", "name", "numbers", "real"]
 
 _NAME_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$")
 
@@ -39,9 +41,10 @@ def check_keys(where: str, data: Mapping[str, Any], allowed: tuple[str, ...]) ->
 
 
 def real(key: str, value: Any, *, positive: bool = False, nonneg: bool = False) -> float:
-    """A finite real number (not a bool), optionally > 0 or >= 0."""
+    """A finite real number (not a bool), optionally > 0 or >= 0; ``"5e-4"`` written as text is read as a number."""
+    value = parse_number(value)  # "5e-4": YAML 1.1 reads a float without a dot as text
     if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
-        raise fail(key, "a real number", value)
+        raise fail(key, f"a real number {NUMBER_HINT}", value)
     v = float(value)
     if not math.isfinite(v):
         raise fail(key, "finite", value)
@@ -53,7 +56,8 @@ def real(key: str, value: Any, *, positive: bool = False, nonneg: bool = False) 
 
 
 def integer(key: str, value: Any, *, minimum: int = 0) -> int:
-    """An integer (not a bool) >= ``minimum``."""
+    """An integer (not a bool) >= ``minimum``; ``"1e5"`` or ``1e5`` (an integral float) read as 100000."""
+    value = parse_number(value, like=0)
     if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
         raise fail(key, f"an integer >= {minimum}", value)
     return int(value)
@@ -64,3 +68,11 @@ def name(key: str, value: Any) -> str:
     if not isinstance(value, str) or not _NAME_RE.match(value):
         raise fail(key, "a name of letters, digits, '_', '.', '-'", value)
     return value
+
+
+def numbers(value: Any, like: Any = None) -> Any:
+    """``parse_number`` through lists (``alphas``, ``start``): numbers written as text → numbers."""
+    if isinstance(value, list | tuple):
+        item = like[0] if isinstance(like, list | tuple) and like else None
+        return [numbers(v, item) for v in value]
+    return parse_number(value, like)

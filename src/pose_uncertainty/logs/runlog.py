@@ -56,11 +56,10 @@ import io
 import json
 import math
 import os
-import tempfile
 import warnings
 import zlib
 from collections import Counter
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -85,10 +84,12 @@ from mcap_protobuf.schema import build_file_descriptor_set
 from numpy.typing import NDArray
 
 from .. import __version__
+from ..core.atomic import atomic_write
 from ..methods import covariance
 from ..methods.maps import ProbabilityMap
+from .config import RunConfig
 from .provenance import PROVENANCE_KEYS
-from .run import RunConfig, RunResult, execute
+from .run import RunResult, execute
 
 __all__ = [
     "FORMAT",
@@ -486,8 +487,10 @@ def _ellipse_msg(i: int, t_ns: int, ring: NDArray, pr: float, marked: bool, fina
     return upd
 
 
-def _put_steps(log: _Log, result: RunResult, t_ns: list[int]) -> None:
-    """Every step: frame, pose, covariance, ellipse, and the checkpoint clouds."""
+def _put_steps(
+    log: _Log, result: RunResult, t_ns: list[int], progress: Callable[[int, int], None] | None = None
+) -> None:
+    """Every step: frame, pose, covariance, ellipse, and the checkpoint clouds (``progress(i, N+1)``)."""
     poses, covs, n = result.poses, result.covs, result.times.size
     # closed polylines (first vertex repeated): drop the repeat for a LINE_LOOP
     ell = covariance.ellipse_polyline(covs[:, :2, :2], result.config.pr, poses[:, :2], _ELLIPSE_POINTS)[:, :-1]
@@ -499,6 +502,8 @@ def _put_steps(log: _Log, result: RunResult, t_ns: list[int]) -> None:
         log.put(T_ELLIPSE, _ellipse_msg(i, t_ns[i], ell[i], result.config.pr, i in marks, i == n - 1), t_ns[i])
         if i in result.checkpoints:
             log.put(T_CHECK, _cloud(result.checkpoints[i], t_ns[i]), t_ns[i])
+        if progress is not None:
+            progress(i + 1, n)
 
 
 def _put_end(log: _Log, result: RunResult, t_end: int, include_timings: bool) -> None:
@@ -516,13 +521,18 @@ def _put_end(log: _Log, result: RunResult, t_end: int, include_timings: bool) ->
         log.put(T_TIMINGS, _metrics_msg(result.timings, {k: "s" for k in result.timings}, t_end), t_end)
 
 
-def _write_stream(stream: Any, result: RunResult, include_timings: bool) -> None:
+def _write_stream(
+    stream: Any,
+    result: RunResult,
+    include_timings: bool,
+    progress: Callable[[int, int], None] | None = None,
+) -> None:
     _check_result(result)
     log = _Log(stream)
     log.w.add_metadata(METADATA_NAME, _metadata(result))
     t_ns = [_ns(t) for t in result.times]
     log.put(T_PATH, _path_msg(result.poses, t_ns[0]), t_ns[0])  # the whole nominal path, once, at t = 0
-    _put_steps(log, result, t_ns)
+    _put_steps(log, result, t_ns, progress)
     _put_end(log, result, t_ns[-1], include_timings)
     log.w.finish()
 
@@ -535,13 +545,18 @@ def log_bytes(result: RunResult, *, include_timings: bool = False) -> bytes:
 
 
 def write_run(
-    path: str | os.PathLike[str], result: RunResult, *, include_timings: bool = False
+    path: str | os.PathLike[str],
+    result: RunResult,
+    *,
+    include_timings: bool = False,
+    progress: Callable[[int, int], None] | None = None,
 ) -> Path:
     """Write a run log atomically.
 
     The log is written to a hidden temporary file beside ``path``
-    (``.<name>.<random>.part``), flushed and fsynced, then renamed over ``path``
-    (the parent directory is created if missing). An interrupted write never
+    (``.<name>.<host>-<pid>-<random>.part``), flushed and fsynced, then renamed over
+    ``path`` (:func:`pose_uncertainty.core.atomic.atomic_write`; the parent directory
+    is created if missing). An interrupted write never
     leaves a file at ``path``: on an exception the temporary file is removed; a
     killed process leaves only the ``.part`` file, which :func:`open_run`
     rejects as truncated and ``open_run(..., recover=True)`` can read.
@@ -554,39 +569,16 @@ def write_run(
         Also write the wall-clock timings (topic ``/timings``). They differ from
         run to run, so a log with timings is not byte-reproducible; without them
         (the default) the same config and seed give a byte-identical file.
+    progress : callable, optional
+        ``progress(done, N+1)`` after each step's messages (default None: nothing).
 
     Returns
     -------
     Path — ``path``
     """
-    dest = Path(path)
-    parent = dest.parent
-    parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".part", dir=parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            _write_stream(fh, result, include_timings)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, dest)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
-    try:  # make the rename itself durable
-        dir_fd = os.open(parent, os.O_RDONLY)
-    except OSError:
-        return dest
-    try:
-        os.fsync(dir_fd)
-    except OSError:
-        pass
-    finally:
-        os.close(dir_fd)
-    return dest
+    with atomic_write(path, "wb") as fh:
+        _write_stream(fh, result, include_timings, progress)
+    return Path(path)
 
 
 # --- reading -----------------------------------------------------------------------------

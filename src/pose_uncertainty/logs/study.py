@@ -18,12 +18,12 @@ from __future__ import annotations
 import inspect
 import json
 import os
-import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from ..analysis.studies import STUDIES, summarize
+from ..core.atomic import atomic_write_text
 from ..core.tables import jsonable
 from .provenance import provenance
 
@@ -67,16 +67,7 @@ def run_study(name: str, spec: Mapping[str, Any], out: str | os.PathLike[str]) -
     }  # fmt: skip
     path = Path(out)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            json.dump(doc, fh, indent=1, sort_keys=True, allow_nan=True)
-            fh.write("\n")
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    atomic_write_text(path, json.dumps(doc, indent=1, sort_keys=True, allow_nan=True) + "\n")
     return path
 
 
@@ -102,5 +93,4 @@ def collect_studies(paths: Sequence[str | os.PathLike[str]], out: str | os.PathL
     doc = summarize({d["name"]: {"study": d["study"], "results": d["results"]} for d in docs})
     p = Path(out)
     p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n", encoding="utf-8")
-    return p
+    return atomic_write_text(p, json.dumps(doc, indent=1, sort_keys=True) + "\n")

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core.atomic import atomic_write_text
 from ..core.tables import read_table
 from .provenance import PROVENANCE_KEYS
 from .study import read_study
@@ -97,5 +98,4 @@ def summarize_pipeline(
            "n_logs": len(records)}  # fmt: skip
     p = Path(out)
     p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n", encoding="utf-8")
-    return p
+    return atomic_write_text(p, json.dumps(doc, indent=1, sort_keys=True) + "\n")

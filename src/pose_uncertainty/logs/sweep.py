@@ -38,13 +38,18 @@ from pathlib import Path
 from typing import Any
 
 from ..core import trajectories
+from ..core.atomic import atomic_write_text
 from ..core.schema import first_error
-from .run import RunConfig, execute
+from ..core.validation import parse_number
+from .config import RunConfig
+from .progress import Progress
+from .run import execute
 from .runlog import write_run
 
 __all__ = [
     "ConfigError",
     "Run",
+    "coerce_numbers",
     "expand_all",
     "expand_set",
     "label_value",
@@ -164,6 +169,7 @@ def validate_config(config: Mapping[str, Any], schema: Mapping[str, Any]) -> dic
         runs are not valid run configurations; the message names the key, the
         value and what is allowed.
     """
+    config = coerce_numbers(config, schema)
     problem = first_error(schema, config)
     if problem is not None:
         raise ConfigError(problem)
@@ -171,6 +177,67 @@ def validate_config(config: Mapping[str, Any], schema: Mapping[str, Any]) -> dic
     _fill_defaults(schema, filled)
     expand_all(filled)  # raises ConfigError for bad runs
     return filled
+
+
+def _coerce(schema: Mapping[str, Any], value: Any, root: Mapping[str, Any]) -> Any:
+    """``value`` with every string the schema types as a number parsed (``parse_number``)."""
+    schema = _resolve(schema, root)
+    types = schema.get("type", [])
+    types = [types] if isinstance(types, str) else list(types)
+    if isinstance(value, str) and ("number" in types or "integer" in types):
+        return parse_number(value, like=None if "number" in types else 0)
+    if isinstance(value, Mapping):
+        props = schema.get("properties", {})
+        addl = schema.get("additionalProperties")
+        return {
+            k: _coerce(props[k], v, root) if k in props
+            else _coerce(addl, v, root) if isinstance(addl, Mapping)
+            else v
+            for k, v in value.items()
+        }  # fmt: skip
+    if isinstance(value, list) and isinstance(schema.get("items"), Mapping):
+        return [_coerce(schema["items"], v, root) for v in value]
+    return value
+
+
+def _run_key_schema(schema: Mapping[str, Any], dotted: str) -> Mapping[str, Any] | None:
+    """The schema of a dotted run-config key (``trajectory.length``) in ``$defs.run``, or None."""
+    node: Mapping[str, Any] | None = schema.get("$defs", {}).get("run")
+    for part in dotted.split("."):
+        if node is None:
+            return None
+        node = _resolve(node, schema).get("properties", {}).get(part)
+    return node
+
+
+def coerce_numbers(config: Mapping[str, Any], schema: Mapping[str, Any]) -> dict[str, Any]:
+    """A copy of a pipeline config with numbers written as text (``1e9``, ``5e-4``) parsed.
+
+    YAML 1.1 — PyYAML, hence Snakemake — reads a float without a dot as a string.
+    Every value the schema types as ``number`` or ``integer`` is passed through
+    :func:`pose_uncertainty.core.validation.parse_number`, and so are the values of
+    sweep axes, typed by the run-config key they sweep (``trajectory.length``).
+    Other strings (titles, labels, names) are left alone.
+    """
+    out = _coerce(schema, copy.deepcopy(dict(config)), schema)
+    for spec in (out.get("experiment_sets") or {}).values():
+        if not isinstance(spec, dict):
+            continue
+        for axis in spec.get("sweep") or []:
+            if not isinstance(axis, dict):
+                continue
+            for key, values in axis.items():
+                sub = None if key == "labels" else _run_key_schema(schema, key)
+                if sub is not None and isinstance(values, list):
+                    axis[key] = [_coerce(sub, v, schema) for v in values]
+    return out
+
+
+def _relevance(error: Any) -> Any:
+    from jsonschema.exceptions import relevance
+
+    # prefer the deepest error, as best_match does
+    return relevance(error)
 
 
 # --- expansion ---------------------------------------------------------------------------
@@ -352,8 +419,9 @@ def expand_all(config: Mapping[str, Any]) -> dict[str, list[Run]]:
 
 
 def n_steps(config: Mapping[str, Any]) -> int:
-    """Number of steps of a run configuration's trajectory (builds the trajectory)."""
-    return trajectories.from_config(config["trajectory"]).n_steps
+    """Number of steps of a run configuration's trajectory (counted, not built)."""
+    tp = {k: v for k, v in config["trajectory"].items() if k != "name"}
+    return trajectories.n_steps(config["trajectory"]["name"], **tp)
 
 
 # --- running -----------------------------------------------------------------------------
@@ -374,10 +442,10 @@ def simulate(config: Mapping[str, Any], out: str | Path, timings_out: str | Path
     """
     result = execute(RunConfig.from_dict(config))
     Path(out).parent.mkdir(parents=True, exist_ok=True)
-    path = write_run(out, result)
+    path = write_run(out, result, progress=Progress(f"{result.config.name}: writing the log"))
     if timings_out is not None:
-        Path(timings_out).write_text(
+        atomic_write_text(
+            timings_out,
             json.dumps({k: float(v) for k, v in sorted(result.timings.items())}, indent=1) + "\n",
-            encoding="utf-8",
         )
     return path

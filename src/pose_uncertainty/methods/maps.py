@@ -39,6 +39,7 @@ Discretisation
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, NamedTuple
 
@@ -1171,6 +1172,7 @@ def multi_step_map(
     n_nodes_max: int = 1500,
     diffusion_compensation: bool = True,
     workers: int = -1,
+    progress: Callable[[int, int], None] | None = None,
 ) -> ProbabilityMap:
     """Histogram-filter prediction of the pose distribution along a whole trajectory.
 
@@ -1239,6 +1241,8 @@ def multi_step_map(
         Off: every step's kernel is the cell integral of that step's density.
     workers : int
         FFT threads (``scipy.fft``); results do not depend on it.
+    progress : callable, optional
+        ``progress(done, N)`` after each step (default None: nothing).
 
     Returns
     -------
@@ -1258,7 +1262,7 @@ def multi_step_map(
             resolution=float(check_positive("resolution", resolution)) / over,
             theta_resolution=theta_resolution, oversample=1, max_cells=max_cells * over * over,
             n_nodes_max=n_nodes_max, diffusion_compensation=diffusion_compensation,
-            workers=workers,
+            workers=workers, progress=progress,
         )  # fmt: skip
         return _coarsen(fine, over)
     x0, a, u, dts, od = _normalise_path(model, controls, dt, alphas, start, noise, scaling, odometry)
@@ -1266,7 +1270,7 @@ def multi_step_map(
     steps = _path_steps(model, u, dts, a, noise, scaling, od)
     g, grow = _start_grid(grid, x0, resolution, theta_resolution)
     belief, g, lost_total, diagnostics = _predict_path(
-        steps, g, grow, x0, max_cells, n_nodes_max, diffusion_compensation, workers
+        steps, g, grow, x0, max_cells, n_nodes_max, diffusion_compensation, workers, progress
     )
     info = {
         **diagnostics,
@@ -1423,8 +1427,9 @@ def _predict_path(
     n_nodes_max: int,
     compensate: bool,
     workers: int,
+    progress: Callable[[int, int], None] | None = None,
 ) -> tuple[Array, Grid, float, dict[str, Any]]:
-    """The histogram filter's prediction along ``steps`` from a Dirac at ``x0``.
+    """The histogram filter's prediction along ``steps`` from a Dirac at ``x0`` (``progress(done, N)``).
 
     Per step: build the kernel, drop negligible heading slices, grow the grid (if
     ``grow``) to hold the support plus the kernel's reach, take the step.
@@ -1446,7 +1451,9 @@ def _predict_path(
     roundoff = 0.0
     negligible = 0.0
     thetas = g.theta
-    for stp in steps:
+    for i_step, stp in enumerate(steps):
+        if progress is not None and i_step:
+            progress(i_step, len(steps))
         kern = _quadrature_kernel(stp, h, ht, n_nodes_max, compensate)
         windows = _kernel_windows(kern, thetas, h)
         mismatch.append(kern.heading_variance_mismatch)
@@ -1469,6 +1476,8 @@ def _predict_path(
         roundoff += step_roundoff
         lost_per_step.append(lost_step)
         lost_total += lost_step
+    if progress is not None:
+        progress(len(steps), len(steps))
     diagnostics = {
         "lost_per_step": lost_per_step,
         "grid_growths": growths,

@@ -25,7 +25,7 @@ any number of threads.
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -214,6 +214,7 @@ def sample_end_poses(
     checkpoints: Sequence[int] | None = None,
     cov0: ArrayLike | None = None,
     workers: int | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> NDArray[np.float64]:
     """Noisy executions of a trajectory: the Monte Carlo ground truth of Method A's model.
 
@@ -233,6 +234,8 @@ def sample_end_poses(
         N(trajectory.start, cov0) (default: every particle starts exactly there)
     workers : int, optional — threads (default: the number of cores, at most 8).
         The output does not depend on it.
+    progress : callable, optional — ``progress(done, n)`` with the particles done so
+        far, called from the calling thread after each chunk (default None: nothing)
 
     Returns
     -------
@@ -268,9 +271,13 @@ def sample_end_poses(
     if n_workers == 1 or len(starts) == 1:
         for j in range(len(starts)):
             run_chunk(j)
+            if progress is not None:
+                progress(min(n, starts[j] + chunk), n)
     else:
         with ThreadPoolExecutor(max_workers=n_workers) as pool:
-            list(pool.map(run_chunk, range(len(starts))))
+            for j, _ in enumerate(pool.map(run_chunk, range(len(starts)))):
+                if progress is not None:
+                    progress(min(n, starts[j] + chunk), n)
     return out[:, 0, :] if checkpoints is None else out
 
 

@@ -29,6 +29,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from .. import __version__
+from ..core.atomic import atomic_write
 from ..logs.run import RunResult
 from ..methods import covariance
 from ..methods.maps import ProbabilityMap
@@ -299,8 +300,8 @@ def save_figure(fig: Figure, path: str | os.PathLike[str]) -> Path:
         "pdf": {"Creator": _CREATOR, "Producer": _CREATOR, "CreationDate": None, "ModDate": None},
     }
     metadata = by_format[fmt]
-    with mpl.rc_context(_RC):  # type: ignore[arg-type]
-        fig.savefig(p, format=fmt, dpi=_DPI, metadata=metadata)
+    with mpl.rc_context(_RC), atomic_write(p, "wb") as fh:  # type: ignore[arg-type]
+        fig.savefig(fh, format=fmt, dpi=_DPI, metadata=metadata)
     return p
 
 

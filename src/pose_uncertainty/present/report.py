@@ -34,6 +34,7 @@ from typing import Any
 
 import jinja2
 
+from ..core.atomic import atomic_write_text
 from ..core.drives import DRIVES
 from ..core.stats import COVERAGE_LEVELS
 from ..core.tables import read_table
@@ -207,5 +208,5 @@ def build_report(
     )
     p = Path(out)
     p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(text, encoding="utf-8")
+    atomic_write_text(p, text)
     return p
