@@ -24,13 +24,14 @@ import yaml
 
 from pose_uncertainty.cli import main
 from pose_uncertainty.core import trajectories
+from pose_uncertainty.core.schema import load_schema
 from pose_uncertainty.logs import cost, sweep
 from pose_uncertainty.logs.progress import Progress
 from pose_uncertainty.logs.run import RunConfig, execute
 from pose_uncertainty.methods import maps, sampling
 
 REPO = Path(__file__).resolve().parents[1]
-SCHEMA = sweep.load_schema(REPO / "workflow/schemas/config.schema.yaml")
+SCHEMA = load_schema(REPO / "workflow/schemas/config.schema.yaml")
 
 
 def _run_cli(tmp_path: Path, text: str, capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:

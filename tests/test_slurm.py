@@ -33,6 +33,7 @@ import pytest
 import yaml
 from test_pipeline import REPO, copy_workflow, quick_pipeline
 
+from pose_uncertainty.core.schema import load_schema
 from pose_uncertainty.logs import cost, sweep
 
 VENV_BIN = Path(sys.executable).parent
@@ -211,7 +212,7 @@ def test_quick_pipeline_through_slurm(slurm_cluster: object, tmp_path_factory: p
     assert f"Finished jobid: {jid} (Rule: simulate_run)" in after
 
     # it asked for what its run's cost estimate says
-    config = sweep.validate_config(yaml.safe_load((work / "config/quick.yaml").read_text()), sweep.load_schema(
+    config = sweep.validate_config(yaml.safe_load((work / "config/quick.yaml").read_text()), load_schema(
         work / "workflow/schemas/config.schema.yaml"))  # fmt: skip
     runs = [r for rs in sweep.expand_all(config).values() for r in rs]
     run = max((r for r in runs if cancelled["comment"].endswith(f"{r.set}_{r.id}")), key=lambda r: len(r.id))

@@ -635,7 +635,7 @@ def write_claims(tables: Mapping[str, str | os.PathLike[str]], out: str | os.Pat
 # --- the method guide ---------------------------------------------------------------------
 
 
-def _g(r: Mapping[str, Any], key: str) -> float | None:
+def _value_or_none(r: Mapping[str, Any], key: str) -> float | None:
     v = r.get(key)
     return None if v is None or (isinstance(v, float) and math.isnan(v)) else float(v)
 
@@ -644,7 +644,7 @@ def _guide_covariance(all_rows: Sequence[Mapping[str, Any]]) -> dict[str, Any] |
     """When Method A's ellipse holds: runs ordered by the bend ratio, the coverage rule of the claims."""
     level = COVERAGE_LEVELS["3s"]
     runs = [r for r in all_rows if r.get("param.monte_carlo.regime") == "per_step"
-            and _g(r, "MC_coverage_3s") is not None and _g(r, "A_bend_ratio") is not None]  # fmt: skip
+            and _value_or_none(r, "MC_coverage_3s") is not None and _value_or_none(r, "A_bend_ratio") is not None]  # fmt: skip
     if not runs:
         return None
     runs.sort(key=lambda r: float(r["A_bend_ratio"]))
@@ -664,8 +664,8 @@ def _guide_covariance(all_rows: Sequence[Mapping[str, Any]]) -> dict[str, Any] |
                  f"short was {first['run']} ({100 * first['MC_coverage_3s']:.2f} %)")  # fmt: skip
     else:
         limit = "Every run held 98.89 % within 3 binomial standard errors"
-    t_cov = [r["time_covariance"] for r in all_rows if _g(r, "time_covariance") is not None]
-    t_mc = [r["time_monte_carlo"] for r in all_rows if _g(r, "time_monte_carlo") is not None]
+    t_cov = [r["time_covariance"] for r in all_rows if _value_or_none(r, "time_covariance") is not None]
+    t_mc = [r["time_monte_carlo"] for r in all_rows if _value_or_none(r, "time_monte_carlo") is not None]
     times = (f" Median compute time {float(np.median(t_cov)):.3g} s against {float(np.median(t_mc)):.3g} s for "
              "Monte Carlo." if t_cov and t_mc else "")  # fmt: skip
     return {
@@ -679,7 +679,7 @@ def _guide_covariance(all_rows: Sequence[Mapping[str, Any]]) -> dict[str, Any] |
 
 
 def _guide_bend(all_rows: Sequence[Mapping[str, Any]]) -> dict[str, Any] | None:
-    bends = [r for r in all_rows if _g(r, "MC_bend") is not None]
+    bends = [r for r in all_rows if _value_or_none(r, "MC_bend") is not None]
     if not bends:
         return None
     b = max(bends, key=lambda r: abs(r["MC_bend"]))
@@ -694,8 +694,8 @@ def _guide_bend(all_rows: Sequence[Mapping[str, Any]]) -> dict[str, Any] | None:
 
 
 def _guide_expcoords(all_rows: Sequence[Mapping[str, Any]]) -> dict[str, Any] | None:
-    pairs = [r for r in all_rows if _g(r, "accuracy_cartesian_hellinger") is not None
-             and _g(r, "accuracy_expcoords_hellinger") is not None]  # fmt: skip
+    pairs = [r for r in all_rows if _value_or_none(r, "accuracy_cartesian_hellinger") is not None
+             and _value_or_none(r, "accuracy_expcoords_hellinger") is not None]  # fmt: skip
     if not pairs:
         return None
     better = sum(r["accuracy_expcoords_hellinger"] < r["accuracy_cartesian_hellinger"] for r in pairs)
@@ -713,7 +713,7 @@ def _guide_expcoords(all_rows: Sequence[Mapping[str, Any]]) -> dict[str, Any] | 
 
 
 def _guide_control_step(rows: Rows) -> dict[str, Any] | None:
-    ms = sorted((r for r in rows.get("M_multistep", []) if _g(r, "map_velocity_region_area")),
+    ms = sorted((r for r in rows.get("M_multistep", []) if _value_or_none(r, "map_velocity_region_area")),
                 key=lambda r: r.get("n_steps") or 0)  # fmt: skip
     if len(ms) < 2:
         return None
@@ -769,25 +769,25 @@ def _c_run(set_name: str, r: Mapping[str, Any]) -> dict[str, Any] | None:
             "MC_mean_offset_C", "MC_mean_shift_along", "MC_mean_shift_across", "C_mean_shift_along",
             "C_mean_shift_across", f"accuracy_cartesian_{_PR_KEY}", f"accuracy_unscented_{_PR_KEY}",
             "accuracy_cartesian_hellinger", "accuracy_unscented_hellinger")  # fmt: skip
-    if r.get("param.monte_carlo.regime") != "per_step" or any(_g(r, k) is None for k in keys):
+    if r.get("param.monte_carlo.regime") != "per_step" or any(_value_or_none(r, k) is None for k in keys):
         return None
     n = float(r["MC_n"])
     return {
         "set": set_name, "run": r["run"], "path_length": r["path_length"], "sigma_theta": r["A_sigma_theta"],
         "n": n,
         "coverage": {"a": r[f"accuracy_cartesian_{_PR_KEY}"], "c": r[f"accuracy_unscented_{_PR_KEY}"],
-                     "banana": _g(r, f"accuracy_expcoords_{_PR_KEY}")},
+                     "banana": _value_or_none(r, f"accuracy_expcoords_{_PR_KEY}")},
         "coverage_se": math.sqrt(COVERAGE_LEVELS["3s"] * (1.0 - COVERAGE_LEVELS["3s"]) / n),
         "hellinger": {"a": r["accuracy_cartesian_hellinger"], "c": r["accuracy_unscented_hellinger"],
-                      "banana": _g(r, "accuracy_expcoords_hellinger"),
-                      "floor": _g(r, "accuracy_monte_carlo_hellinger_floor")},
+                      "banana": _value_or_none(r, "accuracy_expcoords_hellinger"),
+                      "floor": _value_or_none(r, "accuracy_monte_carlo_hellinger_floor")},
         # the Monte Carlo mean's standard error along and across (its error as an estimate of the truth)
         "mean_se": {"along": r["MC_sigma_along"] / math.sqrt(n), "across": r["MC_sigma_across"] / math.sqrt(n)},
         "mean_error": {"a": r["MC_mean_offset"], "c": r["MC_mean_offset_C"],
                        "se": math.hypot(r["MC_sigma_along"], r["MC_sigma_across"]) / math.sqrt(n)},
         "shift": {"mc_along": r["MC_mean_shift_along"], "mc_across": r["MC_mean_shift_across"],
                   "c_along": r["C_mean_shift_along"], "c_across": r["C_mean_shift_across"]},
-        "time": {"a": _g(r, "time_covariance"), "c": _g(r, "time_unscented")},
+        "time": {"a": _value_or_none(r, "time_covariance"), "c": _value_or_none(r, "time_unscented")},
     }  # fmt: skip
 
 

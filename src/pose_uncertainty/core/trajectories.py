@@ -340,7 +340,7 @@ def from_segments(
 # Each path is its segments (a function of the geometric parameters) driven by from_segments.
 
 
-def _g(value: Any) -> str:
+def _number_text(value: Any) -> str:
     """A number for a trajectory's name (``%g``); anything else as its repr (validated later)."""
     if isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool):
         return f"{value:g}"
@@ -382,13 +382,13 @@ def _direct(dx: float = 2.0, dy: float = 2.0) -> list[Segment]:
 
 def straight(length: float = 1.0, **kw: Any) -> Trajectory:
     """Straight line of ``length`` [m] (negative = reverse). Keywords as :func:`from_segments`."""
-    return from_segments(_straight(length), name=kw.pop("name", f"straight {_g(length)} m"), **kw)
+    return from_segments(_straight(length), name=kw.pop("name", f"straight {_number_text(length)} m"), **kw)
 
 
 def arc(radius: float = 1.0, angle: float = math.pi / 2, **kw: Any) -> Trajectory:
     """Arc of ``radius`` [m] turning by ``angle`` [rad] (positive = left)."""
     return from_segments(
-        _arc(radius, angle), name=kw.pop("name", f"arc r={_g(radius)} m {_g(angle)} rad"), **kw
+        _arc(radius, angle), name=kw.pop("name", f"arc r={_number_text(radius)} m {_number_text(angle)} rad"), **kw
     )
 
 
@@ -396,13 +396,13 @@ def circle(radius: float = 1.0, laps: float = 1.0, direction: int = 1, **kw: Any
     """Full circle(s) of ``radius`` [m]; ``laps`` may be fractional; ``direction`` +1 left, −1 right."""
     segments = _circle(radius, laps, direction)
     return from_segments(
-        segments, name=kw.pop("name", f"circle r={_g(radius)} m x{float(laps):g}"), **kw
+        segments, name=kw.pop("name", f"circle r={_number_text(radius)} m x{float(laps):g}"), **kw
     )
 
 
 def rotation(angle: float = 2.0 * math.pi, **kw: Any) -> Trajectory:
     """Rotation in place by ``angle`` [rad] at ``angular_speed``."""
-    return from_segments(_rotation(angle), name=kw.pop("name", f"rotation {_g(angle)} rad"), **kw)
+    return from_segments(_rotation(angle), name=kw.pop("name", f"rotation {_number_text(angle)} rad"), **kw)
 
 
 def s_curve(radius: float = 1.0, **kw: Any) -> Trajectory:

@@ -201,7 +201,7 @@ def _workers() -> int:
     return max(1, min(8, os.cpu_count() or 1))  # sampling._default_workers
 
 
-def _monte_carlo(cfg: RunConfig, n_steps: int) -> list[Driver]:
+def _monte_carlo_driver(cfg: RunConfig, n_steps: int) -> list[Driver]:
     mc = cfg.monte_carlo
     n, c = mc.n_particles, len(mc.checkpoints)
     if n == 0:
@@ -230,7 +230,7 @@ def _n_theta(theta_resolution: float) -> int:
 
 
 @dataclass(frozen=True)
-class _StepNoise:
+class _MapStepNoise:
     """First-order noise of a map's motion model along the trajectory, per step.
 
     ds [m] travel; trans [m] std of the travel; head_nodes [rad] std of the heading the
@@ -245,7 +245,7 @@ class _StepNoise:
     span: NDArray[np.float64]
 
 
-def _step_noise(cfg: RunConfig, params: Mapping[str, Any], model: str) -> _StepNoise:
+def _map_step_noise(cfg: RunConfig, params: Mapping[str, Any], model: str) -> _MapStepNoise:
     from ..methods import motion_models as mm
 
     tp = dict(cfg.trajectory)
@@ -261,7 +261,7 @@ def _step_noise(cfg: RunConfig, params: Mapping[str, Any], model: str) -> _StepN
         rot = np.abs(traj.dtheta) / 2.0
         v1, v2, v3 = mm.odometry_variances(rot, ds, rot, a, params["scaling"])
         trans, head_nodes, head = np.sqrt(v2), np.sqrt(v1), np.sqrt(v1 + v3)
-    return _StepNoise(ds, trans, head_nodes, head, np.ptp(traj.poses[:, :2], axis=0))
+    return _MapStepNoise(ds, trans, head_nodes, head, np.ptp(traj.poses[:, :2], axis=0))
 
 
 def _multi_map(cfg: RunConfig, i: int, n_steps: int) -> Driver:
@@ -282,7 +282,7 @@ def _multi_map(cfg: RunConfig, i: int, n_steps: int) -> Driver:
     h = float(p["resolution"]) / over
     n_t = _n_theta(float(p["theta_resolution"]))
     cap = float(p["max_cells"]) * over * over
-    noise = _step_noise(cfg, p, m.model) if n_steps <= _BUILD_MAX_STEPS else None
+    noise = _map_step_noise(cfg, p, m.model) if n_steps <= _BUILD_MAX_STEPS else None
     if p.get("size") is not None:
         n = max(1, round(float(p["size"]) / float(p["resolution"])))
         n += 1 - n % 2
@@ -365,7 +365,7 @@ def estimate(config: RunConfig | Mapping[str, Any]) -> Cost:
             _STEP_BYTES * (n_steps + 1),
             _STEP_S * (n_steps + 1),
         ),
-        *_monte_carlo(cfg, n_steps),
+        *_monte_carlo_driver(cfg, n_steps),
         *maps_,
     ]
     mem = sum(d.mem_bytes for d in drivers)
