@@ -10,7 +10,7 @@ CORES  ?= all
 # holds a flock for the whole run, clears what a killed run left (workflow/run-locked.sh)
 LOCKED := workflow/run-locked.sh
 
-.PHONY: report test quick bench lint venv lock clean slurm-up slurm-down
+.PHONY: report test quick bench bench-regenerate lint venv lock clean slurm-up slurm-down
 
 venv: $(STAMP)
 
@@ -35,6 +35,10 @@ lint: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python -m benchmarks
+
+# a full regeneration in a fresh clone: times and sizes -> benchmarks/results/regenerate.json
+bench-regenerate: $(STAMP)
+	$(BIN)/python -m benchmarks.regenerate
 
 lock:
 	uv pip compile requirements.in --python-version 3.11 --python-platform x86_64-unknown-linux-gnu --generate-hashes -o environment.lock
