@@ -9,6 +9,8 @@ and logs them; everything downstream reads them back. Names:
 * ``map_<name>_*`` — a probability map and its model's own sampler (:func:`map_measures`);
 * ``accuracy_<method>_*`` — how far each Gaussian method is from the run's
   Monte Carlo (:func:`pose_uncertainty.analysis.accuracy.compare_methods`).
+* ``loc_*`` — a localization run and its filters (registry and functions in
+  :mod:`pose_uncertainty.analysis.localization_measures`).
 
 :func:`describe` gives the unit and definition of any of these names; a name it
 does not know raises ``KeyError`` (a run cannot log an undefined number).
@@ -39,6 +41,7 @@ from ..core.stats import (
 from ..core.validation import check_last_axis
 from ..methods.covariance import ellipse
 from ..methods.maps import ProbabilityMap
+from .localization_measures import DEFINITIONS as _LOCALIZATION_DEFINITIONS
 
 __all__ = [
     "cloud_measures",
@@ -139,7 +142,8 @@ _DEFINITIONS: tuple[tuple[str, str, str], ...] = (
     (r"accuracy_(cartesian|expcoords)_nees_(pose|xy)", "1",
      "mean normalised estimation error squared of the {1} Gaussian ({2}; 3 or 2 if consistent)"),
 )
-_COMPILED = tuple((re.compile(p + r"\Z"), u, d) for p, u, d in _DEFINITIONS)
+# the localization runs' measures (loc_*) live in their own registry, consulted here too
+_COMPILED = tuple((re.compile(p + r"\Z"), u, d) for p, u, d in _DEFINITIONS + _LOCALIZATION_DEFINITIONS)
 
 
 def describe(name: str) -> tuple[str, str]:

@@ -32,7 +32,7 @@ import itertools
 import json
 import math
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -326,7 +326,13 @@ def run_label(key: str, value: Any) -> str:
     return ABBREVIATIONS.get(last, _SAFE.sub("", last)) + text
 
 
-def expand_set(name: str, spec: Mapping[str, Any], defaults: Mapping[str, Any] | None = None) -> list[Run]:
+def expand_set(
+    name: str,
+    spec: Mapping[str, Any],
+    defaults: Mapping[str, Any] | None = None,
+    *,
+    normalize: Callable[[Mapping[str, Any]], dict[str, Any]] | None = None,
+) -> list[Run]:
     """Expand one experiment set into its runs (product of axes, zipped within an axis).
 
     Parameters
@@ -334,6 +340,9 @@ def expand_set(name: str, spec: Mapping[str, Any], defaults: Mapping[str, Any] |
     name : str — set name
     spec : mapping with ``base`` (partial run config) and ``sweep`` (list of axes)
     defaults : mapping, optional — run-config defaults shared by every set
+    normalize : callable, optional — validates a run configuration and returns every parameter
+        (default: :class:`~pose_uncertainty.logs.run.RunConfig`'s ``from_dict`` then ``to_dict``;
+        the localization runs pass their own)
 
     Returns
     -------
@@ -382,7 +391,7 @@ def expand_set(name: str, spec: Mapping[str, Any], defaults: Mapping[str, Any] |
         run_id = _SAFE.sub("-", run_id)
         cfg["name"] = run_id
         try:
-            full = RunConfig.from_dict(cfg).to_dict()
+            full = RunConfig.from_dict(cfg).to_dict() if normalize is None else normalize(cfg)
         except ValueError as exc:
             raise ConfigError(f"{where}, run {run_id!r}: {exc}") from None
         if run_id in runs:
