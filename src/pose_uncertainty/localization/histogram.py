@@ -42,7 +42,7 @@ from .result import (
     check_keep,
     landmark_measurements,
 )
-from .sensors import BeamSensor, RangeBearingSensor, beam_probability, cast_rays
+from .sensors import BeamSensor, RangeBearingSensor, beam_probability, beam_terms, cast_rays
 from .simulate import SimulatedRun
 from .world import OccupancyGrid, World
 
@@ -233,13 +233,14 @@ def _transition(cache: dict[tuple[float, ...], GridTransition], run: SimulatedRu
 
 def _loglik_grid(run: SimulatedRun, world: World, sensor: RangeBearingSensor | BeamSensor, k: int,
                  grid: Grid, belief: Array, cfg: HistogramFilterConfig,
-                 table: Array | None) -> tuple[Array | None, int, int]:  # fmt: skip
+                 table: Array | None, terms: tuple[Array, Array] | None = None,
+                 ) -> tuple[Array | None, int, int]:  # fmt: skip
     """Log-likelihood grid of step ``k``'s measurements (None: no measurement), count, wrong associations."""
     if isinstance(sensor, BeamSensor):
         if not run.beam_valid[k] or run.beam_z is None or table is None:
             return None, 0, 0
         with np.errstate(divide="ignore"):
-            ll = np.log(beam_probability(run.beam_z[k], table, sensor)).sum(axis=-1)
+            ll = np.log(beam_probability(run.beam_z[k], table, sensor, terms)).sum(axis=-1)
         return ll, sensor.n_beams, 0
     if cfg.association == "ml":  # every cell associates for itself
         valid = run.landmark_valid[k]
@@ -275,6 +276,7 @@ def run_histogram(
     grid = pose_grid_for(world, cfg.resolution, cfg.ntheta)
     free = _free_mask(world, grid) if cfg.mask_occupied else None
     table = beam_range_table(world.grid, grid, sensor) if isinstance(sensor, BeamSensor) and world.grid else None
+    terms = beam_terms(table, sensor) if table is not None and isinstance(sensor, BeamSensor) else None
     belief = initial_belief(st, world, grid)
     cache: dict[tuple[float, ...], GridTransition] = {}
     for k in range(run.n_steps + 1):
@@ -288,7 +290,7 @@ def run_histogram(
                 belief = belief * free[:, :, None]
                 masked = before - float(belief.sum())
             belief = belief / belief.sum()
-        ll, m, wrong = _loglik_grid(run, world, sensor, k, grid, belief, cfg, table)
+        ll, m, wrong = _loglik_grid(run, world, sensor, k, grid, belief, cfg, table, terms)
         if ll is not None:
             belief, logev = hf_correct(belief, ll)
         rec.toc(k)

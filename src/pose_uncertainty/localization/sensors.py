@@ -62,6 +62,7 @@ __all__ = [
     "associate",
     "beam_log_likelihood",
     "beam_probability",
+    "beam_terms",
     "cast_rays",
     "expected_ranges",
     "landmark_h",
@@ -486,24 +487,38 @@ def expected_ranges(grid: OccupancyGrid, poses: ArrayLike, sensor: BeamSensor) -
     return z.reshape(ang.shape)
 
 
-def beam_probability(z: ArrayLike, z_star: ArrayLike, sensor: BeamSensor) -> Array:
+def beam_terms(z_star: ArrayLike, sensor: BeamSensor) -> tuple[Array, Array]:
+    """The parts of :func:`beam_probability` that depend on ``z*`` only: the hit component's
+    truncated mass ``max(Φ((z_max − z*)/σ) − Φ(−z*/σ), 10⁻³⁰⁰)`` and the short component's
+    ``η = 1/max(1 − e^{−λ z*}, 10⁻³⁰⁰)`` (a fixed table of ``z*``, as the histogram filter's, computes them once).
+    """
+    zs = check_nonnegative("z_star", z_star)
+    zm, sh = sensor.max_range, sensor.sigma_hit
+    mass = np.maximum(ndtr((zm - zs) / sh) - ndtr(-zs / sh), 1e-300)
+    eta = 1.0 / np.maximum(-np.expm1(-sensor.lambda_short * zs), 1e-300)
+    return mass, eta
+
+
+def beam_probability(
+    z: ArrayLike, z_star: ArrayLike, sensor: BeamSensor, terms: tuple[Array, Array] | None = None
+) -> Array:
     """Beam-model density ``p(z | z*)`` per beam (mixture above), broadcast shape.
 
     ``z`` equal to ``max_range`` (to 10⁻⁹ m) is the max reading and gets the point
-    mass ``z_max``; readings are otherwise in ``[0, max_range)``.
+    mass ``z_max``; readings are otherwise in ``[0, max_range)``. ``terms``: :func:`beam_terms`
+    of ``z_star`` when already computed (the same result).
     """
     zz = check_finite("z", z)
     zs = check_nonnegative("z_star", z_star)
     zm, sh = sensor.max_range, sensor.sigma_hit
     in_range = (zz >= 0) & (zz < zm - 1e-9)
     is_max = np.abs(zz - zm) <= 1e-9
-    # p_hit: normal truncated to [0, z_max]
-    mass = ndtr((zm - zs) / sh) - ndtr(-zs / sh)
+    # p_hit: normal truncated to [0, z_max]; p_short: exponential truncated to [0, z*],
+    # η = 1/(1 − e^{−λ z*}); z* = 0 → 0 for z > 0
+    mass, eta = beam_terms(zs, sensor) if terms is None else terms
     g = np.exp(-0.5 * ((zz - zs) / sh) ** 2) / (sh * math.sqrt(2 * math.pi))
-    p_hit = np.where((zz >= 0) & (zz <= zm), g / np.maximum(mass, 1e-300), 0.0)
-    # p_short: exponential truncated to [0, z*]; η = 1/(1 − e^{−λ z*}); z* = 0 → 0 for z > 0
+    p_hit = np.where((zz >= 0) & (zz <= zm), g / mass, 0.0)
     lam = sensor.lambda_short
-    eta = 1.0 / np.maximum(-np.expm1(-lam * zs), 1e-300)
     p_short = np.where((zz >= 0) & (zz <= zs) & (zs > 0), eta * lam * np.exp(-lam * zz), 0.0)
     p_rand = np.where(in_range, 1.0 / zm, 0.0)
     return (sensor.z_hit * p_hit + sensor.z_short * p_short

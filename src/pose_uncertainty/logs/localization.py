@@ -243,7 +243,7 @@ def _world(data: Any) -> dict[str, Any]:
     """The world section, normalised: a file read in, an image pinned by its sha256, random landmarks kept as a spec."""
     if not isinstance(data, Mapping):
         raise _fail("world", "a mapping (world keys, or {file: PATH})", data)
-    data = dict(data)
+    data = {k: v for k, v in data.items() if v is not None}  # null = not given
     base = Path(".")
     out: dict[str, Any] = {}
     if "file" in data:
@@ -254,7 +254,8 @@ def _world(data: Any) -> dict[str, Any]:
         out["source"] = src
         data = {**coerce_numbers(inline), **data}
     if "source" in data:
-        out["source"] = str(data.pop("source"))
+        src_given = str(data.pop("source"))
+        out.setdefault("source", src_given)
     rnd = _random_landmarks(data.pop("random_landmarks", {"count": 0}))
     sha = None
     if isinstance(data.get("image"), Mapping):
