@@ -85,8 +85,12 @@ def normalize_log_weights(log_w: ArrayLike) -> tuple[Array, float]:
 
 def effective_sample_size(w: ArrayLike) -> float:
     """``ESS = 1 / Σ w_i²`` of normalised weights: n for equal weights, 1 for a single particle."""
-    ww = check_finite("w", w)
-    return float(1.0 / np.sum(ww * ww))
+    return _ess(check_finite("w", w))
+
+
+def _ess(w: Array) -> float:
+    """:func:`effective_sample_size` of weights known to be finite (a runner's own)."""
+    return float(1.0 / np.dot(w, w))
 
 
 def cumulative_weights(w: ArrayLike) -> Array:
@@ -95,7 +99,12 @@ def cumulative_weights(w: ArrayLike) -> Array:
     if ww.ndim != 1 or ww.size == 0 or np.any(ww < 0) or not ww.sum() > 0:
         raise ValueError("w must be a 1-D array of weights >= 0 with a positive sum (allowed: weights), "
                          f"got shape {ww.shape}, sum {float(ww.sum()) if ww.size else 0.0}")  # fmt: skip
-    q = np.cumsum(ww)
+    return _cumulative(ww)
+
+
+def _cumulative(w: Array) -> Array:
+    """:func:`cumulative_weights` of weights known to be valid (a runner's own normalised ones)."""
+    q = np.cumsum(w)
     q /= q[-1]
     q[-1] = 1.0
     return q
