@@ -764,11 +764,10 @@ def _guide_localization(all_rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]
                      + (f"; the EKF, whose single Gaussian cannot hold the hypotheses, in {100 * max(ekf):.0f} % at most."
                         if ekf else "."))  # fmt: skip
     return {
-        "advice": "Localize with the EKF (Method A's prediction) for position tracking with identifiable landmarks: as "
-                  "accurate as the particle filter at a fraction of its cost, and consistent. Use the particle filter "
-                  "(Monte Carlo's prediction) when the start is unknown or the robot may be kidnapped, with enough "
-                  "particles; the histogram filter (Method B's) solves those too on small worlds, at a cost that grows "
-                  "with the cells.",
+        "advice": "Localize with the EKF (Method A's prediction) when the start is known and the landmarks can be told "
+                  "apart; with the particle filter (Monte Carlo's prediction), with enough particles, when the start is "
+                  "unknown, the landmarks look alike or the robot may be kidnapped. The histogram filter (Method B's) "
+                  "handles those too on small worlds, at a cost that grows with its cells.",
         "evidence": " ".join(parts),
         "numbers": numbers,
     }  # fmt: skip
