@@ -35,7 +35,7 @@ from pose_uncertainty.logs.localization import (
     execute_localization,
     expand_localization,
 )
-from pose_uncertainty.logs.runlog import open_run, verify_run
+from pose_uncertainty.logs.runlog import PartialLogWarning, RunLogError, open_run, verify_run
 from pose_uncertainty.logs.tables import collect_table
 from pose_uncertainty.methods import maps as M
 from pose_uncertainty.present import localization_figures as LF
@@ -286,6 +286,22 @@ def test_replay_verify_ok_and_tampered(logged: Path, tmp_path: Path, capsys: pyt
     finally:
         LL._ELLIPSE_POINTS = original
     assert verify_run(open_run(drawn)) == ["file bytes differ from a fresh log of the same data (a display topic was altered)"]
+
+
+def test_truncated_log_is_refused_and_recovered(logged: Path, tmp_path: Path) -> None:
+    data = logged.read_bytes()
+    with open(logged, "rb") as fh:
+        last = make_reader(fh).get_summary().chunk_indexes[-1]
+    part = tmp_path / "part.mcap"  # cut inside the last chunk: the earlier ones are whole
+    part.write_bytes(data[: last.chunk_start_offset + last.chunk_length // 2])
+    with pytest.raises(RunLogError, match="truncated"):
+        open_run(part)
+    with pytest.warns(PartialLogWarning, match="partial log"):
+        log = open_run(part, recover=True)
+    assert log.partial
+    assert 0 < log.filters["ekf"].mean.shape[0] < log.times.size
+    np.testing.assert_array_equal(log.filters["ekf"].mean, open_run(logged).filters["ekf"].mean[: log.filters["ekf"].mean.shape[0]])
+    assert verify_run(log) == ["the log is partial; a partial log cannot be verified"]
 
 
 def test_table_columns_equal_the_logged_metrics(logged: Path, tmp_path: Path) -> None:

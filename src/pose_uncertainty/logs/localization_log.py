@@ -280,21 +280,18 @@ def _static(log: _Log, res: LocalizationResult, t0: int) -> None:
     log.put(T_DATA, _arrays_msg(_data_arrays(res), t0), t0)
 
 
-def _measurements(log: _Log, res: LocalizationResult, k: int, tk: int) -> None:
+def _measurements(log: _Log, res: LocalizationResult, beam_angles: Array | None, k: int, tk: int) -> None:
     """The measurements of step ``k`` drawn from the true pose (rays are replaced every step)."""
     x, y, th = res.true_poses[k]
-    cfg = res.config
-    if "landmarks" in cfg.sensors:
+    if "landmarks" in res.config.sensors:
         z = res.landmark_z[k][res.landmark_valid[k]]
         ends = np.column_stack([x + z[:, 0] * np.cos(th + z[:, 1]), y + z[:, 0] * np.sin(th + z[:, 1])])
         log.put("/measurements/landmarks", _rays("landmarks", np.array([x, y]), ends, tk), tk)
-    if res.beam_z is not None:
-        beams = cfg.beam_sensor()
-        if res.beam_valid[k] and beams is not None:
-            a = th + beams.angles
+    if res.beam_z is not None and beam_angles is not None:
+        ends = np.zeros((0, 2))
+        if res.beam_valid[k]:
+            a = th + beam_angles
             ends = np.column_stack([x + res.beam_z[k] * np.cos(a), y + res.beam_z[k] * np.sin(a)])
-        else:
-            ends = np.zeros((0, 2))
         log.put("/measurements/beams", _rays("beams", np.array([x, y]), ends, tk), tk)
 
 
@@ -324,6 +321,8 @@ def _write_stream(stream: Any, res: LocalizationResult, include_timings: bool) -
     _static(log, res, t_ns[0])
     ellipses = {f: ellipse_polyline(tr.cov[:, :2, :2], PR_3SIGMA, tr.mean[:, :2], _ELLIPSE_POINTS)[:, :-1]
                 for f, tr in res.filters.items()}  # fmt: skip
+    beams = res.config.beam_sensor()
+    beam_angles = None if beams is None else beams.angles
     for k, tk in enumerate(t_ns):
         x, y, th = (float(v) for v in res.true_poses[k])
         tf = FrameTransform(parent_frame_id=WORLD, child_frame_id=BASE)
@@ -332,7 +331,7 @@ def _write_stream(stream: Any, res: LocalizationResult, include_timings: bool) -
         _yaw(tf.rotation, th)
         log.put("/tf", tf, tk)
         log.put("/truth/pose", _pose_msg(res.true_poses[k], tk), tk)
-        _measurements(log, res, k, tk)
+        _measurements(log, res, beam_angles, k, tk)
         for name, tr in res.filters.items():
             _filter_step(log, name, tr, ellipses[name], k, float(res.times[k]), tk)
     t_end = t_ns[-1]
