@@ -304,4 +304,5 @@ def wilson_interval(successes: int, n: int, confidence: float = 0.95) -> tuple[f
     p = successes / n
     centre = (p + z * z / (2 * n)) / (1 + z * z / n)
     half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return max(0.0, centre - half), min(1.0, centre + half)
+    # the interval holds p̂ exactly (rounding could put an end a hair past it at p̂ = 0 or 1)
+    return min(max(0.0, centre - half), p), max(min(1.0, centre + half), p)

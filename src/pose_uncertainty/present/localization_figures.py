@@ -76,7 +76,11 @@ def paths_figure(res: LocalizationResult) -> Figure:
         ax.plot(w.landmarks[:, 0], w.landmarks[:, 1], ls="none", marker="*", ms=8, color="tab:red",
                 label=f"landmarks ({w.n_landmarks})")  # fmt: skip
     ax.plot(res.odometry[:, 0], res.odometry[:, 1], color="0.55", lw=1.0, ls="--", label="dead reckoning")
-    ax.plot(res.true_poses[:, 0], res.true_poses[:, 1], color="k", lw=1.4, label="true path")
+    truth = res.true_poses[:, :2]
+    ks = res.config.scenario.get("kidnap_step")
+    if ks:  # the robot is carried away between two steps: no line between them
+        truth = np.concatenate([truth[:ks], np.full((1, 2), np.nan), truth[ks:]])
+    ax.plot(truth[:, 0], truth[:, 1], color="k", lw=1.4, label="true path" + (" (kidnapped)" if ks else ""))
     for name, tr in res.filters.items():
         ax.plot(tr.mean[:, 0], tr.mean[:, 1], color=COLORS[name], lw=0.9, label=LABELS[name])
         pts = ellipse_polyline(tr.cov[-1, :2, :2], PR_3SIGMA, tr.mean[-1, :2], 100)
@@ -242,7 +246,8 @@ def success_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") -> F
         rate = np.array([lg.metrics[f"loc_{name}_success_rate"] for lg in have])
         lo = np.array([lg.metrics[f"loc_{name}_success_low"] for lg in have])
         hi = np.array([lg.metrics[f"loc_{name}_success_high"] for lg in have])
-        ax.errorbar(x, rate, yerr=[rate - lo, hi - rate], color=COLORS[name], marker="o", ms=4, lw=1.0, capsize=3,
+        yerr = np.maximum(0.0, [rate - lo, hi - rate])
+        ax.errorbar(x, rate, yerr=yerr, color=COLORS[name], marker="o", ms=4, lw=1.0, capsize=3,
                     label=f"{LABELS[name]} ({have[0].config.repeat} runs each)")  # fmt: skip
     if n.size and n.max() > 0:
         ax.set_xscale("log")
