@@ -231,13 +231,13 @@ def _measurement_model(
 
 def _predict_and_weigh(
     P: Array, model: tuple[BlockModel, int] | None, run: SimulatedRun, k: int, cfg: ParticleFilterConfig,
-    rng: np.random.Generator,
+    gens: Sequence[np.random.Generator],
 ) -> tuple[Array, Array | None, Array | None]:  # fmt: skip
     """Move the particles by step ``k−1 → k`` and evaluate step ``k``'s likelihood, block by block.
 
-    Each block of :func:`~pose_uncertainty.localization.sensors.chunks` draws its motion from its
-    own generator spawned from ``rng`` (one spawn per step), so the result does not depend on
-    ``cfg.workers``, the threads the blocks run on.
+    Block ``c`` of :func:`~pose_uncertainty.localization.sensors.chunks` draws its motion from its
+    own generator ``gens[c]`` (spawned once per run from the filter's), so the result does not
+    depend on ``cfg.workers``, the threads the blocks run on.
 
     Returns
     -------
@@ -245,7 +245,6 @@ def _predict_and_weigh(
     """
     n = P.shape[0]
     blocks = chunks(n)
-    gens = rng.spawn(len(blocks)) if k > 0 else []
     out = np.empty_like(P) if k > 0 else P
     ll = np.empty(n) if model is not None else None
     wrong = np.zeros(n) if model is not None else None
@@ -310,10 +309,11 @@ def run_particle(
     uniform = -math.log(n)
     lw = np.full(n, uniform)  # log w, kept beside w: a correction adds, no logarithm per step
     slow_fast = [-math.inf, -math.inf]
+    gens = rng.spawn(len(chunks(n)))  # the motion's generator of each block of particles
     for k in range(run.n_steps + 1):
         rec.tic()
         model = _measurement_model(run, world, sensor, k, cfg)
-        P, ll, wrong_each = _predict_and_weigh(P, model, run, k, cfg, rng)
+        P, ll, wrong_each = _predict_and_weigh(P, model, run, k, cfg, gens)
         ess, res, inj, logev, m, wrong = _ess(w), False, 0, 0.0, 0, 0.0
         if model is not None and ll is not None:
             m = model[1]

@@ -219,7 +219,7 @@ def _loglik_terms(P: Array, z: Array, lm: Array, inv_var: tuple[float, float], d
 
 
 def _measurement_frames(z: Array, lm: Array, center: Array, dtype: Any) -> tuple[Array, Array]:
-    """Per-measurement factors of the landmark position in the frame of the measured bearing, each (4, m).
+    """Per-measurement factors of the landmark position in the frame of the measured bearing, each (m, 4).
 
     For a particle ``(x, y, θ)`` and a measurement ``(r, φ)`` of landmark ``m``, the vector
     ``d = m − (x, y)`` turned by ``−(θ + φ)`` is ``(X, Y) = A·B_X, A·B_Y`` with the particle's
@@ -231,57 +231,62 @@ def _measurement_frames(z: Array, lm: Array, center: Array, dtype: Any) -> tuple
     mx, my = lm[:, 0] - center[0], lm[:, 1] - center[1]
     c, s = np.cos(z[:, 1]), np.sin(z[:, 1])
     u, v = mx * c + my * s, my * c - mx * s
-    BX = np.stack([u, v, -c, -s]).astype(dtype)
-    BY = np.stack([v, -u, s, -c]).astype(dtype)
+    BX = np.stack([u, v, -c, -s], axis=1).astype(dtype)  # (m, 4)
+    BY = np.stack([v, -u, s, -c], axis=1).astype(dtype)
     return BX, BY
 
 
 def _workspace(n: int, m: int, dtype: Any) -> tuple[Array, Array, Array, Array]:
-    """This thread's buffers for a chunk of ``n`` particles and ``m`` measurements: A (n, 4), X, Y, E (n, m).
+    """This thread's buffers for a chunk of ``n`` particles and ``m`` measurements: A (4, n), X, Y, E (m, n).
 
-    Reused from call to call (large temporaries allocated at every step cost page faults).
+    Reused from call to call (large temporaries allocated at every step cost page faults);
+    measurements along the first axis, so the sums over them are ``m − 1`` contiguous vector adds.
     """
     key = (n, m, np.dtype(dtype).str)
     cache = getattr(_WORK, "buffers", None)
     if cache is None or cache[0] != key:
-        cache = (key, np.empty((n, 4), dtype), np.empty((n, m), dtype), np.empty((n, m), dtype), np.empty((n, m), dtype))
+        cache = (key, np.empty((4, n), dtype), np.empty((m, n), dtype), np.empty((m, n), dtype),
+                 np.empty((m, n), dtype))  # fmt: skip
         _WORK.buffers = cache
     return cache[1], cache[2], cache[3], cache[4]
 
 
 def _loglik_chunk(
-    P: Array, z: Array, frames: tuple[Array, Array], center: Array, inv_var: tuple[Array, Array], const: float,
+    P: Array, z: Array, frames: tuple[Array, Array], center: Array, inv_var: tuple[float, float], const: float,
     dtype: Any,
 ) -> Array:  # fmt: skip
     """Σ_j log N(z_j; h_j(p), Q) for a chunk of particles (n, 3) and m measurements, shape (n,).
 
     The landmark seen in the frame of the measured bearing (:func:`_measurement_frames`):
-    ``X, Y = A·B_X, A·B_Y`` (two (n, 4)·(4, m) matrix products), so the predicted range is
+    ``X, Y = B_X·A, B_Y·A`` (two (m, 4)·(4, n) matrix products), so the predicted range is
     ``√(X² + Y²)`` and the bearing error ``atan2(Y, X) = wrap(φ̂ − φ)`` without an explicit
-    wrap; the weighted sums over the measurements are matrix–vector products. Every
-    (n, m) array lives in this thread's reused buffers.
+    wrap. Every (m, n) array lives in this thread's reused buffers.
     """
-    A, X, Y, E = _workspace(P.shape[0], z.shape[0], dtype)
+    m = z.shape[0]
+    A, X, Y, E = _workspace(P.shape[0], m, dtype)
+    c, s = A[0], A[1]
     th = P[:, 2].astype(dtype)
-    c, s = np.cos(th), np.sin(th)
+    np.cos(th, out=c)
+    np.sin(th, out=s)
     x = (P[:, 0] - center[0]).astype(dtype)
     y = (P[:, 1] - center[1]).astype(dtype)
-    A[:, 0], A[:, 1] = c, s
-    np.multiply(x, c, out=A[:, 2])
-    A[:, 2] += y * s  # a = x cos θ + y sin θ
-    np.multiply(y, c, out=A[:, 3])
-    A[:, 3] -= x * s  # b = y cos θ − x sin θ
-    np.matmul(A, frames[0], out=X)
-    np.matmul(A, frames[1], out=Y)
+    np.multiply(x, c, out=A[2])
+    A[2] += y * s  # a = x cos θ + y sin θ
+    np.multiply(y, c, out=A[3])
+    A[3] -= x * s  # b = y cos θ − x sin θ
+    np.matmul(frames[0], A, out=X)
+    np.matmul(frames[1], A, out=Y)
     np.arctan2(Y, X, out=E)  # φ̂ − φ, in (−π, π]
     X *= X
     Y *= Y
     X += Y
     np.sqrt(X, out=X)
-    X -= z[:, 0].astype(dtype)  # predicted − measured range
+    X -= z[:, 0, None].astype(dtype)  # predicted − measured range
     X *= X
     E *= E
-    return const - 0.5 * ((X @ inv_var[0]).astype(np.float64) + (E @ inv_var[1]).astype(np.float64))
+    # Σ over the measurements: m − 1 vector adds (no matrix–vector product: OpenBLAS runs those on its
+    # own threads, whose spinning then takes the cores from the blocks)
+    return const - 0.5 * (inv_var[0] * X.sum(axis=0, dtype=np.float64) + inv_var[1] * E.sum(axis=0, dtype=np.float64))
 
 
 _WORK = threading.local()
@@ -335,8 +340,7 @@ class LandmarkLikelihood:
         check_choice("dtype", dtype, ("float64", "float32"))
         self.dtype: Any = np.float64 if dtype == "float64" else np.float32
         m = self.z.shape[0]
-        self.inv: tuple[Any, Any] = (np.full(m, 1.0 / sensor.range_std**2, dtype=self.dtype),
-                    np.full(m, 1.0 / sensor.bearing_std**2, dtype=self.dtype))  # fmt: skip
+        self.inv = (1.0 / sensor.range_std**2, 1.0 / sensor.bearing_std**2)  # of the squared errors
         self.const = -m * (_LOG_2PI + math.log(sensor.range_std * sensor.bearing_std))
         self.center = lm.mean(axis=0) if m else np.zeros(2)
         self.frames = _measurement_frames(self.z, lm, self.center, self.dtype)
@@ -410,12 +414,17 @@ def chunks(n: int, size: int | None = None) -> list[tuple[int, int]]:
 
 
 def run_blocks(fn: Any, n_blocks: int, workers: int = 1) -> None:
-    """Call ``fn(0) … fn(n_blocks − 1)``, on a persistent pool of ``workers`` threads when > 1."""
+    """Call ``fn(0) … fn(n_blocks − 1)``: with ``workers`` > 1 the calling thread takes block 0 and a
+    persistent pool of ``workers − 1`` threads the others (numpy releases the GIL in its loops)."""
     if check_positive_int("workers", workers) == 1 or n_blocks == 1:
         for c in range(n_blocks):
             fn(c)
-    else:
-        list(_pool(workers).map(fn, range(n_blocks)))
+        return
+    pool = _pool(workers - 1)
+    futures = [pool.submit(fn, c) for c in range(1, n_blocks)]
+    fn(0)
+    for f in futures:
+        f.result()
 
 
 #: Largest block of particles of :func:`chunks`.
