@@ -79,6 +79,9 @@ DEFINITIONS: tuple[tuple[str, str, str], ...] = (
      "mean over the R runs of the {1} filter's absolute heading error at the last step"),
     (rf"loc_{_F}_nees_mean", "1",
      f"mean over {_EVERY} of the {{1}} filter's NEES εᵀΣ⁻¹ε (ε = truth − estimate, 3 if consistent)"),
+    (rf"loc_{_F}_nees_median", "1",
+     (f"median over {_EVERY} of the {{1}} filter's NEES (robust to the rare steps where a collapsed sample "
+      "covariance makes the NEES huge)")),
     (rf"loc_{_F}_nees_in_band", "1",
      "fraction of the steps whose NEES averaged over the R runs lies in the 95 % band loc_nees_band_low…high"),
     (rf"loc_{_F}_coverage_{_LEVELS}", "1",
@@ -210,6 +213,7 @@ def filter_measures(
         "final_position_error": float(np.mean([p[-1] for p in pe])),
         "final_heading_error": float(np.mean([h[-1] for h in he])),
         "nees_mean": float(np.nanmean(nees_all)) if np.isfinite(nees_all).any() else math.nan,
+        "nees_median": float(np.nanmedian(nees_all)) if np.isfinite(nees_all).any() else math.nan,
         "nees_in_band": float(np.mean((nees_avg[finite] >= low) & (nees_avg[finite] <= high))) if finite.any() else math.nan,
         "success_rate": n_ok / R, "success_low": lo, "success_high": hi,
         "time_to_converge": float(np.median(t_ok)) if t_ok else math.nan,
