@@ -73,14 +73,16 @@ def normalize_log_weights(log_w: ArrayLike) -> tuple[Array, float]:
     lw = np.asarray(log_w, dtype=np.float64)
     if lw.ndim != 1 or lw.size == 0:
         raise ValueError(f"log_w must have shape (N,) with N >= 1, got shape {lw.shape}")
-    if np.any(np.isnan(lw) | (lw == np.inf)):
+    top = float(lw.max())  # NaN if any is NaN, +inf if any is +inf: one pass checks both
+    if math.isnan(top) or top == np.inf:
         raise ValueError("log_w must be finite or -inf (allowed: [-inf, inf)), got NaN or +inf")
-    top = float(lw.max())
     if top == -np.inf:
         raise ValueError("log_w must have at least one finite value (allowed: some particle with p > 0), got all -inf")
-    e = np.exp(lw - top)
+    e = lw - top
+    np.exp(e, out=e)
     s = float(e.sum())
-    return e / s, top + math.log(s)
+    e /= s
+    return e, top + math.log(s)
 
 
 def effective_sample_size(w: ArrayLike) -> float:
