@@ -3,6 +3,7 @@ from pathlib import Path
 from importlib import resources as _resources
 
 from pose_uncertainty.logs import sweep as _sweep
+from pose_uncertainty.logs import localization as _loc
 from pose_uncertainty.logs import study as _study
 from pose_uncertainty.logs.provenance import source_sha256
 from pose_uncertainty.core.schema import load_schema
@@ -16,6 +17,10 @@ if workflow.overwrite_configfiles:
 
     config.clear()
     config.update(_copy.deepcopy(workflow.config_settings.overwrite_config))
+
+# localization: a number written as YAML 1.1 reads it ("1e-3", a string) is a number (before the schema)
+if isinstance(config.get("localization"), dict):
+    config["localization"] = _loc.coerce_numbers(config["localization"])
 
 _SCHEMA = load_schema(workflow.source_path("../schemas/config.schema.yaml"))
 try:
@@ -146,6 +151,7 @@ def all_benchmarks(wildcards=None):
     out.append("data/benchmarks/evaluate_claims/all.tsv")
     out.extend(f"data/benchmarks/run_study/{name}.tsv" for name in STUDIES)
     out.extend(f"data/benchmarks/render_study_figure/{Path(f).stem}.tsv" for f in studies_figures().values())
+    out.extend(localization_benchmarks())
     return out
 
 
@@ -174,14 +180,105 @@ def report_manifest():
                 ],
             }
         )
-    return {"sets": sets, "config": config}
+    return {"sets": sets, "config": config, "localization": localization_manifest()}
 
 
 def all_outputs():
-    return ["reports/comparison.html", *all_tables(), *all_figures(), *studies_figures().values()]
+    return ["reports/comparison.html", *all_tables(), *all_figures(), *studies_figures().values(),
+            *localization_tables(), *localization_figures()]
 
 
 def polar_logs(wildcards):
     """Runs drawn in seed 001's Cartesian/polar view: the midpoint-sampler runs (at most 8)."""
     runs = [r for r in RUNS[wildcards.set] if r.config["monte_carlo"]["method"] == "midpoint"]
     return [r.path for r in (runs or RUNS[wildcards.set])[:8]]
+
+
+# --- localization (pose_uncertainty.logs.localization): its sets, runs, outputs --------------------
+# Config key `localization.sets`: sweeps over localization run configurations, expanded like the
+# experiment sets; logs in data/localization/<set>/<run>.mcap, rules in workflow/rules/localization.smk.
+try:
+    LOC_RUNS = _loc.expand_localization(config)  # {set: [Run, ...]}
+except _sweep.ConfigError as _exc:
+    raise WorkflowError(f"invalid config: {_exc}") from None
+LOC_BY_ID = {(s, r.id): r for s, runs in LOC_RUNS.items() for r in runs}
+LOC_SETS = list(LOC_RUNS)
+LOC_RUN_FIGURES = ("paths", "errors", "nees")
+
+
+def localization_config(wildcards):
+    """The full configuration of data/localization/<set>/<run>.mcap (a rule param)."""
+    return LOC_BY_ID[(wildcards.set, wildcards.run)].config
+
+
+def localization_log(set_name, run_id):
+    return f"data/localization/{set_name}/{run_id}.mcap"
+
+
+def localization_logs(set_name):
+    return [localization_log(set_name, r.id) for r in LOC_RUNS[set_name]]
+
+
+def localization_timings(set_name):
+    return [f"data/localization/{set_name}/{r.id}.timings.json" for r in LOC_RUNS[set_name]]
+
+
+def localization_run_figures(set_name, run_id):
+    return {k: f"reports/figures/localization/{set_name}/{run_id}/{k}.png" for k in LOC_RUN_FIGURES}
+
+
+def localization_set_figures(set_name):
+    plots = config["localization"]["sets"][set_name]["plots"]
+    return {p: f"reports/figures/localization/{set_name}/{p}.png" for p in plots}
+
+
+def localization_figures(wildcards=None):
+    out = []
+    for s in LOC_SETS:
+        out.extend(localization_set_figures(s).values())
+        for r in LOC_RUNS[s]:
+            out.extend(localization_run_figures(s, r.id).values())
+    return out
+
+
+def localization_tables(wildcards=None):
+    return [f"reports/tables/localization/{s}.csv" for s in LOC_SETS]
+
+
+def localization_table_names():
+    """The claims', summary's and report's name of each localization table (apart from the experiment sets)."""
+    return [f"localization/{s}" for s in LOC_SETS]
+
+
+def localization_benchmarks():
+    out = []
+    for s in LOC_SETS:
+        for r in LOC_RUNS[s]:
+            out.append(f"data/benchmarks/simulate_localization/{s}/{r.id}.tsv")
+            out.append(f"data/benchmarks/render_localization_figures/{s}/{r.id}.tsv")
+        out.extend(f"data/benchmarks/render_localization_set_figure/{s}/{p}.tsv" for p in localization_set_figures(s))
+        out.append(f"data/benchmarks/collect_localization_metrics/{s}.tsv")
+    return out
+
+
+def localization_manifest():
+    """The localization sets, runs and figures the report shows (a rule param)."""
+    sets = []
+    for s in LOC_SETS:
+        spec = config["localization"]["sets"][s]
+        sets.append(
+            {
+                "name": s,
+                "title": spec["title"] or s,
+                "source": spec["source"],
+                "description": spec["description"],
+                "table": f"reports/tables/localization/{s}.csv",
+                "figures": localization_set_figures(s),
+                "runs": [
+                    {"id": r.id, "log": localization_log(s, r.id), "swept": r.swept,
+                     "figures": localization_run_figures(s, r.id)}
+                    for r in LOC_RUNS[s]
+                ],
+            }
+        )
+    return {"sets": sets}

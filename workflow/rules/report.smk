@@ -5,10 +5,12 @@
 rule evaluate_claims:
     input:
         tables=all_tables,
+        loc_tables=localization_tables,
     output:
         "reports/claims.json",
     params:
         sets=SETS,
+        loc_sets=localization_table_names(),
         source=SOURCE_CLAIMS,
     log:
         "logs/evaluate_claims.log",
@@ -21,12 +23,14 @@ rule evaluate_claims:
 rule summarize_pipeline:
     input:
         tables=all_tables,
+        loc_tables=localization_tables,
         studies=study_logs,
         benchmarks=all_benchmarks,
     output:
         "reports/pipeline.json",
     params:
         sets=SETS,
+        loc_sets=localization_table_names(),
         source=SOURCE_RUNS,
     log:
         "logs/summarize_pipeline.log",
@@ -43,6 +47,8 @@ rule build_report:
         template=REPORT_TEMPLATE,
         studies=studies_json,
         studies_figures=lambda w: list(studies_figures().values()),
+        loc_tables=localization_tables,
+        loc_figures=localization_figures,
         # the speed benchmarks' results, when `make bench` has written them (not made by the DAG)
         speed=lambda w: sorted(str(p) for p in Path("benchmarks/results").glob("*.json")),
     output:
@@ -52,6 +58,7 @@ rule build_report:
         sets=SETS,
         title=config["report"]["title"],
         studies_figures=studies_figures(),
+        loc_sets=LOC_SETS,
         source=SOURCE_PRESENT,
     log:
         "logs/build_report.log",

@@ -19,4 +19,6 @@ with open(sm.log[0], "w", encoding="utf-8") as log, redirect_stderr(log):
         studies_path=sm.input.studies[0] if len(sm.input.studies) else None,
         studies_figures=dict(sm.params.studies_figures),
         speed_dir="benchmarks/results",
+        localization=sm.params.manifest.get("localization"),
+        localization_tables=dict(zip(sm.params.loc_sets, sm.input.loc_tables, strict=True)),
     )

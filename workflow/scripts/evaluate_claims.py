@@ -6,4 +6,6 @@ from pose_uncertainty.analysis.claims import write_claims
 
 sm = snakemake  # noqa: F821 - injected by Snakemake
 with open(sm.log[0], "w", encoding="utf-8") as log, redirect_stderr(log):
-    write_claims(dict(zip(sm.params.sets, sm.input.tables, strict=True)), sm.output[0])
+    tables = dict(zip(sm.params.sets, sm.input.tables, strict=True))
+    tables |= dict(zip(sm.params.loc_sets, sm.input.loc_tables, strict=True))  # localization/<set>
+    write_claims(tables, sm.output[0])

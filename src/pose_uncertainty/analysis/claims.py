@@ -731,6 +731,50 @@ def _guide_control_step(rows: Rows) -> dict[str, Any] | None:
     }  # fmt: skip
 
 
+def _guide_localization(all_rows: Sequence[Mapping[str, Any]]) -> dict[str, Any] | None:
+    """Which Bayes filter to localize with: tracking accuracy and cost, consistency, global localization."""
+    track = [r for r in all_rows if r.get("param.scenario.kind") == "tracking"
+             and _value_or_none(r, "loc_ekf_rms_position_error") is not None and _value_or_none(r, "loc_particle_rms_position_error") is not None]
+    glob = [r for r in all_rows if r.get("param.scenario.kind") == "global" and _value_or_none(r, "loc_particle_success_rate") is not None]
+    if not track and not glob:
+        return None
+    parts: list[str] = []
+    numbers: dict[str, Any] = {}
+    if track:
+        med = {f: float(np.median([r[f"loc_{f}_rms_position_error"] for r in track])) for f in ("ekf", "particle")}
+        dr = float(np.median([r["loc_dead_reckoning_rms_position_error"] for r in track
+                              if _value_or_none(r, "loc_dead_reckoning_rms_position_error") is not None]))  # fmt: skip
+        band = {f: float(np.median([r[f"loc_{f}_nees_in_band"] for r in track if _value_or_none(r, f"loc_{f}_nees_in_band") is not None]))
+                for f in ("ekf", "particle")}  # fmt: skip
+        times = {f: [r[f"time_{f}_step"] for r in track if _value_or_none(r, f"time_{f}_step") is not None] for f in ("ekf", "particle")}
+        t = {f: float(np.median(v)) * 1e3 if v else math.nan for f, v in times.items()}
+        numbers.update(n_tracking=len(track), median_rms_ekf=med["ekf"], median_rms_particle=med["particle"],
+                       median_rms_dead_reckoning=dr, median_ms_ekf=t["ekf"], median_ms_particle=t["particle"])  # fmt: skip
+        parts.append(f"Over {len(track)} tracking runs with landmarks the median RMS position error is {med['ekf']:.3g} m "
+                     f"for the EKF and {med['particle']:.3g} m for the particle filter (dead reckoning {dr:.3g} m), at "
+                     f"{t['ekf']:.3g} against {t['particle']:.3g} ms per step; their NEES averaged over the runs lies "
+                     f"in its 95 % band at a median {100 * band['ekf']:.1f} % and {100 * band['particle']:.1f} % of the steps.")
+    if glob:
+        best = max(glob, key=lambda r: (r["loc_particle_success_rate"], -(r.get("param.filters.particle.n_particles") or 0)))
+        worst = min(glob, key=lambda r: r.get("param.filters.particle.n_particles") or 0)
+        ekf = [r["loc_ekf_success_rate"] for r in glob if _value_or_none(r, "loc_ekf_success_rate") is not None]
+        numbers.update(n_global=len(glob), best_success=best["loc_particle_success_rate"],
+                       best_particles=best.get("param.filters.particle.n_particles"))  # fmt: skip
+        parts.append(f"In global localization the particle filter succeeded in {100 * best['loc_particle_success_rate']:.0f} % "
+                     f"of the runs with {best.get('param.filters.particle.n_particles')} particles "
+                     f"({100 * worst['loc_particle_success_rate']:.0f} % with {worst.get('param.filters.particle.n_particles')})"
+                     + (f"; the EKF, whose single Gaussian cannot hold the hypotheses, in {100 * max(ekf):.0f} % at most."
+                        if ekf else "."))  # fmt: skip
+    return {
+        "advice": "Localize with the EKF (Method A's prediction) when the start is known and the landmarks can be told "
+                  "apart; with the particle filter (Monte Carlo's prediction), with enough particles, when the start is "
+                  "unknown, the landmarks look alike or the robot may be kidnapped. The histogram filter (Method B's) "
+                  "handles those too on small worlds, at a cost that grows with its cells.",
+        "evidence": " ".join(parts),
+        "numbers": numbers,
+    }  # fmt: skip
+
+
 def method_guide(rows: Rows) -> list[dict[str, Any]]:
     """When to use which method, with the numbers behind each piece of advice.
 
@@ -744,7 +788,7 @@ def method_guide(rows: Rows) -> list[dict[str, Any]]:
     """
     all_rows = [r for rs in rows.values() for r in rs]
     items = [_guide_covariance(all_rows), _guide_bend(all_rows), _guide_expcoords(all_rows),
-             _guide_unscented(rows), _guide_control_step(rows)]  # fmt: skip
+             _guide_unscented(rows), _guide_control_step(rows), _guide_localization(all_rows)]  # fmt: skip
     n_maps = sum(1 for r in all_rows for k in r if k.startswith("map_") and k.endswith("_region_area"))
     if n_maps:
         items.append({

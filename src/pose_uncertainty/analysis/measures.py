@@ -21,7 +21,9 @@ and logs them; everything downstream reads them back. Names:
   ``A_growth_*``, ``MC_growth_*`` — power-law exponents of the spreads against
   path length (:func:`pose_uncertainty.analysis.drives.growth_measures`), and for a
   skid-steer drive ``drive_plain_odometry_*`` — the bias of plain differential
-  odometry (:func:`pose_uncertainty.analysis.drives.plain_odometry_measures`).
+  odometry (:func:`pose_uncertainty.analysis.drives.plain_odometry_measures`);
+* ``loc_*`` — a localization run and its filters (registry and functions in
+  :mod:`pose_uncertainty.analysis.localization_measures`).
 
 :func:`describe` gives the unit and definition of any of these names; a name it
 does not know raises ``KeyError`` (a run cannot log an undefined number).
@@ -52,6 +54,7 @@ from ..core.stats import (
 from ..core.validation import check_last_axis
 from ..methods.covariance import ellipse
 from ..methods.maps import ProbabilityMap
+from .localization_measures import DEFINITIONS as _LOCALIZATION_DEFINITIONS
 
 __all__ = [
     "cloud_measures",
@@ -213,8 +216,10 @@ _METHOD_C_DEFINITIONS: tuple[tuple[str, str, str], ...] = (
 )
 # --- end Method C ---
 
+# the localization runs' measures (loc_*) live in their own registry, consulted here too
 _COMPILED = tuple(
-    (re.compile(p + r"\Z"), u, d) for p, u, d in (*_DEFINITIONS, *_METHOD_C_DEFINITIONS)
+    (re.compile(p + r"\Z"), u, d)
+    for p, u, d in (*_DEFINITIONS, *_METHOD_C_DEFINITIONS, *_LOCALIZATION_DEFINITIONS)
 )
 
 

@@ -9,8 +9,10 @@ from typing import Any
 
 import numpy as np
 
+from ..logs.localization_log import LocalizationLog
 from ..logs.runlog import PartialLogWarning, open_run, verify_run
 from ..present.figures import render_figures
+from ..present.localization_figures import render_localization_figures
 from ._common import EXIT_MISMATCH, EXIT_OK, CommandError
 
 __all__ = ["add_parser", "cmd_replay"]
@@ -68,6 +70,18 @@ def _print_state(state: dict[str, Any], pr: float) -> None:
         )
 
 
+def _print_localization_state(state: dict[str, Any]) -> None:
+    np.set_printoptions(precision=9)
+    print(f"state at step {state['step']}, t = {state['time']:.9g} s")
+    print(f"  truth (x [m], y [m], theta [rad]) = {np.array2string(state['truth'], separator=', ')}")
+    for name, s in state.items():
+        if isinstance(s, dict):
+            sd = np.sqrt(np.maximum(np.diag(s["cov"]), 0.0))
+            print(f"  {name}: mean {np.array2string(s['mean'], separator=', ')}, σ (x, y, θ) "
+                  f"{np.array2string(sd, precision=4, separator=', ')}, position error {s['position_error']:.6g} m, "
+                  f"heading error {s['heading_error']:.6g} rad")  # fmt: skip
+
+
 def cmd_replay(args: argparse.Namespace) -> int:
     """``replay``: summary, figures, state at a time, verification."""
     with warnings.catch_warnings(record=True) as caught:
@@ -79,14 +93,23 @@ def cmd_replay(args: argparse.Namespace) -> int:
         else:  # pragma: no cover - re-emit anything else unchanged
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     print(log.summary())
+    localization = isinstance(log, LocalizationLog)
     if args.at is not None:
         try:
             state = log.state_at(args.at)
         except ValueError as exc:
             raise CommandError(f"--at: {exc}") from None
-        _print_state(state, log.config.pr)
+        if localization:
+            _print_localization_state(state)
+        else:
+            _print_state(state, log.config.pr)
     if args.figures:
-        for path in render_figures(log, args.figures, args.formats or ("png", "svg")):
+        formats = args.formats or ("png", "svg")
+        if isinstance(log, LocalizationLog):
+            paths = render_localization_figures(log, args.figures, formats)
+        else:
+            paths = render_figures(log, args.figures, formats)
+        for path in paths:
             print(f"wrote {path}")
     if args.verify:
         diffs = verify_run(log)

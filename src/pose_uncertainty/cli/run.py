@@ -6,10 +6,13 @@ import argparse
 from typing import Any
 
 from ..logs.config import RunConfig
+from ..logs.localization import LocalizationConfig, execute_localization, is_localization_config
+from ..logs.localization_log import write_localization
 from ..logs.progress import Progress
 from ..logs.run import execute
 from ..logs.runlog import write_run
 from ..present.figures import render_figures
+from ..present.localization_figures import render_localization_figures
 from ._common import EXIT_OK, CommandError, load_config_file
 
 __all__ = ["add_parser", "cmd_run"]
@@ -17,7 +20,9 @@ __all__ = ["add_parser", "cmd_run"]
 
 def add_parser(sub: Any) -> None:
     p = sub.add_parser(
-        "run", help="execute one run and write its MCAP log", description="Execute one run."
+        "run",
+        help="execute one run and write its MCAP log",
+        description="Execute one run: a dead-reckoning run, or a localization run (kind: localization).",
     )
     p.add_argument("config", help="run configuration, YAML or JSON")
     p.add_argument("-o", "--output", required=True, help="output log, *.mcap (written atomically)")
@@ -33,6 +38,8 @@ def add_parser(sub: Any) -> None:
 def cmd_run(args: argparse.Namespace) -> int:
     """``run``: config file → execute → write log (→ figures)."""
     data = load_config_file(args.config)
+    if is_localization_config(data):  # kind: localization
+        return _run_localization(args, data)
     try:
         config = RunConfig.from_dict(data)
     except ValueError as exc:
@@ -45,5 +52,20 @@ def cmd_run(args: argparse.Namespace) -> int:
     print(f"wrote {path} ({path.stat().st_size} bytes, {result.n_steps} steps)")
     if args.figures:
         for fig in render_figures(result, args.figures):
+            print(f"wrote {fig}")
+    return EXIT_OK
+
+
+def _run_localization(args: argparse.Namespace, data: dict[str, Any]) -> int:
+    """``run`` of a localization configuration (``kind: localization``)."""
+    try:
+        config = LocalizationConfig.from_dict(data)
+    except ValueError as exc:
+        raise CommandError(f"{args.config}: {exc}") from None
+    result = execute_localization(config)
+    path = write_localization(args.output, result, include_timings=args.timings)
+    print(f"wrote {path} ({path.stat().st_size} bytes, {result.n_steps} steps, filters {', '.join(result.filters)})")
+    if args.figures:
+        for fig in render_localization_figures(result, args.figures):
             print(f"wrote {fig}")
     return EXIT_OK

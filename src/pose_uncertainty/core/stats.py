@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.special import gammaln
+from scipy.special import gammaln, ndtri
 
 from .validation import (
     check_finite,
@@ -39,6 +39,7 @@ __all__ = [
     "mahalanobis_sq",
     "mean_cov",
     "pr_to_k",
+    "wilson_interval",
 ]
 
 #: Probability inside the 2-D ellipse of Mahalanobis radius 1: 1 − e^{−1/2} = 39.35 %.
@@ -276,3 +277,32 @@ def fit_growth(distance: ArrayLike, value: ArrayLike) -> dict[str, float]:
         "exp_rms_log_residual": float(np.sqrt(np.mean((lv - b - c * s) ** 2))),
         "local_exponent_end": local,
     }
+
+
+# --- proportions --------------------------------------------------------------------------------
+
+
+def wilson_interval(successes: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
+    """Wilson score interval of a binomial proportion ``successes / n``.
+
+    ``(p̂ + z²/2n ± z √(p̂(1−p̂)/n + z²/4n²)) / (1 + z²/n)`` with ``z`` the two-sided normal
+    quantile of ``confidence``; unlike ``p̂ ± z·SE`` it stays inside [0, 1] and is not
+    empty at ``p̂ = 0`` or 1 (Wilson 1927).
+
+    Returns
+    -------
+    (low, high) — ``(nan, nan)`` for ``n = 0``
+    """
+    if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 0:
+        raise ValueError(f"n must be an integer >= 0 (allowed: 0, 1, 2, ...), got {n!r}")
+    if not 0 <= successes <= n:
+        raise ValueError(f"successes must be in [0, n] (allowed: 0..{n}), got {successes!r}")
+    check_probability("confidence", confidence)
+    if n == 0:
+        return math.nan, math.nan
+    z = float(ndtri(0.5 + confidence / 2.0))
+    p = successes / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    # the interval holds p̂ exactly (rounding could put an end a hair past it at p̂ = 0 or 1)
+    return min(max(0.0, centre - half), p), max(min(1.0, centre + half), p)

@@ -62,6 +62,7 @@ __all__ = [
     "s_curve",
     "square",
     "straight",
+    "tour",
 ]
 
 PROFILES: tuple[str, ...] = ("constant", "ramp")
@@ -439,6 +440,32 @@ def square(side: float = 4.0, direction: int = 1, laps: int = 1, **kw: Any) -> T
         name=kw.pop("name", f"square {side_:g} m {'ccw' if direction == 1 else 'cw'} x{laps}"),
         **kw,
     )
+
+
+def tour(segments: Sequence[Sequence[Any]] = (("line", 1.0),), laps: int = 1, **kw: Any) -> Trajectory:
+    """A path of segments written as lists: ``["line", L]``, ``["arc", r, angle]``, ``["turn", angle]``.
+
+    The configuration form of :func:`from_segments` (lengths and radii [m], angles [rad],
+    positive = left), driven ``laps`` times, e.g. a lap of a room:
+    ``[["line", 5], ["arc", 0.5, 1.5708], ...]``. Keywords as :func:`from_segments`. (Not in
+    :data:`BUILDERS`: the localization runs offer it, the dead-reckoning runs do not.)
+    """
+    if isinstance(laps, bool) or not isinstance(laps, int | np.integer) or laps < 1:
+        raise ValueError(f"laps must be an integer >= 1 (allowed: 1, 2, 3, ...), got {laps!r}")
+    kinds = {"line": (Line, 1), "arc": (Arc, 2), "turn": (Turn, 1)}
+    segs: list[Segment] = []
+    for i, item in enumerate(segments):
+        if isinstance(item, str) or not isinstance(item, Sequence) or not item or item[0] not in kinds:
+            raise ValueError(
+                f"segments[{i}] must be [kind, numbers...] with kind line, arc or turn "
+                f"(allowed: ['line', L], ['arc', r, angle], ['turn', angle]), got {item!r}"
+            )
+        cls, n_args = kinds[str(item[0])]
+        args = list(item[1:])
+        if len(args) != n_args or any(isinstance(a, bool) or not isinstance(a, int | float) for a in args):
+            raise ValueError(f"segments[{i}] ({item[0]}) must have {n_args} number(s) after the kind, got {item!r}")
+        segs.append(cls(*(float(a) for a in args)))
+    return from_segments(segs * int(laps), name=kw.pop("name", "tour"), **kw)
 
 
 BUILDERS: dict[str, Callable[..., Trajectory]] = {

@@ -27,7 +27,7 @@ the survivors then all weigh ``1/n``).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -40,9 +40,11 @@ from .motion import Motion, sample_motion
 from .resampling import (
     SCHEMES,
     _check_threshold,
-    effective_sample_size,
+    _cumulative,
+    _ess,
     normalize_log_weights,
-    resample,
+    pointers,
+    select,
 )
 from .result import (
     ASSOCIATIONS,
@@ -55,10 +57,12 @@ from .result import (
 )
 from .sensors import (
     BeamSensor,
+    LandmarkLikelihood,
     RangeBearingSensor,
     beam_log_likelihood,
-    landmark_log_likelihood,
+    chunks,
     landmark_log_likelihood_ml,
+    run_blocks,
 )
 from .simulate import SimulatedRun
 from .world import World, sample_free_poses
@@ -147,21 +151,32 @@ def pf_correct(w: Array, loglik: Array) -> tuple[Array, float]:
 
 def pf_resample(
     particles: Array, w: Array, rng: np.random.Generator, scheme: str, threshold: float,
-    n_inject: int, world: World,
+    n_inject: int, world: World, workers: int = 1,
 ) -> tuple[Array, Array, bool]:  # fmt: skip
     """Resample if ``ESS < threshold · n`` or particles are to be injected; inject ``n_inject``.
+
+    The selection (binary search of each pointer, then the copy) runs in the blocks of
+    :func:`~pose_uncertainty.localization.sensors.chunks` on ``workers`` threads; the result
+    does not depend on ``workers``.
 
     Returns
     -------
     particles : ndarray, shape (n, 3); w : ndarray, shape (n,); resampled : bool
     """
     n = particles.shape[0]
-    if n_inject == 0 and effective_sample_size(w) >= threshold * n and threshold < 1.0:
+    if n_inject == 0 and _ess(w) >= threshold * n and threshold < 1.0:
         return particles, w, False
     keep = n - n_inject
     out = np.empty_like(particles)
     if keep:
-        out[:keep] = particles[resample(w, rng, scheme, keep)]
+        q, T = _cumulative(w), pointers(keep, rng, scheme)
+        blocks = chunks(keep)
+
+        def pick(c: int) -> None:
+            a, b = blocks[c]
+            np.take(particles, select(q, T[a:b]), axis=0, out=out[a:b])
+
+        run_blocks(pick, len(blocks), workers)
     if n_inject:
         out[keep:] = sample_free_poses(world, n_inject, rng)
     return out, np.full(n, 1.0 / n), True
@@ -185,27 +200,67 @@ def _n_inject(cfg: ParticleFilterConfig, log_avg: float, slow_fast: list[float],
     return int(rng.binomial(n, p)) if p > 0 else 0
 
 
-def _loglik(
-    particles: Array, run: SimulatedRun, world: World, sensor: RangeBearingSensor | BeamSensor,
-    k: int, cfg: ParticleFilterConfig, w: Array,
-) -> tuple[Array | None, int, int]:  # fmt: skip
-    """Log-likelihood of step ``k``'s measurements per particle (None: no measurement)."""
+#: A step's measurement model on a block of particles: (log-likelihood, wrong associations or None).
+BlockModel = Callable[[Array], tuple[Array, Array | None]]
+
+
+def _measurement_model(
+    run: SimulatedRun, world: World, sensor: RangeBearingSensor | BeamSensor, k: int, cfg: ParticleFilterConfig,
+) -> tuple[BlockModel, int] | None:  # fmt: skip
+    """Step ``k``'s measurements prepared for blocks of particles, and their number (None: no measurement)."""
     if isinstance(sensor, BeamSensor):
-        if not run.beam_valid[k] or run.beam_z is None or world.grid is None:
-            return None, 0, 0
-        return beam_log_likelihood(particles, run.beam_z[k], world.grid, sensor), sensor.n_beams, 0
+        grid, zb = world.grid, run.beam_z
+        if not run.beam_valid[k] or zb is None or grid is None:
+            return None
+        return (lambda P: (beam_log_likelihood(P, zb[k], grid, sensor), None)), sensor.n_beams
+    valid = run.landmark_valid[k]
+    if not valid.any():
+        return None
     if cfg.association == "ml":  # every particle associates for itself
-        valid = run.landmark_valid[k]
-        if not valid.any():
-            return None, 0, 0
-        ll, idx = landmark_log_likelihood_ml(particles, run.landmark_z[k][valid], world.landmarks, sensor)
-        wrong_w = float(w @ (idx != np.flatnonzero(valid)).sum(axis=1))
-        return ll, int(valid.sum()), wrong_w  # type: ignore[return-value]
+        zk, ids = run.landmark_z[k][valid], np.flatnonzero(valid)
+
+        def ml(P: Array) -> tuple[Array, Array | None]:
+            ll, idx = landmark_log_likelihood_ml(P, zk, world.landmarks, sensor)
+            return ll, (idx != ids).sum(axis=1).astype(np.float64)
+
+        return ml, int(valid.sum())
     z, lm, _ = landmark_measurements(run, world, sensor, k, "known", np.zeros(3), np.eye(3))
-    if z.shape[0] == 0:
-        return None, 0, 0
-    ll = landmark_log_likelihood(particles, z, lm, sensor, dtype=cfg.dtype, workers=cfg.workers)
-    return ll, z.shape[0], 0
+    lik = LandmarkLikelihood(z, lm, sensor, cfg.dtype)
+    return (lambda P: (lik(P), None)), z.shape[0]
+
+
+def _predict_and_weigh(
+    P: Array, model: tuple[BlockModel, int] | None, run: SimulatedRun, k: int, cfg: ParticleFilterConfig,
+    gens: Sequence[np.random.Generator],
+) -> tuple[Array, Array | None, Array | None]:  # fmt: skip
+    """Move the particles by step ``k−1 → k`` and evaluate step ``k``'s likelihood, block by block.
+
+    Block ``c`` of :func:`~pose_uncertainty.localization.sensors.chunks` draws its motion from its
+    own generator ``gens[c]`` (spawned once per run from the filter's), so the result does not
+    depend on ``cfg.workers``, the threads the blocks run on.
+
+    Returns
+    -------
+    particles (n, 3); log-likelihood (n,) or None; wrong associations per particle (n,) or None
+    """
+    n = P.shape[0]
+    blocks = chunks(n)
+    out = np.empty_like(P) if k > 0 else P
+    ll = np.empty(n) if model is not None else None
+    wrong = np.zeros(n) if model is not None else None
+
+    def block(c: int) -> None:
+        a, b = blocks[c]
+        if k > 0:
+            out[a:b] = sample_motion(P[a:b], cfg.motion, run, k - 1, gens[c], cfg.dtype)
+        if model is not None and ll is not None and wrong is not None:
+            ll[a:b], wr = model[0](out[a:b])
+            if wr is not None:
+                wrong[a:b] = wr
+
+    if k > 0 or model is not None:
+        run_blocks(block, len(blocks), cfg.workers)
+    return out, ll, wrong
 
 
 def _particle_region_flags(particles: Array, w: Array, world: World, truth: Array, h: float) -> NDArray[np.bool_]:
@@ -215,10 +270,17 @@ def _particle_region_flags(particles: Array, w: Array, world: World, truth: Arra
     i = np.floor((particles[:, 0] - x0) / h).astype(np.int64)
     j = np.floor((particles[:, 1] - y0) / h).astype(np.int64)
     ok = (i >= 0) & (i < nx) & (j >= 0) & (j < ny)
-    hist = np.bincount(i[ok] * ny + j[ok], w[ok], minlength=nx * ny).reshape(nx, ny)
-    if not hist.sum() > 0:
+    hist = np.bincount(i[ok] * ny + j[ok], w[ok], minlength=nx * ny)
+    ti, tj = math.floor((truth[0] - x0) / h), math.floor((truth[1] - y0) / h)
+    if not hist.sum() > 0 or not (0 <= ti < nx and 0 <= tj < ny):
         return np.zeros(3, dtype=bool)
-    return mass_region_flags(hist, (math.floor((truth[0] - x0) / h), math.floor((truth[1] - y0) / h)))
+    # only cells with mass can be in a region (and the truth's cell is outside without mass):
+    # the flags of the occupied cells alone are those of the whole grid, at the cost of ≤ n cells
+    occupied = np.flatnonzero(hist)
+    cell = int(np.searchsorted(occupied, ti * ny + tj))
+    if cell == occupied.size or occupied[cell] != ti * ny + tj:
+        return np.zeros(3, dtype=bool)
+    return mass_region_flags(hist[occupied][:, None], (cell, 0))
 
 
 def run_particle(
@@ -244,18 +306,26 @@ def run_particle(
     n = cfg.n_particles
     P = initial_particles(st, world, n, rng)
     w = np.full(n, 1.0 / n)
+    uniform = -math.log(n)
+    lw = np.full(n, uniform)  # log w, kept beside w: a correction adds, no logarithm per step
     slow_fast = [-math.inf, -math.inf]
+    gens = rng.spawn(len(chunks(n)))  # the motion's generator of each block of particles
     for k in range(run.n_steps + 1):
         rec.tic()
-        if k > 0:
-            P = sample_motion(P, cfg.motion, run, k - 1, rng)
-        ll, m, wrong = _loglik(P, run, world, sensor, k, cfg, w)
-        ess, res, inj, logev = float(effective_sample_size(w)), False, 0, 0.0
-        if ll is not None:
-            w, logev = pf_correct(w, ll)
-            ess = effective_sample_size(w)
+        model = _measurement_model(run, world, sensor, k, cfg)
+        P, ll, wrong_each = _predict_and_weigh(P, model, run, k, cfg, gens)
+        ess, res, inj, logev, m, wrong = _ess(w), False, 0, 0.0, 0, 0.0
+        if model is not None and ll is not None:
+            m = model[1]
+            wrong = float(w @ wrong_each) if wrong_each is not None else 0.0
+            lw += ll
+            w, logev = normalize_log_weights(lw)  # w ∝ w_prev·p(z|x); logev = log Σ w_prev·p(z|x)
+            lw -= logev
+            ess = _ess(w)
             inj = _n_inject(cfg, logev / max(m, 1), slow_fast, rng)
-            P, w, res = pf_resample(P, w, rng, cfg.resampling, cfg.ess_threshold, inj, world)
+            P, w, res = pf_resample(P, w, rng, cfg.resampling, cfg.ess_threshold, inj, world, cfg.workers)
+            if res:
+                lw.fill(uniform)
         rec.toc(k)
         mean, cov = weighted_mean_cov(P, w)
         flags = _particle_region_flags(P, w, world, run.true_poses[k], cfg.hdr_resolution)

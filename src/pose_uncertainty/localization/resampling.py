@@ -73,20 +73,26 @@ def normalize_log_weights(log_w: ArrayLike) -> tuple[Array, float]:
     lw = np.asarray(log_w, dtype=np.float64)
     if lw.ndim != 1 or lw.size == 0:
         raise ValueError(f"log_w must have shape (N,) with N >= 1, got shape {lw.shape}")
-    if np.any(np.isnan(lw) | (lw == np.inf)):
+    top = float(lw.max())  # NaN if any is NaN, +inf if any is +inf: one pass checks both
+    if math.isnan(top) or top == np.inf:
         raise ValueError("log_w must be finite or -inf (allowed: [-inf, inf)), got NaN or +inf")
-    top = float(lw.max())
     if top == -np.inf:
         raise ValueError("log_w must have at least one finite value (allowed: some particle with p > 0), got all -inf")
-    e = np.exp(lw - top)
+    e = lw - top
+    np.exp(e, out=e)
     s = float(e.sum())
-    return e / s, top + math.log(s)
+    e /= s
+    return e, top + math.log(s)
 
 
 def effective_sample_size(w: ArrayLike) -> float:
     """``ESS = 1 / Σ w_i²`` of normalised weights: n for equal weights, 1 for a single particle."""
-    ww = check_finite("w", w)
-    return float(1.0 / np.sum(ww * ww))
+    return _ess(check_finite("w", w))
+
+
+def _ess(w: Array) -> float:
+    """:func:`effective_sample_size` of weights known to be finite (a runner's own)."""
+    return float(1.0 / np.dot(w, w))
 
 
 def cumulative_weights(w: ArrayLike) -> Array:
@@ -95,7 +101,12 @@ def cumulative_weights(w: ArrayLike) -> Array:
     if ww.ndim != 1 or ww.size == 0 or np.any(ww < 0) or not ww.sum() > 0:
         raise ValueError("w must be a 1-D array of weights >= 0 with a positive sum (allowed: weights), "
                          f"got shape {ww.shape}, sum {float(ww.sum()) if ww.size else 0.0}")  # fmt: skip
-    q = np.cumsum(ww)
+    return _cumulative(ww)
+
+
+def _cumulative(w: Array) -> Array:
+    """:func:`cumulative_weights` of weights known to be valid (a runner's own normalised ones)."""
+    q = np.cumsum(w)
     q /= q[-1]
     q[-1] = 1.0
     return q

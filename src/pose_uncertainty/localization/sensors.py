@@ -37,6 +37,7 @@ Beams are independent: ``log p(scan) = Σ_k log p(z_k | z*_k)``. The weights
 from __future__ import annotations
 
 import math
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
@@ -47,6 +48,7 @@ from scipy.special import ndtr, ndtri
 
 from ..core.kinematics import wrap_angle
 from ..core.validation import (
+    check_choice,
     check_finite,
     check_last_axis,
     check_nonnegative,
@@ -58,17 +60,21 @@ from .world import OccupancyGrid
 __all__ = [
     "MIN_RANGE",
     "BeamSensor",
+    "LandmarkLikelihood",
     "RangeBearingSensor",
     "associate",
     "beam_log_likelihood",
     "beam_probability",
+    "beam_terms",
     "cast_rays",
+    "chunks",
     "expected_ranges",
     "landmark_h",
     "landmark_jacobian",
     "landmark_log_likelihood",
     "landmark_log_likelihood_ml",
     "landmark_visible",
+    "run_blocks",
     "sample_beam_measurements",
     "sample_landmark_measurements",
 ]
@@ -212,11 +218,78 @@ def _loglik_terms(P: Array, z: Array, lm: Array, inv_var: tuple[float, float], d
     return e_r
 
 
+def _measurement_frames(z: Array, lm: Array, center: Array, dtype: Any) -> tuple[Array, Array]:
+    """Per-measurement factors of the landmark position in the frame of the measured bearing, each (m, 4).
+
+    For a particle ``(x, y, θ)`` and a measurement ``(r, φ)`` of landmark ``m``, the vector
+    ``d = m − (x, y)`` turned by ``−(θ + φ)`` is ``(X, Y) = A·B_X, A·B_Y`` with the particle's
+    factors ``A = (cos θ, sin θ, a, b)``, ``a = x cos θ + y sin θ``, ``b = y cos θ − x sin θ``, and
+    ``B_X = (m_x cφ + m_y sφ, m_y cφ − m_x sφ, −cφ, −sφ)``,
+    ``B_Y = (m_y cφ − m_x sφ, −(m_x cφ + m_y sφ), sφ, −cφ)`` — positions relative to ``center``
+    (translation invariance; it keeps the float32 round-off small).
+    """
+    mx, my = lm[:, 0] - center[0], lm[:, 1] - center[1]
+    c, s = np.cos(z[:, 1]), np.sin(z[:, 1])
+    u, v = mx * c + my * s, my * c - mx * s
+    BX = np.stack([u, v, -c, -s], axis=1).astype(dtype)  # (m, 4)
+    BY = np.stack([v, -u, s, -c], axis=1).astype(dtype)
+    return BX, BY
+
+
+def _workspace(n: int, m: int, dtype: Any) -> tuple[Array, Array, Array, Array]:
+    """This thread's buffers for a chunk of ``n`` particles and ``m`` measurements: A (4, n), X, Y, E (m, n).
+
+    Reused from call to call (large temporaries allocated at every step cost page faults);
+    measurements along the first axis, so the sums over them are ``m − 1`` contiguous vector adds.
+    """
+    key = (n, m, np.dtype(dtype).str)
+    cache = getattr(_WORK, "buffers", None)
+    if cache is None or cache[0] != key:
+        cache = (key, np.empty((4, n), dtype), np.empty((m, n), dtype), np.empty((m, n), dtype),
+                 np.empty((m, n), dtype))  # fmt: skip
+        _WORK.buffers = cache
+    return cache[1], cache[2], cache[3], cache[4]
+
+
 def _loglik_chunk(
-    P: Array, z: Array, lm: Array, inv_var: tuple[float, float], const: float, dtype: Any
-) -> Array:
-    """Σ_j log N(z_j; h_j(p), Q) for a chunk of particles (n, 3) and m measurements, shape (n,)."""
-    return const - 0.5 * _loglik_terms(P, z, lm, inv_var, dtype).sum(axis=1, dtype=np.float64)
+    P: Array, z: Array, frames: tuple[Array, Array], center: Array, inv_var: tuple[float, float], const: float,
+    dtype: Any,
+) -> Array:  # fmt: skip
+    """Σ_j log N(z_j; h_j(p), Q) for a chunk of particles (n, 3) and m measurements, shape (n,).
+
+    The landmark seen in the frame of the measured bearing (:func:`_measurement_frames`):
+    ``X, Y = B_X·A, B_Y·A`` (two (m, 4)·(4, n) matrix products), so the predicted range is
+    ``√(X² + Y²)`` and the bearing error ``atan2(Y, X) = wrap(φ̂ − φ)`` without an explicit
+    wrap. Every (m, n) array lives in this thread's reused buffers.
+    """
+    m = z.shape[0]
+    A, X, Y, E = _workspace(P.shape[0], m, dtype)
+    c, s = A[0], A[1]
+    th = P[:, 2].astype(dtype)
+    np.cos(th, out=c)
+    np.sin(th, out=s)
+    x = (P[:, 0] - center[0]).astype(dtype)
+    y = (P[:, 1] - center[1]).astype(dtype)
+    np.multiply(x, c, out=A[2])
+    A[2] += y * s  # a = x cos θ + y sin θ
+    np.multiply(y, c, out=A[3])
+    A[3] -= x * s  # b = y cos θ − x sin θ
+    np.matmul(frames[0], A, out=X)
+    np.matmul(frames[1], A, out=Y)
+    np.arctan2(Y, X, out=E)  # φ̂ − φ, in (−π, π]
+    X *= X
+    Y *= Y
+    X += Y
+    np.sqrt(X, out=X)
+    X -= z[:, 0, None].astype(dtype)  # predicted − measured range
+    X *= X
+    E *= E
+    # Σ over the measurements: m − 1 vector adds (no matrix–vector product: OpenBLAS runs those on its
+    # own threads, whose spinning then takes the cores from the blocks)
+    return const - 0.5 * (inv_var[0] * X.sum(axis=0, dtype=np.float64) + inv_var[1] * E.sum(axis=0, dtype=np.float64))
+
+
+_WORK = threading.local()
 
 
 def landmark_log_likelihood_ml(
@@ -251,6 +324,34 @@ def landmark_log_likelihood_ml(
     return out, idx
 
 
+class LandmarkLikelihood:
+    """The measurements of one step, prepared once, evaluated on any block of particles.
+
+    ``LandmarkLikelihood(z, landmarks, sensor, dtype)(P)`` is :func:`landmark_log_likelihood`
+    of the particles ``P`` (n, 3); a runner that splits its particles into blocks (threads)
+    prepares the measurement frames once per step.
+    """
+
+    def __init__(self, z: ArrayLike, landmarks: ArrayLike, sensor: RangeBearingSensor, dtype: str = "float64"):
+        self.z = check_finite("z", check_last_axis("z", z, 2)).reshape(-1, 2)
+        lm = _check_landmarks(landmarks)
+        if lm.shape != self.z.shape:
+            raise ValueError(f"landmarks must match z (allowed: shape {self.z.shape}), got shape {lm.shape}")
+        check_choice("dtype", dtype, ("float64", "float32"))
+        self.dtype: Any = np.float64 if dtype == "float64" else np.float32
+        m = self.z.shape[0]
+        self.inv = (1.0 / sensor.range_std**2, 1.0 / sensor.bearing_std**2)  # of the squared errors
+        self.const = -m * (_LOG_2PI + math.log(sensor.range_std * sensor.bearing_std))
+        self.center = lm.mean(axis=0) if m else np.zeros(2)
+        self.frames = _measurement_frames(self.z, lm, self.center, self.dtype)
+
+    def __call__(self, particles: Array) -> Array:
+        """``Σ_j log p(z_j | x)`` of each particle (n, 3), shape (n,)."""
+        if self.z.shape[0] == 0:
+            return np.zeros(particles.shape[0])
+        return _loglik_chunk(particles, self.z, self.frames, self.center, self.inv, self.const, self.dtype)
+
+
 def landmark_log_likelihood(
     particles: ArrayLike,
     z: ArrayLike,
@@ -258,7 +359,7 @@ def landmark_log_likelihood(
     sensor: RangeBearingSensor,
     *,
     dtype: str = "float64",
-    chunk: int = 2048,
+    chunk: int | None = None,
     workers: int = 1,
 ) -> Array:
     """Log-likelihood ``Σ_j log p(z_j | x)`` of measurements of known landmarks, per particle.
@@ -272,9 +373,11 @@ def landmark_log_likelihood(
     landmarks : array_like, shape (m, 2) — the landmark of each measurement [m]
     sensor : RangeBearingSensor
     dtype : {"float64", "float32"} — arithmetic of the per-measurement terms
-        (float32 is about twice as fast; its rounding error on a log-likelihood of
-        size ``ℓ`` is about ``10⁻⁷·ℓ``); sums are accumulated in float64
-    chunk : int — particles per block (keeps the temporaries in cache)
+        (float32 is several times faster; its rounding error on a log-likelihood of
+        size ``ℓ`` is about ``10⁻⁶·ℓ``); each particle's sum over its measurements is a
+        matrix–vector product in ``dtype``, the constant is added in float64
+    chunk : int, optional — particles per block (keeps the temporaries in cache); default:
+        :func:`chunks` (the fewest equal blocks of at most 8192)
     workers : int — threads over the blocks (numpy releases the GIL); the result does not
         depend on it
 
@@ -283,32 +386,57 @@ def landmark_log_likelihood(
     ndarray, shape (n,)
     """
     P = check_last_axis("particles", particles, 3).reshape(-1, 3)
-    zz = check_finite("z", check_last_axis("z", z, 2)).reshape(-1, 2)
-    lm = _check_landmarks(landmarks)
-    if lm.shape != zz.shape:
-        raise ValueError(f"landmarks must match z (allowed: shape {zz.shape}), got shape {lm.shape}")
-    if dtype not in ("float64", "float32"):
-        raise ValueError(f"dtype must be one of 'float64', 'float32', got {dtype!r}")
-    dt = np.float64 if dtype == "float64" else np.float32
-    inv = (1.0 / sensor.range_std**2, 1.0 / sensor.bearing_std**2)
-    const = -zz.shape[0] * (_LOG_2PI + math.log(sensor.range_std * sensor.bearing_std))
-    out = np.empty(P.shape[0])
-    if zz.shape[0] == 0:
-        out[:] = 0.0
-        return out
-    step = check_positive_int("chunk", chunk)
+    lik = LandmarkLikelihood(z, landmarks, sensor, dtype)
+    n = P.shape[0]
+    out = np.empty(n)
+    blocks = chunks(n) if chunk is None else [(a, min(n, a + chunk)) for a in range(0, n, check_positive_int("chunk", chunk))]
 
-    def block(a: int) -> None:
-        out[a : a + step] = _loglik_chunk(P[a : a + step], zz, lm, inv, const, dt)
+    def block(c: int) -> None:
+        a, b = blocks[c]
+        out[a:b] = lik(P[a:b])
 
-    starts = range(0, P.shape[0], step)
-    if check_positive_int("workers", workers) == 1 or len(starts) == 1:
-        for a in starts:
-            block(a)
-    else:
-        with ThreadPoolExecutor(max_workers=workers) as pool:
-            list(pool.map(block, starts))
+    run_blocks(block, len(blocks), workers)
     return out
+
+
+def chunks(n: int, size: int | None = None) -> list[tuple[int, int]]:
+    """``[(start, stop), ...]``: the fewest equal blocks of at most ``size`` (default 8192) covering ``0 … n``.
+
+    A function of ``n`` only, so a result computed block by block does not depend on the
+    number of threads that compute the blocks. (Cut otherwise, the likelihood's matrix
+    products round a block's last rows by other kernels: the same numbers to ~10⁻¹⁵ in
+    float64, ~10⁻⁷ in float32, not the same bits.)
+    """
+    size = _CHUNK if size is None else check_positive_int("size", size)
+    k = max(1, -(-n // size))
+    step = -(-n // k) if n else 1
+    return [(a, min(n, a + step)) for a in range(0, n, step)] or [(0, 0)]
+
+
+def run_blocks(fn: Any, n_blocks: int, workers: int = 1) -> None:
+    """Call ``fn(0) … fn(n_blocks − 1)``: with ``workers`` > 1 the calling thread takes block 0 and a
+    persistent pool of ``workers − 1`` threads the others (numpy releases the GIL in its loops)."""
+    if check_positive_int("workers", workers) == 1 or n_blocks == 1:
+        for c in range(n_blocks):
+            fn(c)
+        return
+    pool = _pool(workers - 1)
+    futures = [pool.submit(fn, c) for c in range(1, n_blocks)]
+    fn(0)
+    for f in futures:
+        f.result()
+
+
+#: Largest block of particles of :func:`chunks`.
+_CHUNK = 8192
+_POOLS: dict[int, ThreadPoolExecutor] = {}
+
+
+def _pool(workers: int) -> ThreadPoolExecutor:
+    """A persistent thread pool of ``workers`` threads (creating one per call costs more than a small step)."""
+    if workers not in _POOLS:
+        _POOLS[workers] = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="pose-uncertainty-loglik")
+    return _POOLS[workers]
 
 
 def associate(
@@ -486,24 +614,38 @@ def expected_ranges(grid: OccupancyGrid, poses: ArrayLike, sensor: BeamSensor) -
     return z.reshape(ang.shape)
 
 
-def beam_probability(z: ArrayLike, z_star: ArrayLike, sensor: BeamSensor) -> Array:
+def beam_terms(z_star: ArrayLike, sensor: BeamSensor) -> tuple[Array, Array]:
+    """The parts of :func:`beam_probability` that depend on ``z*`` only: the hit component's
+    truncated mass ``max(Φ((z_max − z*)/σ) − Φ(−z*/σ), 10⁻³⁰⁰)`` and the short component's
+    ``η = 1/max(1 − e^{−λ z*}, 10⁻³⁰⁰)`` (a fixed table of ``z*``, as the histogram filter's, computes them once).
+    """
+    zs = check_nonnegative("z_star", z_star)
+    zm, sh = sensor.max_range, sensor.sigma_hit
+    mass = np.maximum(ndtr((zm - zs) / sh) - ndtr(-zs / sh), 1e-300)
+    eta = 1.0 / np.maximum(-np.expm1(-sensor.lambda_short * zs), 1e-300)
+    return mass, eta
+
+
+def beam_probability(
+    z: ArrayLike, z_star: ArrayLike, sensor: BeamSensor, terms: tuple[Array, Array] | None = None
+) -> Array:
     """Beam-model density ``p(z | z*)`` per beam (mixture above), broadcast shape.
 
     ``z`` equal to ``max_range`` (to 10⁻⁹ m) is the max reading and gets the point
-    mass ``z_max``; readings are otherwise in ``[0, max_range)``.
+    mass ``z_max``; readings are otherwise in ``[0, max_range)``. ``terms``: :func:`beam_terms`
+    of ``z_star`` when already computed (the same result).
     """
     zz = check_finite("z", z)
     zs = check_nonnegative("z_star", z_star)
     zm, sh = sensor.max_range, sensor.sigma_hit
     in_range = (zz >= 0) & (zz < zm - 1e-9)
     is_max = np.abs(zz - zm) <= 1e-9
-    # p_hit: normal truncated to [0, z_max]
-    mass = ndtr((zm - zs) / sh) - ndtr(-zs / sh)
+    # p_hit: normal truncated to [0, z_max]; p_short: exponential truncated to [0, z*],
+    # η = 1/(1 − e^{−λ z*}); z* = 0 → 0 for z > 0
+    mass, eta = beam_terms(zs, sensor) if terms is None else terms
     g = np.exp(-0.5 * ((zz - zs) / sh) ** 2) / (sh * math.sqrt(2 * math.pi))
-    p_hit = np.where((zz >= 0) & (zz <= zm), g / np.maximum(mass, 1e-300), 0.0)
-    # p_short: exponential truncated to [0, z*]; η = 1/(1 − e^{−λ z*}); z* = 0 → 0 for z > 0
+    p_hit = np.where((zz >= 0) & (zz <= zm), g / mass, 0.0)
     lam = sensor.lambda_short
-    eta = 1.0 / np.maximum(-np.expm1(-lam * zs), 1e-300)
     p_short = np.where((zz >= 0) & (zz <= zs) & (zs > 0), eta * lam * np.exp(-lam * zz), 0.0)
     p_rand = np.where(in_range, 1.0 / zm, 0.0)
     return (sensor.z_hit * p_hit + sensor.z_short * p_short

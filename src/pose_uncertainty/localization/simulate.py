@@ -14,6 +14,14 @@ every pose kept, exact arcs):
 So ``p(true travel | measured travel)`` is the wheel-noise model: the filters predict
 from the measured travels and the truth drifts away from them.
 
+``truth="commanded"`` turns this round (:data:`TRUTHS`): the robot follows the commanded
+path exactly (as a robot steered along a route by an outer loop does) and its encoders
+report noisy travels ``Δs' = Δs + N(0, k|Δs|)`` per step (``per_run``: ``Δs' = Δs(1 + ε)``,
+``ε ~ N(0, k/L)``, as the sampler's regimes), so the odometry drifts and the truth does
+not — a long path then stays inside its room. ``p(true | measured)`` is the same
+wheel-noise model to first order (the variance is ``k|Δs|`` of the true rather than the
+measured travel), so the filters' models are right in both.
+
 Measurements are taken at the observation instants of each sensor: step ``k`` is an
 observation step when ``k = 0`` or when ``t_k = k·Δt`` crosses a multiple of the
 sensor's ``period``. Landmark measurements are drawn for every landmark at every step
@@ -27,6 +35,7 @@ then drives on with the same wheel travels); the odometry does not notice.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,7 +54,11 @@ from .sensors import (
 )
 from .world import World
 
-__all__ = ["SimulatedRun", "observation_steps", "relocate_path", "simulate"]
+__all__ = ["TRUTHS", "SimulatedRun", "measured_travels", "observation_steps", "relocate_path", "simulate"]
+
+#: Where the wheel noise goes: the true path drifts from the commanded one ("drifts"), or the
+#: robot follows the commanded path and the encoders' report drifts ("commanded").
+TRUTHS: tuple[str, ...] = ("drifts", "commanded")
 
 Array = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -125,6 +138,26 @@ def _true_path(trajectory: Trajectory, k_r: float, k_l: float, regime: str, rng:
     return np.asarray(path[0])
 
 
+def measured_travels(
+    trajectory: Trajectory, k_r: float, k_l: float, regime: str, rng: np.random.Generator
+) -> tuple[Array, Array]:
+    """Noisy encoder readings of the commanded wheel travels, each shape (N,) [m].
+
+    ``per_step``: ``Δs' = Δs + √(k|Δs|)·z`` per step and wheel; ``per_run``: ``Δs' = Δs(1 + ε)``
+    with one ``ε ~ N(0, k/L)`` per wheel (``L = Σ|Δs|`` its total travel; ``ε = 0`` when ``L = 0``).
+    """
+    check_choice("regime", regime, REGIMES)
+    out = []
+    for ds, k in ((np.asarray(trajectory.ds_r), k_r), (np.asarray(trajectory.ds_l), k_l)):
+        if regime == "per_step":
+            out.append(ds + np.sqrt(k * np.abs(ds)) * rng.standard_normal(ds.shape))
+        else:
+            total = float(np.abs(ds).sum())
+            eps = math.sqrt(k / total) * rng.standard_normal() if total > 0 else 0.0
+            out.append(ds * (1.0 + eps))
+    return out[0], out[1]
+
+
 def simulate(
     trajectory: Trajectory,
     world: World,
@@ -137,6 +170,7 @@ def simulate(
     beam_sensor: BeamSensor | None = None,
     kidnap_step: int = -1,
     kidnap_pose: ArrayLike | None = None,
+    truth: str = "drifts",
 ) -> SimulatedRun:
     """Simulate a run along ``trajectory`` in ``world`` (see the module docs).
 
@@ -151,6 +185,7 @@ def simulate(
     landmark_sensor, beam_sensor : optional sensors (without one, its arrays are empty)
     kidnap_step : int — step at which the robot is carried to ``kidnap_pose`` (−1: never)
     kidnap_pose : array_like, shape (3,)
+    truth : {"drifts", "commanded"} — which of the true path and the odometry carries the wheel noise
 
     Returns
     -------
@@ -163,27 +198,33 @@ def simulate(
     if not isinstance(seq, np.random.SeedSequence):
         raise TypeError("rng must be seeded from a SeedSequence (e.g. numpy.random.default_rng(seed))")
     g_path, g_lm, g_beam = (np.random.default_rng(s) for s in seq.spawn(3))
-    truth = _true_path(trajectory, kr, kl, regime, g_path)
+    measured = trajectory
+    if check_choice("truth", truth, TRUTHS) == "drifts":
+        true_poses = _true_path(trajectory, kr, kl, regime, g_path)
+    else:
+        true_poses = integrate(trajectory.ds, trajectory.dtheta, trajectory.start, method="exact")
+        mr, ml = measured_travels(trajectory, kr, kl, regime, g_path)
+        measured = Trajectory(mr, ml, trajectory.dt, trajectory.track, trajectory.start, trajectory.name)
     if kidnap_step >= 0:
         if not 0 < kidnap_step <= N or kidnap_pose is None:
             raise ValueError(f"kidnap_step must be in [1, {N}] with a kidnap_pose (allowed: 1..{N}), got {kidnap_step}")
-        truth[kidnap_step:] = relocate_path(truth[kidnap_step:], kidnap_pose)
+        true_poses[kidnap_step:] = relocate_path(true_poses[kidnap_step:], kidnap_pose)
     L = world.n_landmarks
     lz, lvalid = np.zeros((N + 1, L, 2)), np.zeros((N + 1, L), dtype=bool)
     if landmark_sensor is not None and L:
-        lz, vis = sample_landmark_measurements(truth, world.landmarks, landmark_sensor, g_lm)
+        lz, vis = sample_landmark_measurements(true_poses, world.landmarks, landmark_sensor, g_lm)
         lvalid = vis & observation_steps(N, trajectory.dt, landmark_sensor.period)[:, None]
     bz, bvalid = None, np.zeros(N + 1, dtype=bool)
     if beam_sensor is not None:
         if world.grid is None:
             raise ValueError("beam_sensor needs a world with an occupancy grid (allowed: walls or image), got none")
         bvalid = observation_steps(N, trajectory.dt, beam_sensor.period)
-        zs = expected_ranges(world.grid, truth, beam_sensor)
+        zs = expected_ranges(world.grid, true_poses, beam_sensor)
         bz = sample_beam_measurements(zs, beam_sensor, g_beam)
-    odo = integrate(trajectory.ds, trajectory.dtheta, trajectory.start, method="exact")
+    odo = integrate(measured.ds, measured.dtheta, measured.start, method="exact")
     return SimulatedRun(
-        times=trajectory.times, dt=trajectory.dt, track=trajectory.track, true_poses=truth,
-        ds_r=np.array(trajectory.ds_r), ds_l=np.array(trajectory.ds_l), controls=trajectory.controls,
+        times=trajectory.times, dt=trajectory.dt, track=trajectory.track, true_poses=true_poses,
+        ds_r=np.array(measured.ds_r), ds_l=np.array(measured.ds_l), controls=measured.controls,
         odometry=odo, landmark_z=lz, landmark_valid=lvalid, beam_z=bz, beam_valid=bvalid,
         kidnap_step=int(kidnap_step), regime=regime,
     )  # fmt: skip

@@ -62,7 +62,7 @@ from collections import Counter
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
@@ -94,7 +94,9 @@ from .run import RunResult, execute
 __all__ = [
     "FORMAT",
     "FORMAT_VERSION",
+    "LOG_KINDS",
     "TOPICS",
+    "LogKind",
     "PartialLogWarning",
     "RunLog",
     "RunLogError",
@@ -145,6 +147,23 @@ _BLUE = (0.0, 0.25, 1.0, 1.0)
 _RED = (0.9, 0.0, 0.0, 1.0)
 _GREY = (0.5, 0.5, 0.5, 0.8)
 _BLACK = (0.0, 0.0, 0.0, 1.0)
+
+
+class LogKind(NamedTuple):
+    """Another kind of log in the same container (e.g. a localization run's), registered by its module.
+
+    ``assemble(path, records, meta, library, partial, problem)`` builds the log object from the
+    CRC-checked records and the metadata record; ``verify(log)`` recomputes it and returns the
+    differences as :func:`verify_run` does.
+    """
+
+    assemble: Callable[..., Any]
+    verify: Callable[[Any], list[str]]
+
+
+#: Log kinds beside the dead-reckoning run, by the ``format`` of their metadata record
+#: (``pose_uncertainty.logs.localization_log`` registers the localization runs).
+LOG_KINDS: dict[str, LogKind] = {}
 
 
 class RunLogError(ValueError):
@@ -275,6 +294,12 @@ def _grid(mp: ProbabilityMap, t_ns: int) -> Any:
     nx, ny = marg.shape
     dx = float(mp.x[1] - mp.x[0]) if nx > 1 else 0.01
     dy = float(mp.y[1] - mp.y[0]) if ny > 1 else 0.01
+    return _grid_msg(marg, float(mp.x[0]), float(mp.y[0]), dx, dy, t_ns)
+
+
+def _grid_msg(marg: NDArray[np.float64], x0: float, y0: float, dx: float, dy: float, t_ns: int) -> Any:
+    """foxglove.Grid of a mass per cell ``marg`` (nx, ny), cell ``[0, 0]`` centred at ``(x0, y0)``."""
+    nx, ny = marg.shape
     peak = float(marg.max()) if marg.size and marg.max() > 0 else 1.0
     rel = np.clip(marg / peak, 0.0, 1.0)
     cell = np.dtype(
@@ -302,8 +327,8 @@ def _grid(mp: ProbabilityMap, t_ns: int) -> Any:
         data=rows.tobytes(),
     )
     _stamp(msg, t_ns)
-    msg.pose.position.x = float(mp.x[0]) - dx / 2.0
-    msg.pose.position.y = float(mp.y[0]) - dy / 2.0
+    msg.pose.position.x = x0 - dx / 2.0
+    msg.pose.position.y = y0 - dy / 2.0
     _yaw(msg.pose.orientation, 0.0)
     msg.cell_size.x, msg.cell_size.y = dx, dy
     return msg
@@ -788,6 +813,9 @@ def _run_metadata(p: Path, records: list[Any], partial: bool, problem: str | Non
             f"no {METADATA_NAME!r} metadata)"
         )
     meta = dict(meta_rec.metadata)
+    kind = LOG_KINDS.get(str(meta.get("format")))
+    if kind is not None:  # another kind of run (e.g. localization): its own reader
+        return kind.assemble(p, records, meta, header.library, partial, problem)  # type: ignore[no-any-return]
     if meta.get("format") != FORMAT:
         raise RunLogError(f"{p}: not a pose-uncertainty run log (format {meta.get('format')!r})")
     if meta.get("format_version") != FORMAT_VERSION:
@@ -1049,6 +1077,9 @@ def verify_run(log: RunLog) -> list[str]:
     """
     if log.partial:
         return ["the log is partial; a partial log cannot be verified"]
+    kind = LOG_KINDS.get(str(log.metadata.get("format")))
+    if kind is not None:  # another kind of run: its own recomputation
+        return kind.verify(log)
     fresh = execute(log.config)
     out = compare_results(log, fresh)
     mismatches = [d for d in out if not d.startswith("note: ")]

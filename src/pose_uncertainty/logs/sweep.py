@@ -32,7 +32,7 @@ import itertools
 import json
 import math
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -312,7 +312,13 @@ def run_label(key: str, value: Any) -> str:
     return ABBREVIATIONS.get(last, _SAFE.sub("", last)) + text
 
 
-def expand_set(name: str, spec: Mapping[str, Any], defaults: Mapping[str, Any] | None = None) -> list[Run]:
+def expand_set(
+    name: str,
+    spec: Mapping[str, Any],
+    defaults: Mapping[str, Any] | None = None,
+    *,
+    normalize: Callable[[Mapping[str, Any]], dict[str, Any]] | None = None,
+) -> list[Run]:
     """Expand one experiment set into its runs (product of axes, zipped within an axis).
 
     Parameters
@@ -320,6 +326,9 @@ def expand_set(name: str, spec: Mapping[str, Any], defaults: Mapping[str, Any] |
     name : str — set name
     spec : mapping with ``base`` (partial run config) and ``sweep`` (list of axes)
     defaults : mapping, optional — run-config defaults shared by every set
+    normalize : callable, optional — validates a run configuration and returns every parameter
+        (default: :class:`~pose_uncertainty.logs.run.RunConfig`'s ``from_dict`` then ``to_dict``;
+        the localization runs pass their own)
 
     Returns
     -------
@@ -335,7 +344,7 @@ def expand_set(name: str, spec: Mapping[str, Any], defaults: Mapping[str, Any] |
     axes = [_axis_points(where, ai, axis) for ai, axis in enumerate(spec.get("sweep", []) or [])]
     runs: dict[str, Run] = {}
     for combo in itertools.product(*axes) if axes else [()]:
-        run = _combine(name, where, base, combo)
+        run = _combine(name, where, base, combo, normalize)
         if run.id in runs:
             if runs[run.id].config != run.config:
                 raise ConfigError(
@@ -379,7 +388,13 @@ def _axis_points(where: str, ai: int, axis: Mapping[str, Any]) -> list[_AxisPoin
     return points
 
 
-def _combine(name: str, where: str, base: dict[str, Any], combo: Sequence[_AxisPoint]) -> Run:
+def _combine(
+    name: str,
+    where: str,
+    base: dict[str, Any],
+    combo: Sequence[_AxisPoint],
+    normalize: Callable[[Mapping[str, Any]], dict[str, Any]] | None = None,
+) -> Run:
     """The run of one combination of axis values: ``base`` with them set, its id from their labels.
 
     ConfigError naming the set and the run id when the result is not a valid run configuration.
@@ -396,7 +411,7 @@ def _combine(name: str, where: str, base: dict[str, Any], combo: Sequence[_AxisP
     run_id = _SAFE.sub("-", run_id)
     cfg["name"] = run_id
     try:
-        full = RunConfig.from_dict(cfg).to_dict()
+        full = RunConfig.from_dict(cfg).to_dict() if normalize is None else normalize(cfg)
     except ValueError as exc:
         raise ConfigError(f"{where}, run {run_id!r}: {exc}") from None
     return Run(set=name, id=run_id, config=full, swept=swept)

@@ -12,6 +12,10 @@ Every column of a row comes from one logged source of its run:
   (units and definitions: :mod:`pose_uncertainty.analysis.measures`);
 * ``time_<part>`` — the run's wall-clock timings [s] from its ``*.timings.json``
   side file (not reproducible, so not in the log itself).
+
+A localization run's row (:mod:`pose_uncertainty.logs.localization_log`) has the same
+columns, its ``param.*`` from :data:`LOCALIZATION_PARAMS` and its world's source and random
+landmarks, its measures ``loc_*`` and its timings ``time_<filter>_step`` [s per step].
 """
 
 from __future__ import annotations
@@ -23,9 +27,10 @@ from pathlib import Path
 from typing import Any
 
 from ..core.tables import write_table
+from .localization_log import LocalizationLog
 from .runlog import RunLog, open_run
 
-__all__ = ["FIRST_COLUMNS", "collect_table", "run_row"]
+__all__ = ["FIRST_COLUMNS", "LOCALIZATION_PARAMS", "collect_table", "run_row"]
 
 #: Columns written first, in this order.
 FIRST_COLUMNS: tuple[str, ...] = ("set", "run", "seed", "n_steps")
@@ -39,13 +44,26 @@ def _flat(prefix: str, value: Any, out: dict[str, Any]) -> None:
         out[prefix] = json.dumps(value) if isinstance(value, list | tuple) else value
 
 
-def run_row(log: str | os.PathLike[str] | RunLog, timings: str | os.PathLike[str] | None = None) -> dict[str, Any]:
+#: The configuration keys a localization run's row flattens (the world by its source and random landmarks).
+LOCALIZATION_PARAMS: tuple[str, ...] = ("repeat", "trajectory", "truth", "sensors", "scenario", "filters", "success")
+
+
+def run_row(
+    log: str | os.PathLike[str] | RunLog | LocalizationLog, timings: str | os.PathLike[str] | None = None
+) -> dict[str, Any]:
     """The table row of one run log (see the module docstring for the columns)."""
-    run = log if isinstance(log, RunLog) else open_run(log)
+    run = log if isinstance(log, RunLog | LocalizationLog) else open_run(log)
     cfg = run.config.to_dict()
     row: dict[str, Any] = {"run": run.config.name, "seed": run.config.seed, "n_steps": run.n_steps}
-    for key in ("trajectory", "k_r", "k_l", "cov0", "pr", "n_ellipses", "monte_carlo", "drive"):
-        if key in cfg:  # ``drive`` only when the run configures one
+    if isinstance(run, LocalizationLog):  # a localization run: its own configuration keys
+        world = cfg["world"]
+        row["param.world.source"] = world.get("source", "")
+        _flat("param.world.random_landmarks", world["random_landmarks"], row)
+        keys: tuple[str, ...] = LOCALIZATION_PARAMS
+    else:  # ``drive`` only when the run configures one
+        keys = ("trajectory", "k_r", "k_l", "cov0", "pr", "n_ellipses", "monte_carlo", "drive")
+    for key in keys:
+        if key in cfg:
             _flat(f"param.{key}", cfg[key], row)
     for key, value in sorted(run.provenance.items()):
         row[f"provenance.{key}"] = value

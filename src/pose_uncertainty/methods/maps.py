@@ -1003,12 +1003,14 @@ def _convolve_step(
     windows: tuple[AnyArray, AnyArray, int, int],
     thetas: Array,
     workers: int,
+    cache: dict[int, Array] | None = None,
 ) -> tuple[Array, float, float]:
     """One prediction step on a fixed grid: (new belief, round-off clipped, mass lost off the grid).
 
     Every active source-heading slice is convolved (2-D FFT) with its kernel
     window, the kernels of all destination headings accumulated in the Fourier domain.
-    ``thetas`` (nθ,) are the source headings of the belief's slices [rad].
+    ``thetas`` (nθ,) are the source headings of the belief's slices [rad]. ``cache``
+    (a transition's own) keeps each heading's window for the next step with the same kernel.
     """
     ax, ay, wx, wy = windows
     nx, ny, nt = g.nx, g.ny, g.ntheta
@@ -1025,7 +1027,11 @@ def _convolve_step(
     fx_all, fy_all = _rotated_cells(kern, thetas, h)
     mass_before = float(belief.sum())
     for k in active:
-        win3 = _source_window(kern, int(k), (fx_all[k], fy_all[k]), thetas, h, windows)
+        win3 = None if cache is None else cache.get(int(k))
+        if win3 is None:
+            win3 = _source_window(kern, int(k), (fx_all[k], fy_all[k]), thetas, h, windows)
+            if cache is not None:
+                cache[int(k)] = win3
         if fold:  # heading offsets wrap round the circle: fold them onto nθ shifts
             kernel = np.zeros((wx, wy, nt))
             for j in range(mp):
@@ -1070,6 +1076,9 @@ class GridTransition:
     grid: Grid
     kernel: _Kernel
     windows: tuple[AnyArray, AnyArray, int, int]
+    #: each source heading's kernel window, filled at first use (a transition reused, e.g. the
+    #: histogram filter's cached one for a repeated control, skips recomputing them)
+    source_windows: dict[int, Array] = field(default_factory=dict, repr=False)
 
     @property
     def heading_variance_mismatch(self) -> float:
@@ -1149,7 +1158,7 @@ def predict_on_grid(
     if active.size == 0:
         return np.zeros(g.shape), {"lost_mass": dropped, "roundoff": 0.0, "negligible_slices": dropped}
     new, roundoff, lost = _convolve_step(
-        b, g, transition.kernel, active, transition.windows, g.theta, workers
+        b, g, transition.kernel, active, transition.windows, g.theta, workers, transition.source_windows
     )
     return new, {"lost_mass": lost + dropped, "roundoff": roundoff, "negligible_slices": dropped}
 

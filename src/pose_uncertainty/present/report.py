@@ -150,6 +150,21 @@ def _drive_runs(sets: list[dict[str, Any]]) -> dict[str, Any]:
     return {"drives": [d for d in DRIVES if d in by], "paths": paths, "by": by, "sets": names, "figures": figs}
 
 
+def _localization(
+    manifest: Mapping[str, Any] | None, tables: Mapping[str, str | os.PathLike[str]]
+) -> dict[str, Any] | None:
+    """The localization sets with each run's table row (``m``) and the lead run (first run of the first set)."""
+    if not manifest or not manifest.get("sets"):
+        return None
+    sets = []
+    for s in manifest["sets"]:
+        path = tables.get(f"localization/{s['name']}", tables.get(s["name"]))
+        rows = {r["run"]: r for r in read_table(path)} if path is not None else {}
+        sets.append({**s, "runs": [{**r, "m": rows.get(r["id"], {})} for r in s["runs"]]})
+    lead = sets[0]["runs"][0] if sets[0]["runs"] else None
+    return {"sets": sets, "lead": lead}
+
+
 def build_report(
     manifest: Mapping[str, Any],
     tables: Mapping[str, str | os.PathLike[str]],
@@ -162,6 +177,8 @@ def build_report(
     studies_path: str | os.PathLike[str] | None = None,
     studies_figures: Mapping[str, str | os.PathLike[str]] | None = None,
     speed_dir: str | os.PathLike[str] | None = None,
+    localization: Mapping[str, Any] | None = None,
+    localization_tables: Mapping[str, str | os.PathLike[str]] | None = None,
 ) -> Path:
     """Render ``reports/comparison.html``.
 
@@ -178,6 +195,10 @@ def build_report(
     studies_path : path, optional — :func:`pose_uncertainty.logs.study.collect_studies` output
     studies_figures : mapping, optional — figures of the studies sections by kind; missing files are skipped
     speed_dir : path, optional — folder of the speed benchmarks' results (:func:`read_speed_results`)
+    localization : mapping, optional — ``{"sets": [{name, title, source, description, table, figures,
+        runs: [{id, log, swept, figures}]}]}``: the localization sets (section "From dead reckoning to
+        localization"; its lead run is the first run of the first set)
+    localization_tables : mapping, optional — ``localization/<set>`` (or ``<set>``) to its CSV
     """
     claims = _read_json(claims_path)
     pipeline = _read_json(pipeline_path)
@@ -205,6 +226,7 @@ def build_report(
         summary=studies["summary"],
         studies_figures={k: str(v) for k, v in (studies_figures or {}).items() if Path(v).is_file()},
         studies_json=json.dumps(studies["studies"], indent=1, sort_keys=True) if studies["studies"] else "",
+        localization=_localization(localization, localization_tables or {}),
     )
     p = Path(out)
     p.parent.mkdir(parents=True, exist_ok=True)

@@ -1,0 +1,803 @@
+"""One localization run: a typed configuration, its execution on simulated data, and every measure.
+
+A *localization run* simulates a robot driving a path in a world of landmarks and walls
+with noisy wheels and sensors (:mod:`pose_uncertainty.localization.simulate`), runs each
+configured Bayes filter — the EKF (Method A's prediction), the histogram filter (Method B's)
+and the particle filter (Monte Carlo's) — on the same data, and measures them against the
+true path. :func:`execute_localization` turns a :class:`LocalizationConfig` into a
+:class:`LocalizationResult`; :mod:`pose_uncertainty.logs.localization_log` writes and reads
+it as one MCAP log, :mod:`pose_uncertainty.present.localization_figures` draws it.
+
+A configuration is a plain mapping (YAML or JSON; numbers such as ``1e-3`` may be written
+as YAML reads them, as strings)::
+
+    kind: localization
+    name: room_tour
+    seed: 7
+    repeat: 10                       # R simulated runs: NEES averaged over them, success rates
+    world: {file: config/worlds/room.yaml}   # or inline world keys; plus random_landmarks
+    trajectory: {name: tour, segments: [[line, 5.0], [turn, 1.5708], ...], speed: 0.5, dt: 0.1}
+    truth: {k_r: 1.0e-3, k_l: 1.0e-3, regime: per_step, path: commanded}
+    sensors:
+      landmarks: {range_std: 0.1, bearing_std: 0.05, max_range: 6.0, fov: 6.2832, period: 0.5}
+      beams: {n_beams: 8, max_range: 8.0, sigma_hit: 0.05, period: 0.5}
+    scenario: {kind: tracking, start_std: [0.05, 0.05, 0.02]}   # or global, kidnapped
+    filters:
+      ekf: {motion: {model: wheels}}
+      histogram: {sensor: landmarks, resolution: 0.2, ntheta: 36}
+      particle: {n_particles: 2000, resampling: systematic}
+    success: {pos_tol: 0.5, head_tol: 0.25}
+    log: {particles_every: 1, max_particles_logged: 500, grid_every: 5}
+
+:meth:`LocalizationConfig.to_dict` returns every parameter, defaults included (a world
+file is read in and logged inline, so the log holds the world it was run in);
+:meth:`LocalizationConfig.units` gives the unit of each key. Each filter's ``motion``
+defaults to the truth's own noise model (the filter knows the robot): the wheel model
+with the truth's ``k_r, k_l`` for the EKF and the particle filter, the velocity model
+with the matching α's (:func:`~pose_uncertainty.localization.motion.velocity_alphas_for_wheels`,
+``scaling: abs``) for the histogram filter.
+
+Seeds: run ``r`` of the ``R`` draws its truth and measurements from
+``default_rng([seed, 0, r])`` and the particle filter from ``default_rng([seed, 1, r])``,
+so every filter sees the same data and a result is a deterministic function of the
+configuration.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import hashlib
+import inspect
+import math
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from numpy.typing import NDArray
+
+from ..analysis import localization_measures as lm
+from ..analysis import measures
+from ..core import trajectories
+from ..core.tables import jsonable
+from ..core.validation import parse_number
+from ..localization import ekf, histogram, particle, simulate
+from ..localization.motion import MOTION_MODELS, Motion, velocity_alphas_for_wheels
+from ..localization.resampling import SCHEMES
+from ..localization.result import ASSOCIATIONS, SCENARIOS, FilterResult, Start
+from ..localization.sensors import BeamSensor, RangeBearingSensor
+from ..localization.world import World, world_from_dict
+from ..methods.sampling import REGIMES
+from .config_checks import check_keys as _check_keys
+from .config_checks import fail as _fail
+from .config_checks import integer as _int
+from .config_checks import name as _name
+from .config_checks import real as _float
+from .provenance import provenance
+from .sweep import ConfigError, Run, expand_set
+
+__all__ = [
+    "KIND",
+    "TRAJECTORY_BUILDERS",
+    "FilterTrack",
+    "LocalizationConfig",
+    "LocalizationResult",
+    "build_world",
+    "coerce_numbers",
+    "execute_localization",
+    "expand_localization",
+    "is_localization_config",
+]
+
+#: The value of a localization configuration's ``kind`` key.
+KIND = "localization"
+
+#: Path builders a localization run offers: the dead-reckoning runs' and a room tour, a square.
+TRAJECTORY_BUILDERS: dict[str, Callable[..., trajectories.Trajectory]] = {
+    **trajectories.BUILDERS, "square": trajectories.square, "tour": trajectories.tour,
+}  # fmt: skip
+
+Array = NDArray[np.float64]
+
+
+# ============================================================================= validation helpers
+
+
+def coerce_numbers(value: Any) -> Any:
+    """A copy of a configuration with number-like strings (``"1e-3"``, as YAML 1.1 reads them) as floats."""
+    if isinstance(value, Mapping):
+        return {k: coerce_numbers(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [coerce_numbers(v) for v in value]
+    return parse_number(value)  # the one reading of numbers written as text
+
+
+def is_localization_config(data: Any) -> bool:
+    """Whether a run-configuration mapping is a localization run's (``kind: localization``)."""
+    return isinstance(data, Mapping) and data.get("kind") == KIND
+
+
+def _num(key: str, value: Any, lo: float | None = None, hi: float | None = None,
+         *, lo_open: bool = False, hi_open: bool = False) -> float:  # fmt: skip
+    """A finite number in a range; one line naming the key, the value and the range otherwise."""
+    v = _float(key, value)
+    below = lo is not None and (v <= lo if lo_open else v < lo)
+    above = hi is not None and (v >= hi if hi_open else v > hi)
+    if below or above:
+        left = "(" if lo_open else "["
+        right = ")" if hi_open else "]"
+        rng = f"{left}{'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'}{right}"
+        raise _fail(key, f"in {rng}", value)
+    return v
+
+
+def _vector(key: str, value: Any, n: int, *, nonneg: bool = False) -> list[float]:
+    if not isinstance(value, list | tuple) or len(value) != n:
+        raise _fail(key, f"a list of {n} numbers", value)
+    return [_num(f"{key}[{i}]", v, 0.0 if nonneg else None) for i, v in enumerate(value)]
+
+
+def _choice(key: str, value: Any, allowed: tuple[str, ...]) -> str:
+    if value not in allowed:
+        raise _fail(key, f"one of {', '.join(repr(a) for a in allowed)}", value)
+    return str(value)
+
+
+def _bool(key: str, value: Any) -> bool:
+    if not isinstance(value, bool):
+        raise _fail(key, "true or false", value)
+    return value
+
+
+def _build(where: str, cls: Any, params: Mapping[str, Any]) -> Any:
+    """``cls(**params)``, its ValueError re-worded to name the full config key."""
+    try:
+        return cls(**params)
+    except ValueError as exc:
+        msg = str(exc)
+        head = msg.split(" ", 1)[0]
+        if head in params:
+            raise ValueError(f"config key '{where}.{head}'{msg[len(head):]}") from None
+        raise ValueError(f"config key '{where}': {msg}") from None
+
+
+def _dataclass_params(where: str, cls: Any, data: Any, skip: tuple[str, ...] = ()) -> dict[str, Any]:
+    """Validate ``data`` against a frozen dataclass's fields (numbers by their default's type) and fill defaults."""
+    fields = {f.name: f for f in dataclasses.fields(cls) if f.name not in skip}
+    _check_keys(where, data if data is not None else {}, tuple(fields))
+    out: dict[str, Any] = {}
+    for name, f in fields.items():
+        default = f.default if f.default is not dataclasses.MISSING else f.default_factory()  # type: ignore[misc,operator]
+        value = (data or {}).get(name, default)
+        key = f"{where}.{name}"
+        if isinstance(default, bool):
+            out[name] = _bool(key, value)
+        elif isinstance(default, int):
+            out[name] = _int(key, value)
+        elif isinstance(default, float):
+            out[name] = _float(key, value)
+        else:
+            out[name] = value
+    _build(where, cls, out)  # the dataclass's own range checks, with the full key in the message
+    return out
+
+
+def _builder_params(where: str, fn: Callable[..., Any], data: Mapping[str, Any]) -> dict[str, Any]:
+    """Every keyword parameter of ``fn`` (and of from_segments it forwards to), defaults filled in."""
+    defaults: dict[str, Any] = {}
+    for f in (fn, trajectories.from_segments):
+        for p in inspect.signature(f).parameters.values():
+            if p.default is not inspect.Parameter.empty and p.name != "name":
+                defaults.setdefault(p.name, p.default)
+    params = {k: v for k, v in data.items() if k != "name"}
+    unknown = sorted(set(params) - set(defaults))
+    if unknown:
+        raise ValueError(
+            f"unknown config key(s) {', '.join(repr(f'{where}.{k}') for k in unknown)} "
+            f"(allowed for {where} {data['name']!r}: {', '.join(sorted(defaults))})"
+        )
+    return jsonable({**defaults, **params})
+
+
+# ============================================================================= sections
+
+
+def _trajectory(data: Any) -> tuple[dict[str, Any], trajectories.Trajectory]:
+    if not isinstance(data, Mapping) or "name" not in data:
+        raise _fail("trajectory", "a mapping with a 'name' key (e.g. {name: tour, segments: [[line, 5.0]]})", data)
+    name = _choice("trajectory.name", data["name"], tuple(TRAJECTORY_BUILDERS))
+    full = {"name": name, **_builder_params("trajectory", TRAJECTORY_BUILDERS[name], data)}
+    try:
+        traj = TRAJECTORY_BUILDERS[name](**{k: v for k, v in full.items() if k != "name"})
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"config key 'trajectory' ({name}): {exc}") from None
+    return full, traj
+
+
+def _read_world_file(path: str) -> tuple[dict[str, Any], Path]:
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise _fail("world.file", "a readable world file (YAML or JSON)", f"{path} ({exc.strerror or exc})") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ValueError(f"config key 'world.file' {path!r}: not valid YAML/JSON ({str(exc).splitlines()[0]})") from None
+    if not isinstance(data, Mapping):
+        raise _fail("world.file", "a file holding a mapping", path)
+    return dict(data), p.parent
+
+
+def _random_landmarks(data: Any) -> dict[str, Any]:
+    _check_keys("world.random_landmarks", data, ("count", "seed", "margin"))
+    return {"count": _int("world.random_landmarks.count", data.get("count", 10)),
+            "seed": _int("world.random_landmarks.seed", data.get("seed", 0)),
+            "margin": _num("world.random_landmarks.margin", data.get("margin", 0.5), 0.0)}  # fmt: skip
+
+
+def _world(data: Any) -> dict[str, Any]:
+    """The world section, normalised: a file read in, an image pinned by its sha256, random landmarks kept as a spec."""
+    if not isinstance(data, Mapping):
+        raise _fail("world", "a mapping (world keys, or {file: PATH})", data)
+    data = {k: v for k, v in data.items() if v is not None}  # null = not given
+    base = Path(".")
+    out: dict[str, Any] = {}
+    if "file" in data:
+        src = data.pop("file")
+        if not isinstance(src, str):
+            raise _fail("world.file", "a path", src)
+        inline, base = _read_world_file(src)
+        out["source"] = src
+        data = {**coerce_numbers(inline), **data}
+    if "source" in data:
+        src_given = str(data.pop("source"))
+        out.setdefault("source", src_given)
+    rnd = _random_landmarks(data.pop("random_landmarks", {"count": 0}))
+    sha = None
+    if isinstance(data.get("image"), Mapping):
+        img = dict(data["image"])
+        sha = img.pop("sha256", None)
+        if isinstance(img.get("path"), str):
+            img["path"] = str(base / img["path"]) if sha is None else img["path"]
+        data["image"] = img
+    try:
+        world_from_dict(data)  # validated against the world schema (one line naming key, value, range)
+    except ValueError as exc:
+        raise ValueError(f"config key 'world': {exc}") from None
+    if "image" in data:
+        digest = hashlib.sha256(Path(data["image"]["path"]).read_bytes()).hexdigest()
+        if sha is not None and sha != digest:
+            raise _fail("world.image.sha256", f"the sha256 of {data['image']['path']} ({digest})", sha)
+        data["image"] = {**data["image"], "sha256": digest}
+    out.update(jsonable(data))
+    out["random_landmarks"] = rnd
+    return out
+
+
+def build_world(spec: Mapping[str, Any]) -> World:
+    """The :class:`World` of a normalised world section (random landmarks drawn from their seed).
+
+    Random landmarks are uniform over the world's bounds shrunk by ``margin`` [m], outside
+    occupied cells, with ids after the listed ones (``default_rng(seed)``, drawn in batches).
+    """
+    data = {k: v for k, v in spec.items() if k not in ("source", "random_landmarks")}
+    if "image" in data:
+        data["image"] = {k: v for k, v in data["image"].items() if k != "sha256"}
+    w = world_from_dict(data)
+    rnd = spec.get("random_landmarks", {"count": 0})
+    n = int(rnd["count"])
+    if n == 0:
+        return w
+    x0, x1, y0, y1 = w.bounds  # type: ignore[misc]
+    mg = float(rnd["margin"])
+    if not (x1 - x0 > 2 * mg and y1 - y0 > 2 * mg):
+        raise _fail("world.random_landmarks.margin", f"less than half the world's size ({x1 - x0:g} x {y1 - y0:g} m)", mg)
+    rng = np.random.default_rng(int(rnd["seed"]))
+    pts = np.zeros((0, 2))
+    for _ in range(1000):
+        cand = np.stack([rng.uniform(x0 + mg, x1 - mg, 2 * n), rng.uniform(y0 + mg, y1 - mg, 2 * n)], axis=-1)
+        if w.grid is not None:
+            cand = cand[~w.grid.is_occupied(cand)]
+        pts = np.concatenate([pts, cand])[:n]
+        if pts.shape[0] == n:
+            break
+    else:  # pragma: no cover - a world that is (almost) all walls
+        raise _fail("world.random_landmarks.count", "reachable in the free space", n)
+    first = int(w.landmark_ids.max()) + 1 if w.n_landmarks else 0
+    return World(np.concatenate([w.landmarks, pts]), np.concatenate([w.landmark_ids, first + np.arange(n)]),
+                 w.grid, w.segments, w.bounds, w.name)  # fmt: skip
+
+
+def _truth(data: Any) -> dict[str, Any]:
+    _check_keys("truth", data, ("k_r", "k_l", "regime", "path"))
+    return {"k_r": _num("truth.k_r", data.get("k_r", 1e-3), 0.0), "k_l": _num("truth.k_l", data.get("k_l", 1e-3), 0.0),
+            "regime": _choice("truth.regime", data.get("regime", "per_step"), REGIMES),
+            "path": _choice("truth.path", data.get("path", "commanded"), simulate.TRUTHS)}  # fmt: skip
+
+
+def _sensors(data: Any) -> dict[str, Any]:
+    _check_keys("sensors", data, ("landmarks", "beams"))
+    out: dict[str, Any] = {}
+    if data.get("landmarks") is not None:
+        out["landmarks"] = _dataclass_params("sensors.landmarks", RangeBearingSensor, data["landmarks"])
+    if data.get("beams") is not None:
+        out["beams"] = _dataclass_params("sensors.beams", BeamSensor, data["beams"])
+    if not out:
+        raise ValueError("config key 'sensors' must configure landmarks or beams (allowed: one or both), got none")
+    return out
+
+
+def _scenario(data: Any, n_steps: int) -> dict[str, Any]:
+    _check_keys("scenario", data, ("kind", "start_std", "kidnap_step", "kidnap_pose"))
+    kind = _choice("scenario.kind", data.get("kind", "tracking"), SCENARIOS)
+    out: dict[str, Any] = {"kind": kind,
+                           "start_std": _vector("scenario.start_std", data.get("start_std", [0.05, 0.05, 0.02]), 3,
+                                                nonneg=True)}  # fmt: skip
+    step, pose = data.get("kidnap_step"), data.get("kidnap_pose")
+    if kind == "kidnapped":
+        out["kidnap_step"] = _int("scenario.kidnap_step", n_steps // 2 if step is None else step, minimum=1)
+        if out["kidnap_step"] > n_steps:
+            raise _fail("scenario.kidnap_step", f"a step in 1..{n_steps} (the trajectory's N)", step)
+        if pose is None:
+            raise ValueError("config key 'scenario.kidnap_pose' is missing (allowed: [x, y, theta] for kind kidnapped)")
+        out["kidnap_pose"] = _vector("scenario.kidnap_pose", pose, 3)
+    else:
+        for key, value in (("kidnap_step", step), ("kidnap_pose", pose)):
+            if value is not None:
+                raise _fail(f"scenario.{key}", "null unless scenario.kind is 'kidnapped'", value)
+        out["kidnap_step"], out["kidnap_pose"] = None, None
+    return out
+
+
+def _motion(where: str, data: Any, models: tuple[str, ...], default: dict[str, Any]) -> dict[str, Any]:
+    """A filter's motion model, its defaults from the truth (``default``)."""
+    data = {} if data is None else data
+    _check_keys(where, data, ("model", "k_r", "k_l", "alphas", "noise", "scaling"))
+    model = _choice(f"{where}.model", data.get("model", default["model"]), models)
+    base = default if model == default["model"] else {"model": model, "k_r": default["k_r"], "k_l": default["k_l"]}
+    if model == "velocity" and "alphas" not in data and "alphas" not in base:
+        base = {**base, "alphas": default["velocity_alphas"], "scaling": "abs"}
+    out = {"model": model,
+           "k_r": _num(f"{where}.k_r", data.get("k_r", base["k_r"]), 0.0),
+           "k_l": _num(f"{where}.k_l", data.get("k_l", base["k_l"]), 0.0),
+           "noise": data.get("noise", base.get("noise", "normal")),
+           "scaling": data.get("scaling", base.get("scaling", "squared"))}  # fmt: skip
+    alphas = data.get("alphas", base.get("alphas"))
+    if alphas is not None:
+        if not isinstance(alphas, list | tuple):
+            raise _fail(f"{where}.alphas", "a list of numbers >= 0", alphas)
+        alphas = [_num(f"{where}.alphas[{i}]", a, 0.0) for i, a in enumerate(alphas)]
+    m = _build(where, Motion, {**out, "alphas": None if alphas is None else tuple(alphas)})
+    out["alphas"] = None if m.alphas is None else list(m.alphas)
+    return out
+
+
+def _sensor_choice(where: str, data: Mapping[str, Any], sensors: Mapping[str, Any], allowed: tuple[str, ...]) -> str:
+    have = [s for s in allowed if s in sensors]
+    if not have:
+        raise _fail(f"{where}.sensor", f"a configured sensor among {allowed} (configure sensors.{allowed[0]})", None)
+    s = _choice(f"{where}.sensor", data.get("sensor", have[0]), allowed)
+    if s not in sensors:
+        raise _fail(f"{where}.sensor", f"a configured sensor (configured: {', '.join(sensors)})", s)
+    return s
+
+
+def _filters(data: Any, sensors: Mapping[str, Any], defaults: Mapping[str, Any]) -> dict[str, Any]:
+    _check_keys("filters", data, lm.FILTERS)
+    if not data:
+        raise ValueError(f"config key 'filters' must configure at least one filter (allowed: {', '.join(lm.FILTERS)})")
+    out: dict[str, Any] = {}
+    if data.get("ekf") is not None:
+        d = data["ekf"]
+        _check_keys("filters.ekf", d, ("sensor", "motion", "association"))
+        out["ekf"] = {"sensor": _sensor_choice("filters.ekf", d, sensors, ("landmarks",)),
+                      "motion": _motion("filters.ekf.motion", d.get("motion"), ("wheels", "velocity"), dict(defaults)),
+                      "association": _choice("filters.ekf.association", d.get("association", "known"), ASSOCIATIONS)}  # fmt: skip
+    if data.get("histogram") is not None:
+        d = data["histogram"]
+        _check_keys("filters.histogram", d, ("sensor", "motion", "resolution", "ntheta", "mask_occupied", "association",
+                                              "workers"))  # fmt: skip
+        res = d.get("resolution")
+        out["histogram"] = {
+            "sensor": _sensor_choice("filters.histogram", d, sensors, ("landmarks", "beams")),
+            "motion": _motion("filters.histogram.motion", d.get("motion"), ("velocity", "odometry"),
+                              {**defaults, "model": "velocity", "alphas": defaults["velocity_alphas"], "scaling": "abs"}),
+            "resolution": None if res is None else _num("filters.histogram.resolution", res, 0.0, lo_open=True),
+            "ntheta": _int("filters.histogram.ntheta", d.get("ntheta", 36), minimum=1),
+            "mask_occupied": _bool("filters.histogram.mask_occupied", d.get("mask_occupied", True)),
+            "association": _choice("filters.histogram.association", d.get("association", "known"), ASSOCIATIONS),
+            "workers": _int("filters.histogram.workers", d.get("workers", 1), minimum=1),
+        }  # fmt: skip
+    if data.get("particle") is not None:
+        d = dict(data["particle"])
+        where = "filters.particle"
+        sensor = _sensor_choice(where, d, sensors, ("landmarks", "beams"))
+        motion = _motion(f"{where}.motion", d.pop("motion", None), MOTION_MODELS, dict(defaults))
+        d.pop("sensor", None)
+        opts = _dataclass_params(where, particle.ParticleFilterConfig, d, skip=("motion",))
+        opts["resampling"] = _choice(f"{where}.resampling", opts["resampling"], SCHEMES)
+        out["particle"] = {"sensor": sensor, "motion": motion, **opts}
+    return out
+
+
+# ============================================================================= the configuration
+
+
+@dataclass(frozen=True)
+class LocalizationConfig:
+    """Everything that determines one localization run (normalised plain mappings, every default filled in).
+
+    Attributes
+    ----------
+    name : str; seed : int [1]; repeat : int [1] — simulated runs R
+    world : dict — the world, inline (WORLD_SCHEMA keys) with ``random_landmarks`` {count, seed,
+        margin [m]} and the ``source`` file it was read from
+    trajectory : dict — builder name (:data:`TRAJECTORY_BUILDERS`) and parameters
+    truth : dict — ``k_r``, ``k_l`` [m] (wheel-travel variance per metre), ``regime`` and ``path``
+        (``commanded``: the robot follows the path and its odometry drifts; ``drifts``: the reverse)
+    sensors : dict — ``landmarks`` (RangeBearingSensor fields) and/or ``beams`` (BeamSensor fields)
+    scenario : dict — ``kind`` (tracking | global | kidnapped), ``start_std`` [m, m, rad],
+        ``kidnap_step`` [step], ``kidnap_pose`` [m, m, rad]
+    filters : dict — ``ekf``, ``histogram``, ``particle``: each its ``sensor``, ``motion`` and options
+    success : dict — ``pos_tol`` [m], ``head_tol`` [rad]
+    log : dict — ``particles_every`` [step] (0: none), ``max_particles_logged`` [1], ``grid_every`` [step] (0: none)
+    """
+
+    name: str
+    seed: int
+    repeat: int
+    world: dict[str, Any]
+    trajectory: dict[str, Any]
+    truth: dict[str, Any]
+    sensors: dict[str, Any]
+    scenario: dict[str, Any]
+    filters: dict[str, Any]
+    success: dict[str, Any]
+    log: dict[str, Any]
+
+    KEYS = ("kind", "name", "seed", "repeat", "world", "trajectory", "truth", "sensors", "scenario", "filters",
+            "success", "log")  # fmt: skip
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> LocalizationConfig:
+        """Validate a plain mapping and build the configuration.
+
+        Raises
+        ------
+        ValueError
+            One line naming the bad key (dotted path, e.g. ``filters.particle.n_particles``),
+            the bad value and what is allowed; unknown keys are rejected.
+        """
+        if not isinstance(data, Mapping):
+            raise _fail("config", "a mapping", data)
+        data = coerce_numbers(data)
+        _check_keys("", data, cls.KEYS)
+        if data.get("kind", KIND) != KIND:
+            raise _fail("kind", f"{KIND!r}", data.get("kind"))
+        for key in ("world", "trajectory", "sensors", "filters"):
+            if key not in data:
+                raise ValueError(f"config key {key!r} is missing (a localization run needs world, trajectory, "
+                                 "sensors and filters)")  # fmt: skip
+        world = _world(data["world"])
+        try:
+            build_world(world)
+        except ValueError as exc:
+            msg = str(exc)
+            raise ValueError(msg if msg.startswith("config key") else f"config key 'world': {msg}") from None
+        traj, tr = _trajectory(data["trajectory"])
+        truth = _truth(data.get("truth", {}))
+        sensors = _sensors(data["sensors"])
+        scenario = _scenario(data.get("scenario", {}), tr.n_steps)
+        defaults = {"model": "wheels", "k_r": truth["k_r"], "k_l": truth["k_l"],
+                    "velocity_alphas": list(velocity_alphas_for_wheels(truth["k_r"], truth["k_l"], tr.track, tr.dt))}
+        filters = _filters(data["filters"], sensors, defaults)
+        succ = data.get("success", {})
+        _check_keys("success", succ, ("pos_tol", "head_tol"))
+        success = {"pos_tol": _num("success.pos_tol", succ.get("pos_tol", 0.5), 0.0, lo_open=True),
+                   "head_tol": _num("success.head_tol", succ.get("head_tol", 0.25), 0.0, math.pi, lo_open=True)}
+        lg = data.get("log", {})
+        _check_keys("log", lg, ("particles_every", "max_particles_logged", "grid_every"))
+        log = {"particles_every": _int("log.particles_every", lg.get("particles_every", 1)),
+               "max_particles_logged": _int("log.max_particles_logged", lg.get("max_particles_logged", 500), minimum=1),
+               "grid_every": _int("log.grid_every", lg.get("grid_every", 10))}  # fmt: skip
+        return cls(
+            name=_name("name", data.get("name", "localization")), seed=_int("seed", data.get("seed", 0)),
+            repeat=_int("repeat", data.get("repeat", 1), minimum=1), world=world, trajectory=traj,
+            truth=truth, sensors=sensors, scenario=scenario, filters=filters, success=success, log=log,
+        )  # fmt: skip
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain, JSON-serialisable mapping with every parameter (round-trips via from_dict)."""
+        return {"kind": KIND, "name": self.name, "seed": self.seed, "repeat": self.repeat,
+                **copy.deepcopy({k: getattr(self, k) for k in self.KEYS[4:]})}  # fmt: skip
+
+    @staticmethod
+    def units() -> dict[str, Any]:
+        """Unit of every configuration key (``"1"`` = dimensionless, ``"-"`` = not a number)."""
+        motion = {"model": "- (wheels | velocity | odometry)", "k_r": "m", "k_l": "m", "alphas": "1",
+                  "noise": "- (normal | triangular)", "scaling": "- (squared | abs)"}  # fmt: skip
+        return {
+            "kind": "-", "name": "-", "seed": "1", "repeat": "1 (simulated runs)",
+            "world": {"source": "- (path)", "name": "-", "bounds": "m", "landmarks": {"id": "1", "x": "m", "y": "m"},
+                      "walls": {"segments": "m", "resolution": "m", "thickness": "m", "margin": "m"},
+                      "image": {"path": "- (path)", "resolution": "m", "origin": "m", "occupied_thresh": "1",
+                                "free_thresh": "1", "negate": "- (bool)", "sha256": "-"},
+                      "random_landmarks": {"count": "1", "seed": "1", "margin": "m"}},
+            "trajectory": {"name": "-", "length": "m", "radius": "m", "angle": "rad", "laps": "1", "side": "m",
+                           "segments": "[kind, m or rad ...]", "direction": "1", "dx": "m", "dy": "m",
+                           "speed": "m/s", "angular_speed": "rad/s", "dt": "s", "track": "m", "profile": "-",
+                           "start": "(m, m, rad)"},
+            "truth": {"k_r": "m", "k_l": "m", "regime": "- (per_step | per_run)", "path": "- (commanded | drifts)"},
+            "sensors": {"landmarks": {"range_std": "m", "bearing_std": "rad", "max_range": "m", "fov": "rad",
+                                      "period": "s"},
+                        "beams": {"n_beams": "1", "fov": "rad", "max_range": "m", "sigma_hit": "m",
+                                  "lambda_short": "1/m", "z_hit": "1", "z_short": "1", "z_max": "1", "z_rand": "1",
+                                  "period": "s"}},
+            "scenario": {"kind": "- (tracking | global | kidnapped)", "start_std": "(m, m, rad)",
+                         "kidnap_step": "step", "kidnap_pose": "(m, m, rad)"},
+            "filters": {"ekf": {"sensor": "-", "motion": motion, "association": "- (known | ml)"},
+                        "histogram": {"sensor": "-", "motion": motion, "resolution": "m", "ntheta": "1",
+                                      "mask_occupied": "- (bool)", "association": "- (known | ml)", "workers": "1"},
+                        "particle": {"sensor": "-", "motion": motion, "n_particles": "1", "resampling": "-",
+                                     "ess_threshold": "1 (fraction of n)", "injection": "- (none | fixed | augmented)",
+                                     "injection_fraction": "1", "alpha_slow": "1", "alpha_fast": "1",
+                                     "association": "- (known | ml)", "dtype": "-", "hdr_resolution": "m",
+                                     "workers": "1"}},
+            "success": {"pos_tol": "m", "head_tol": "rad"},
+            "log": {"particles_every": "step", "max_particles_logged": "1", "grid_every": "step"},
+        }  # fmt: skip
+
+    # --- the objects the run is made of -------------------------------------------------------
+
+    def build_world(self) -> World:
+        """The world (random landmarks drawn)."""
+        return build_world(self.world)
+
+    def build_trajectory(self) -> trajectories.Trajectory:
+        """The commanded path."""
+        t = self.trajectory
+        return TRAJECTORY_BUILDERS[t["name"]](**{k: v for k, v in t.items() if k != "name"})
+
+    def landmark_sensor(self) -> RangeBearingSensor | None:
+        """The range–bearing sensor, if configured."""
+        s = self.sensors.get("landmarks")
+        return None if s is None else RangeBearingSensor(**s)
+
+    def beam_sensor(self) -> BeamSensor | None:
+        """The laser's beam model, if configured."""
+        s = self.sensors.get("beams")
+        return None if s is None else BeamSensor(**s)
+
+    def start(self, trajectory: trajectories.Trajectory) -> Start:
+        """The filters' initial belief: the path's start with ``start_std``, or uniform (global)."""
+        sc = self.scenario
+        return Start(sc["kind"], tuple(float(v) for v in trajectory.start), tuple(sc["start_std"]))  # type: ignore[arg-type]
+
+    def motion(self, name: str) -> Motion:
+        """The motion model of filter ``name``."""
+        m = self.filters[name]["motion"]
+        return Motion(m["model"], m["k_r"], m["k_l"], None if m["alphas"] is None else tuple(m["alphas"]),
+                      m["noise"], m["scaling"])  # fmt: skip
+
+
+# ============================================================================= results
+
+
+@dataclass(frozen=True, eq=False)
+class FilterTrack:
+    """One filter on the first of the R runs (what the log shows), with its series over all of them.
+
+    Attributes
+    ----------
+    name : str — "ekf", "histogram" or "particle"
+    mean : ndarray, shape (K, 3) [m, m, rad]; cov : ndarray, shape (K, 3, 3)
+    series : dict of str to ndarray (K,) — errors, σ's, NEES (and ``nees_avg`` over the R runs),
+        region flags and diagnostics (:func:`pose_uncertainty.analysis.localization_measures.filter_measures`)
+    particles : dict of int to ndarray (m, 4) — at the logged steps: x [m], y [m], θ [rad], weight
+        (every ``n/m``-th particle, ``m = min(n, max_particles_logged)``)
+    grids : dict of int to ndarray (nx, ny) — the histogram filter's θ-marginal mass at the logged steps
+    grid_geometry : ndarray, shape (4,) — ``(x0, y0, h, nθ)``: centre of cell [0, 0] [m], side [m], headings
+    """
+
+    name: str
+    mean: Array
+    cov: Array
+    series: dict[str, Array] = field(default_factory=dict)
+    particles: dict[int, Array] = field(default_factory=dict)
+    grids: dict[int, Array] = field(default_factory=dict)
+    grid_geometry: Array | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class LocalizationResult:
+    """The outcome of a localization run: the first simulated run's data and every filter on it.
+
+    Attributes
+    ----------
+    config : LocalizationConfig; world : World
+    times : ndarray (K,) [s]; true_poses, odometry : ndarray (K, 3)
+    ds_r, ds_l : ndarray (N,) [m] — measured wheel travels
+    landmark_z : ndarray (K, L, 2); landmark_valid : ndarray of bool (K, L)
+    beam_z : ndarray (K, B) [m] or None; beam_valid : ndarray of bool (K,)
+    filters : dict of str to FilterTrack — in the order of
+        :data:`~pose_uncertainty.analysis.localization_measures.FILTERS`
+    series : dict of str to ndarray (K,) — run-level series (dead-reckoning error)
+    metrics, metric_units, metric_definitions : dict — every measure (deterministic)
+    timings : dict of str to float — wall-clock seconds, NOT deterministic
+        (``<filter>_step_s``: mean compute time per step over the R runs)
+    provenance : dict of str to str
+    """
+
+    config: LocalizationConfig
+    world: World
+    times: Array
+    true_poses: Array
+    odometry: Array
+    ds_r: Array
+    ds_l: Array
+    landmark_z: Array
+    landmark_valid: NDArray[np.bool_]
+    beam_z: Array | None
+    beam_valid: NDArray[np.bool_]
+    filters: dict[str, FilterTrack]
+    series: dict[str, Array] = field(default_factory=dict)
+    metrics: dict[str, float] = field(default_factory=dict)
+    metric_units: dict[str, str] = field(default_factory=dict)
+    metric_definitions: dict[str, str] = field(default_factory=dict)
+    timings: dict[str, float] = field(default_factory=dict)
+    provenance: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def n_steps(self) -> int:
+        """Number of steps N."""
+        return int(self.times.size - 1)
+
+
+# ============================================================================= execution
+
+
+class _Display:
+    """Collects what the log shows of a filter on the first run: subsampled particles, grid marginals."""
+
+    def __init__(self, name: str, log: Mapping[str, Any], n_steps: int) -> None:
+        self.name, self.n_steps = name, n_steps
+        self.p_every, self.g_every, self.m = log["particles_every"], log["grid_every"], log["max_particles_logged"]
+        self.particles: dict[int, Array] = {}
+        self.grids: dict[int, Array] = {}
+        self.geometry: Array | None = None
+
+    def _due(self, k: int, every: int) -> bool:
+        return every > 0 and (k % every == 0 or k == self.n_steps)
+
+    def __call__(self, k: int, state: dict[str, Any]) -> None:
+        if "particles" in state and self._due(k, self.p_every):
+            P, w = state["particles"], state["weights"]
+            n = P.shape[0]
+            idx = (np.arange(min(n, self.m)) * n) // min(n, self.m)  # every n/m-th: no random draw
+            self.particles[k] = np.ascontiguousarray(np.column_stack([P[idx], w[idx]]), dtype=np.float64)
+        if "belief_xy" in state:
+            g = state["grid"]
+            self.geometry = np.array([g.x0, g.y0, g.resolution, g.ntheta], dtype=np.float64)
+            if self._due(k, self.g_every):
+                self.grids[k] = np.array(state["belief_xy"], dtype=np.float64)
+
+
+def _run_filter(name: str, cfg: LocalizationConfig, run: simulate.SimulatedRun, world: World, start: Start,
+                sensors: Mapping[str, Any], r: int, on_step: Any) -> FilterResult:  # fmt: skip
+    """One filter on one simulated run."""
+    f = cfg.filters[name]
+    sensor = sensors[f["sensor"]]
+    if name == "ekf":
+        return ekf.run_ekf(run, world, sensor, ekf.EKFConfig(cfg.motion(name), f["association"]), start,
+                           on_step=on_step)  # fmt: skip
+    if name == "histogram":
+        hc = histogram.HistogramFilterConfig(cfg.motion(name), f["resolution"], f["ntheta"], f["mask_occupied"],
+                                             f["association"], f["workers"])  # fmt: skip
+        return histogram.run_histogram(run, world, sensor, hc, start, on_step=on_step)
+    opts = {k: v for k, v in f.items() if k not in ("sensor", "motion")}
+    pc = particle.ParticleFilterConfig(motion=cfg.motion(name), **opts)
+    return particle.run_particle(run, world, sensor, np.random.default_rng([cfg.seed, 1, r]), pc, start,
+                                 on_step=on_step)  # fmt: skip
+
+
+def execute_localization(config: LocalizationConfig) -> LocalizationResult:
+    """Simulate the R runs, run every configured filter on each, and compute every measure.
+
+    Returns
+    -------
+    LocalizationResult
+        Everything but ``timings`` is a deterministic function of ``config`` (its seed
+        included), the package version and the environment.
+    """
+    t_all = time.perf_counter()
+    world, traj = config.build_world(), config.build_trajectory()
+    lm_sensor, beam_sensor = config.landmark_sensor(), config.beam_sensor()
+    sensors: dict[str, Any] = {"landmarks": lm_sensor, "beams": beam_sensor}
+    start = config.start(traj)
+    sc, truth = config.scenario, config.truth
+    names = [f for f in lm.FILTERS if f in config.filters]
+    runs: list[simulate.SimulatedRun] = []
+    results: dict[str, list[FilterResult]] = {f: [] for f in names}
+    shown = {f: _Display(f, config.log, traj.n_steps) for f in names}
+    seconds = {f: 0.0 for f in names}
+    t_sim = 0.0
+    for r in range(config.repeat):
+        t0 = time.perf_counter()
+        run = simulate.simulate(
+            traj, world, np.random.default_rng([config.seed, 0, r]), k_r=truth["k_r"], k_l=truth["k_l"],
+            regime=truth["regime"], landmark_sensor=lm_sensor, beam_sensor=beam_sensor,
+            kidnap_step=-1 if sc["kidnap_step"] is None else sc["kidnap_step"], kidnap_pose=sc["kidnap_pose"],
+            truth=truth["path"],
+        )  # fmt: skip
+        t_sim += time.perf_counter() - t0
+        runs.append(run)
+        for f in names:
+            res = _run_filter(f, config, run, world, start, sensors, r, shown[f] if r == 0 else None)
+            results[f].append(res)
+            seconds[f] += float(res.step_seconds.sum())
+    t0 = time.perf_counter()
+    metrics, run_series = lm.run_measures(runs, world.n_landmarks)
+    tracks: dict[str, FilterTrack] = {}
+    from_step = sc["kidnap_step"] or 0
+    for f in names:
+        cells = None
+        if f == "histogram" and shown[f].geometry is not None:
+            g = histogram.pose_grid_for(world, config.filters[f]["resolution"], config.filters[f]["ntheta"])
+            cells = g.nx * g.ny * g.ntheta
+        m, series = lm.filter_measures(f, results[f], runs, pos_tol=config.success["pos_tol"],
+                                       head_tol=config.success["head_tol"], from_step=from_step, cells=cells)  # fmt: skip
+        metrics.update(m)
+        first = results[f][0]
+        tracks[f] = FilterTrack(f, np.ascontiguousarray(first.mean), np.ascontiguousarray(first.cov), series,
+                                shown[f].particles, shown[f].grids, shown[f].geometry)  # fmt: skip
+    K = traj.n_steps + 1
+    timings = {f"{f}_step_s": seconds[f] / (config.repeat * K) for f in names}
+    timings |= {f"{f}_total_s": seconds[f] for f in names}
+    timings |= {"simulate_s": t_sim, "measures_s": time.perf_counter() - t0, "total_s": time.perf_counter() - t_all}
+    r0 = runs[0]
+    return LocalizationResult(
+        config=config, world=world, times=np.ascontiguousarray(r0.times, dtype=np.float64),
+        true_poses=r0.true_poses, odometry=r0.odometry, ds_r=r0.ds_r, ds_l=r0.ds_l, landmark_z=r0.landmark_z,
+        landmark_valid=r0.landmark_valid, beam_z=r0.beam_z, beam_valid=r0.beam_valid, filters=tracks,
+        series=run_series, metrics=metrics, metric_units={k: measures.describe(k)[0] for k in metrics},
+        metric_definitions={k: measures.describe(k)[1] for k in metrics}, timings=timings, provenance=provenance(),
+    )  # fmt: skip
+
+
+# ============================================================================= the pipeline's sets
+
+
+def _normalize(cfg: Mapping[str, Any]) -> dict[str, Any]:
+    return LocalizationConfig.from_dict(cfg).to_dict()
+
+
+def expand_localization(config: Mapping[str, Any]) -> dict[str, list[Run]]:
+    """Expand the pipeline config's localization sets (key ``localization.sets``) into their runs.
+
+    Each set is a sweep as :func:`pose_uncertainty.logs.sweep.expand_set` (``base`` + ``sweep``
+    axes) over localization configurations; ``localization.defaults`` and the config's ``seed``
+    are shared by every set. An empty dict when ``localization.enabled`` is false.
+
+    Raises
+    ------
+    ConfigError naming ``localization.sets.<set>``, the run and the bad key.
+    """
+    section = config.get("localization") or {}
+    if not section.get("enabled", True):
+        return {}
+    defaults = coerce_numbers(dict(section.get("defaults", {}) or {}))
+    if "seed" in config and "seed" not in defaults:
+        defaults["seed"] = config["seed"]
+    out: dict[str, list[Run]] = {}
+    for name, spec in (section.get("sets", {}) or {}).items():
+        try:
+            out[name] = expand_set(name, coerce_numbers(spec), defaults, normalize=_normalize)
+        except ConfigError as exc:
+            raise ConfigError(str(exc).replace(f"experiment_sets.{name}", f"localization.sets.{name}", 1)) from None
+    return out
+

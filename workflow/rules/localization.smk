@@ -1,0 +1,101 @@
+# Localization runs (config key `localization.sets`): one run → one MCAP log (byte-reproducible) and its
+# timings; its figures drawn from the log; one table per set; the set figures. The code that computes a
+# run is a rule param (SOURCE_RUNS, SOURCE_PRESENT), so a code change reruns what it affects.
+
+
+rule simulate_localization:
+    output:
+        log="data/localization/{set}/{run}.mcap",
+        timings="data/localization/{set}/{run}.timings.json",
+    params:
+        config=localization_config,
+        source=SOURCE_RUNS,
+    log:
+        "logs/simulate_localization/{set}/{run}.log",
+    benchmark:
+        "data/benchmarks/simulate_localization/{set}/{run}.tsv"
+    script:
+        "../scripts/simulate_localization.py"
+
+
+rule render_localization_figures:
+    input:
+        log=rules.simulate_localization.output.log,
+    output:
+        paths=report(
+            "reports/figures/localization/{set}/{run}/paths.png",
+            caption="../report/localization_paths.rst",
+            category="localization",
+            subcategory="{set}",
+            labels={"run": "{run}", "figure": "paths"},
+        ),
+        errors=report(
+            "reports/figures/localization/{set}/{run}/errors.png",
+            caption="../report/localization_errors.rst",
+            category="localization",
+            subcategory="{set}",
+            labels={"run": "{run}", "figure": "errors with 3 sigma"},
+        ),
+        nees=report(
+            "reports/figures/localization/{set}/{run}/nees.png",
+            caption="../report/localization_nees.rst",
+            category="localization",
+            subcategory="{set}",
+            labels={"run": "{run}", "figure": "NEES"},
+        ),
+    params:
+        source=SOURCE_PRESENT,
+        kinds=list(LOC_RUN_FIGURES),
+    log:
+        "logs/render_localization_figures/{set}/{run}.log",
+    benchmark:
+        "data/benchmarks/render_localization_figures/{set}/{run}.tsv"
+    script:
+        "../scripts/render_localization_figures.py"
+
+
+rule render_localization_set_figure:
+    input:
+        logs=lambda w: localization_logs(w.set),
+        timings=lambda w: localization_timings(w.set),
+    output:
+        report(
+            "reports/figures/localization/{set}/{kind}.png",
+            caption="../report/localization_set.rst",
+            category="localization",
+            subcategory="{set}",
+            labels={"figure": "{kind}"},
+        ),
+    wildcard_constraints:
+        kind="accuracy_time|success",
+    params:
+        source=SOURCE_PRESENT,
+        title=lambda w: config["localization"]["sets"][w.set]["title"],
+    log:
+        "logs/render_localization_set_figure/{set}/{kind}.log",
+    benchmark:
+        "data/benchmarks/render_localization_set_figure/{set}/{kind}.tsv"
+    script:
+        "../scripts/render_localization_set_figure.py"
+
+
+rule collect_localization_metrics:
+    input:
+        logs=lambda w: localization_logs(w.set),
+        timings=lambda w: localization_timings(w.set),
+    output:
+        report(
+            "reports/tables/localization/{set}.csv",
+            caption="../report/table.rst",
+            category="localization",
+            subcategory="tables",
+            labels={"table": "{set}"},
+        ),
+    params:
+        source=SOURCE_RUNS,
+    log:
+        "logs/collect_localization_metrics/{set}.log",
+    benchmark:
+        "data/benchmarks/collect_localization_metrics/{set}.tsv"
+    script:
+        "../scripts/collect_metrics.py"

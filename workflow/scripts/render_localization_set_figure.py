@@ -1,0 +1,10 @@
+"""Adapter: draw a localization set's figure (pose_uncertainty.present.localization_figures)."""
+
+from contextlib import redirect_stderr
+
+from pose_uncertainty.present.localization_figures import render_localization_set_figure
+
+sm = snakemake  # noqa: F821 - injected by Snakemake
+with open(sm.log[0], "w", encoding="utf-8") as log, redirect_stderr(log):
+    render_localization_set_figure(sm.wildcards.kind, list(sm.input.logs), list(sm.input.timings), sm.output[0],
+                                   sm.params.title)
