@@ -31,9 +31,9 @@ from pose_uncertainty.logs import localization_log as LL
 from pose_uncertainty.logs import sweep
 from pose_uncertainty.logs.localization import (
     LocalizationConfig,
-    coerce_numbers,
     execute_localization,
     expand_localization,
+    numbers_from_text,
 )
 from pose_uncertainty.logs.runlog import PartialLogWarning, RunLogError, open_run, verify_run
 from pose_uncertainty.logs.tables import collect_table
@@ -124,7 +124,7 @@ def test_config_needs_a_filter_and_a_sensor() -> None:
 def test_numbers_as_yaml_strings_and_defaults_round_trip() -> None:
     cfg = LocalizationConfig.from_dict(CONFIG)
     assert cfg.truth["k_r"] == 1e-3
-    assert coerce_numbers({"a": ["1e-3", "x", "2"], "b": "-.5E+2"}) == {"a": [1e-3, "x", 2.0], "b": -50.0}
+    assert numbers_from_text({"a": ["1e-3", "x", "2"], "b": "-.5E+2"}) == {"a": [1e-3, "x", 2.0], "b": -50.0}
     # every parameter is in to_dict and the logged form rebuilds the same configuration
     full = cfg.to_dict()
     assert LocalizationConfig.from_dict(full) == cfg
@@ -157,7 +157,7 @@ def test_shipped_localization_sets_expand() -> None:
     schema = sweep.load_schema(REPO / "workflow/schemas/config.schema.yaml")
     for name in ("config.yaml", "quick.yaml"):
         cfg = yaml.safe_load((REPO / "config" / name).read_text(encoding="utf-8"))
-        cfg["localization"] = coerce_numbers(cfg["localization"])
+        cfg["localization"] = numbers_from_text(cfg["localization"])
         sets = expand_localization(sweep.validate_config(cfg, schema))
         assert {"LOC_room", "LOC_global", "LOC_kidnapped"} <= set(sets), name
         for runs in sets.values():

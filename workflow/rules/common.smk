@@ -20,7 +20,7 @@ if workflow.overwrite_configfiles:
 
 # localization: a number written as YAML 1.1 reads it ("1e-3", a string) is a number (before the schema)
 if isinstance(config.get("localization"), dict):
-    config["localization"] = _loc.coerce_numbers(config["localization"])
+    config["localization"] = _loc.numbers_from_text(config["localization"])
 
 _SCHEMA = load_schema(workflow.source_path("../schemas/config.schema.yaml"))
 try:

@@ -61,7 +61,7 @@ def write_table(
     return p
 
 
-def _num(text: str) -> Any:
+def _parse_cell(text: str) -> Any:
     if text == "":
         return None
     try:
@@ -77,4 +77,4 @@ def _num(text: str) -> Any:
 def read_table(path: str | os.PathLike[str]) -> list[dict[str, Any]]:
     """Read a CSV written by :func:`write_table` (numbers parsed, empty cells as None)."""
     with open(path, newline="", encoding="utf-8") as fh:
-        return [{k: _num(v) for k, v in row.items()} for row in csv.DictReader(fh)]
+        return [{k: _parse_cell(v) for k, v in row.items()} for row in csv.DictReader(fh)]

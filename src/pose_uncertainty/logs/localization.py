@@ -87,10 +87,10 @@ __all__ = [
     "LocalizationConfig",
     "LocalizationResult",
     "build_world",
-    "coerce_numbers",
     "execute_localization",
     "expand_localization",
     "is_localization_config",
+    "numbers_from_text",
 ]
 
 #: The value of a localization configuration's ``kind`` key.
@@ -107,12 +107,12 @@ Array = NDArray[np.float64]
 # ============================================================================= validation helpers
 
 
-def coerce_numbers(value: Any) -> Any:
+def numbers_from_text(value: Any) -> Any:
     """A copy of a configuration with number-like strings (``"1e-3"``, as YAML 1.1 reads them) as floats."""
     if isinstance(value, Mapping):
-        return {k: coerce_numbers(v) for k, v in value.items()}
+        return {k: numbers_from_text(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
-        return [coerce_numbers(v) for v in value]
+        return [numbers_from_text(v) for v in value]
     return parse_number(value)  # the one reading of numbers written as text
 
 
@@ -253,7 +253,7 @@ def _world(data: Any) -> dict[str, Any]:
             raise _fail("world.file", "a path", src)
         inline, base = _read_world_file(src)
         out["source"] = src
-        data = {**coerce_numbers(inline), **data}
+        data = {**numbers_from_text(inline), **data}
     if "source" in data:
         src_given = str(data.pop("source"))
         out.setdefault("source", src_given)
@@ -475,7 +475,7 @@ class LocalizationConfig:
         """
         if not isinstance(data, Mapping):
             raise _fail("config", "a mapping", data)
-        data = coerce_numbers(data)
+        data = numbers_from_text(data)
         _check_keys("", data, cls.KEYS)
         if data.get("kind", KIND) != KIND:
             raise _fail("kind", f"{KIND!r}", data.get("kind"))
@@ -790,13 +790,13 @@ def expand_localization(config: Mapping[str, Any]) -> dict[str, list[Run]]:
     section = config.get("localization") or {}
     if not section.get("enabled", True):
         return {}
-    defaults = coerce_numbers(dict(section.get("defaults", {}) or {}))
+    defaults = numbers_from_text(dict(section.get("defaults", {}) or {}))
     if "seed" in config and "seed" not in defaults:
         defaults["seed"] = config["seed"]
     out: dict[str, list[Run]] = {}
     for name, spec in (section.get("sets", {}) or {}).items():
         try:
-            out[name] = expand_set(name, coerce_numbers(spec), defaults, normalize=_normalize)
+            out[name] = expand_set(name, numbers_from_text(spec), defaults, normalize=_normalize)
         except ConfigError as exc:
             raise ConfigError(str(exc).replace(f"experiment_sets.{name}", f"localization.sets.{name}", 1)) from None
     return out

@@ -34,7 +34,6 @@ Filters ``<f>``: ``ekf`` (blue), ``histogram`` (green), ``particle`` (orange), t
 
 from __future__ import annotations
 
-import io
 import json
 import math
 import os
@@ -89,6 +88,7 @@ from .runlog import (
     _ns,
     _stamp,
     _yaw,
+    stream_bytes,
 )
 
 __all__ = [
@@ -253,7 +253,7 @@ def _data_arrays(res: LocalizationResult) -> dict[str, Array]:
     return out
 
 
-def _metadata(res: LocalizationResult) -> dict[str, str]:
+def _localization_metadata(res: LocalizationResult) -> dict[str, str]:
     cfg = res.config
     meta = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "kind": "localization",
@@ -314,9 +314,9 @@ def _filter_step(log: _Log, name: str, tr: FilterTrack, ell: Array, k: int, t: f
         log.put(f"{base}/grid", _grid_msg(tr.grids[k], x0, y0, h, h, tk), tk)
 
 
-def _write_stream(stream: Any, res: LocalizationResult, include_timings: bool) -> None:
+def _write_localization_stream(stream: Any, res: LocalizationResult, include_timings: bool) -> None:
     log = _Log(stream)
-    log.w.add_metadata(METADATA_NAME, _metadata(res))
+    log.w.add_metadata(METADATA_NAME, _localization_metadata(res))
     t_ns = [_ns(t) for t in res.times]
     _static(log, res, t_ns[0])
     ellipses = {f: ellipse_polyline(tr.cov[:, :2, :2], PR_3SIGMA, tr.mean[:, :2], _ELLIPSE_POINTS)[:, :-1]
@@ -348,9 +348,7 @@ def _write_stream(stream: Any, res: LocalizationResult, include_timings: bool) -
 
 def localization_log_bytes(result: LocalizationResult, *, include_timings: bool = False) -> bytes:
     """The bytes :func:`write_localization` would write, without touching the file system."""
-    buf = io.BytesIO()
-    _write_stream(buf, result, include_timings)
-    return buf.getvalue()
+    return stream_bytes(_write_localization_stream, result, include_timings)
 
 
 def write_localization(path: str | os.PathLike[str], result: LocalizationResult, *,
@@ -360,7 +358,7 @@ def write_localization(path: str | os.PathLike[str], result: LocalizationResult,
     Without timings (the default) the same configuration and seed give a byte-identical file.
     """
     with atomic_write(path, "wb") as fh:
-        _write_stream(fh, result, include_timings)
+        _write_localization_stream(fh, result, include_timings)
     return Path(path)
 
 

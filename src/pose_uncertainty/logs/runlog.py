@@ -104,6 +104,7 @@ __all__ = [
     "format_summary",
     "log_bytes",
     "open_run",
+    "stream_bytes",
     "verify_run",
     "write_run",
 ]
@@ -562,11 +563,16 @@ def _write_stream(
     log.w.finish()
 
 
+def stream_bytes(write: Callable[..., None], *args: Any) -> bytes:
+    """The bytes ``write(stream, *args)`` writes, in memory (a log's bytes without a file)."""
+    buf = io.BytesIO()
+    write(buf, *args)
+    return buf.getvalue()
+
+
 def log_bytes(result: RunResult, *, include_timings: bool = False) -> bytes:
     """The bytes :func:`write_run` would write, without touching the file system."""
-    buf = io.BytesIO()
-    _write_stream(buf, result, include_timings)
-    return buf.getvalue()
+    return stream_bytes(_write_stream, result, include_timings)
 
 
 def write_run(
