@@ -18,6 +18,7 @@ from pose_uncertainty.cli import main
 from pose_uncertainty.core import stats
 from pose_uncertainty.core import trajectories as tr
 from pose_uncertainty.core.grids import Grid
+from pose_uncertainty.core.schema import load_schema
 from pose_uncertainty.core.tables import read_table
 from pose_uncertainty.localization import ekf as E
 from pose_uncertainty.localization import histogram as HF
@@ -103,7 +104,7 @@ def _mutated(path: str, value: object) -> dict:
         ("world.file", "no/such/world.yaml", r"'world\.file' must be a readable world file.*no/such/world\.yaml"),
         ("scenario.kind", "kidnapped", r"'scenario\.kidnap_pose' is missing"),
         ("scenario.kidnap_step", 3, r"'scenario\.kidnap_step' must be null unless scenario\.kind is 'kidnapped', got 3"),
-        ("sensors.landmarks.period", "soon", r"'sensors\.landmarks\.period' must be a real number, got 'soon'"),
+        ("sensors.landmarks.period", "soon", r"'sensors\.landmarks\.period' must be a real number written like 0\.0005, 5\.0e-4 or 5e-4, got 'soon'"),
         ("world.random_landmarks", {"count": -1}, r"'world\.random_landmarks\.count' must be an integer >= 0, got -1"),
         ("filters.particle.resampling", "roulette", r"'filters\.particle\.resampling' must be one of .*'systematic'"),
     ],
@@ -154,7 +155,7 @@ def test_world_file_is_read_in_and_logged_inline(tmp_path: Path) -> None:
 
 
 def test_shipped_localization_sets_expand() -> None:
-    schema = sweep.load_schema(REPO / "workflow/schemas/config.schema.yaml")
+    schema = load_schema(REPO / "workflow/schemas/config.schema.yaml")
     for name in ("config.yaml", "quick.yaml"):
         cfg = yaml.safe_load((REPO / "config" / name).read_text(encoding="utf-8"))
         cfg["localization"] = numbers_from_text(cfg["localization"])

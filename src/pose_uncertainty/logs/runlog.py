@@ -819,9 +819,8 @@ def _run_metadata(p: Path, records: list[Any], partial: bool, problem: str | Non
             f"no {METADATA_NAME!r} metadata)"
         )
     meta = dict(meta_rec.metadata)
-    kind = LOG_KINDS.get(str(meta.get("format")))
-    if kind is not None:  # another kind of run (e.g. localization): its own reader
-        return kind.assemble(p, records, meta, header.library, partial, problem)  # type: ignore[no-any-return]
+    if meta.get("format") in LOG_KINDS:  # another kind of run (e.g. localization): its own reader
+        return header, meta
     if meta.get("format") != FORMAT:
         raise RunLogError(f"{p}: not a pose-uncertainty run log (format {meta.get('format')!r})")
     if meta.get("format_version") != FORMAT_VERSION:
@@ -920,6 +919,9 @@ def _read_map(rec: _Records, name: str) -> ProbabilityMap | None:
 
 def _assemble(p: Path, records: list[Any], *, partial: bool, problem: str | None) -> RunLog:
     header, meta = _run_metadata(p, records, partial, problem)
+    kind = LOG_KINDS.get(str(meta.get("format")))
+    if kind is not None:  # another kind of run (e.g. localization): its own reader
+        return kind.assemble(p, records, meta, header.library, partial, problem)  # type: ignore[no-any-return]
     try:
         config = RunConfig.from_dict(json.loads(meta["config"]))
     except (KeyError, ValueError) as exc:
