@@ -50,10 +50,9 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import stats as sstats
 
 from ..core.grids import Grid
-from ..core.stats import PR_3SIGMA, hellinger, mahalanobis_sq, pr_to_k
+from ..core.stats import PR_3SIGMA, chi2_ppf, hellinger, mahalanobis_sq, pr_to_k
 from ..core.trajectories import Trajectory
 from ..core.validation import (
     check_finite,
@@ -150,7 +149,7 @@ def coverage_ellipsoid(
     C = check_finite("cov", cov)
     d2 = mahalanobis_sq(points, center, C)
     dim = C.shape[-1]
-    return {pr_label(pr): float(np.mean(d2 <= sstats.chi2.ppf(pr, dim))) for pr in prs}
+    return {pr_label(pr): float(np.mean(d2 <= chi2_ppf(pr, dim))) for pr in prs}
 
 
 # --- gridded densities ------------------------------------------------------------------------

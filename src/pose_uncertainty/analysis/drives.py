@@ -25,13 +25,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..core.drives import DrivePath, SkidSteer
-from ..core.stats import fit_growth
+from ..core.stats import fit_growth, path_spreads
 from ..core.validation import check_choice, check_last_axis, check_positive_int
 from ..methods import drive_covariance as dc
 from ..methods import drive_noise as dn
 from ..methods import drive_sampling as ds
 from ..methods.sampling import REGIMES
-from .studies import path_spreads
 
 __all__ = [
     "MEASURES",

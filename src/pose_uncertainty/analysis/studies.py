@@ -37,12 +37,11 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import stats as sstats
 
 from ..core import trajectories as tr
 from ..core.grids import Grid
 from ..core.kinematics import METHODS
-from ..core.stats import PR_3SIGMA, along_across, fit_growth, pr_to_k
+from ..core.stats import PR_3SIGMA, fit_growth, path_spreads
 from ..core.validation import check_choice, check_positive, check_positive_int
 from ..methods import covariance as cv
 from ..methods import expcoords as ec
@@ -70,7 +69,6 @@ __all__ = [
     "method_cloud_spread",
     "number_type_clouds",
     "number_type_drift",
-    "path_spreads",
     "polar_vs_cartesian",
     "regime_growth",
 ]
@@ -457,29 +455,6 @@ def error_sources_vs_monte_carlo(
     return out
 
 
-def path_spreads(poses: NDArray[np.float64], covs: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
-    """Standard deviations along and across the path (frame of the nominal heading) and of θ.
-
-    Parameters
-    ----------
-    poses : ndarray, shape (M, 3); covs : ndarray, shape (M, 3, 3)
-
-    Returns
-    -------
-    dict of ndarray (M,): ``sigma_along``, ``sigma_across`` [m]
-    (:func:`pose_uncertainty.core.stats.along_across`), ``sigma_theta`` [rad],
-    ``area`` — area of the 98.89 % ellipse ``π k √det Σ_xy`` [m²]
-    """
-    aa = along_across(covs[:, :2, :2], poses[:, 2])
-    det = np.maximum(covs[:, 0, 0] * covs[:, 1, 1] - covs[:, 0, 1] ** 2, 0.0)
-    return {
-        "sigma_along": aa[:, 0],
-        "sigma_across": aa[:, 1],
-        "sigma_theta": np.sqrt(np.maximum(covs[:, 2, 2], 0)),
-        "area": math.pi * float(pr_to_k(PR_3SIGMA)) * np.sqrt(det),
-    }
-
-
 def regime_growth(
     trajectory: tr.Trajectory,
     k_r: float,
@@ -521,11 +496,15 @@ def regime_growth(
 
 
 def _moments(v: NDArray) -> dict[str, float]:
+    """Mean, sample std, and the moment estimates of skewness ``m3/m2^1.5`` and excess kurtosis
+    ``m4/m2² − 3`` (``scipy.stats.skew``/``kurtosis`` with their default ``bias=True``)."""
+    d = v - v.mean()
+    m2, m3, m4 = (float(np.mean(d**k)) for k in (2, 3, 4))
     return {
         "mean": float(v.mean()),
         "std": float(v.std(ddof=1)),
-        "skewness": float(sstats.skew(v)),
-        "excess_kurtosis": float(sstats.kurtosis(v)),
+        "skewness": m3 / m2**1.5,
+        "excess_kurtosis": m4 / m2**2 - 3.0,
     }
 
 

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.special import gammaln, ndtri
+from scipy.special import chdtri, gammaln, ndtri
 
 from .validation import (
     check_finite,
@@ -30,6 +30,7 @@ __all__ = [
     "PR_2SIGMA",
     "PR_3SIGMA",
     "along_across",
+    "chi2_ppf",
     "fit_growth",
     "fraction_inside_ellipse",
     "hdr_region",
@@ -38,6 +39,7 @@ __all__ = [
     "k_to_pr",
     "mahalanobis_sq",
     "mean_cov",
+    "path_spreads",
     "pr_to_k",
     "wilson_interval",
 ]
@@ -55,6 +57,16 @@ COVERAGE_LEVELS: dict[str, float] = {"1s": PR_1SIGMA, "2s": PR_2SIGMA, "3s": PR_
 def pr_to_k(pr: ArrayLike) -> NDArray[np.float64]:
     """Squared Mahalanobis radius of the 2-D Pr-ellipse: ``k = −2 ln(1 − Pr)``; Pr in (0, 1)."""
     return -2.0 * np.log1p(-check_probability("pr", pr))
+
+
+def chi2_ppf(pr: ArrayLike, dof: ArrayLike) -> NDArray[np.float64]:
+    """Quantile of the χ² distribution with ``dof`` degrees of freedom at probability ``pr`` in (0, 1).
+
+    ``scipy.special.chdtri`` (the inverse survival function), so that a run need not import
+    ``scipy.stats``; equals ``scipy.stats.chi2.ppf(pr, dof)`` (tests/test_grids_stats.py).
+    """
+    p = check_probability("pr", pr)
+    return np.asarray(chdtri(check_nonnegative("dof", dof), 1.0 - p), dtype=np.float64)
 
 
 def k_to_pr(k: ArrayLike) -> NDArray[np.float64]:
@@ -240,6 +252,29 @@ def along_across(cov_xy: ArrayLike, heading: ArrayLike) -> NDArray[np.float64]:
 
 
 # --- growth laws --------------------------------------------------------------------------------
+
+
+def path_spreads(poses: NDArray[np.float64], covs: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
+    """Standard deviations along and across the path (frame of the nominal heading) and of θ.
+
+    Parameters
+    ----------
+    poses : ndarray, shape (M, 3); covs : ndarray, shape (M, 3, 3)
+
+    Returns
+    -------
+    dict of ndarray (M,): ``sigma_along``, ``sigma_across`` [m]
+    (:func:`along_across`), ``sigma_theta`` [rad],
+    ``area`` — area of the 98.89 % ellipse ``π k √det Σ_xy`` [m²]
+    """
+    aa = along_across(covs[:, :2, :2], poses[:, 2])
+    det = np.maximum(covs[:, 0, 0] * covs[:, 1, 1] - covs[:, 0, 1] ** 2, 0.0)
+    return {
+        "sigma_along": aa[:, 0],
+        "sigma_across": aa[:, 1],
+        "sigma_theta": np.sqrt(np.maximum(covs[:, 2, 2], 0)),
+        "area": math.pi * float(pr_to_k(PR_3SIGMA)) * np.sqrt(det),
+    }
 
 
 def fit_growth(distance: ArrayLike, value: ArrayLike) -> dict[str, float]:

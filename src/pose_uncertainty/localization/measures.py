@@ -22,10 +22,9 @@ import math
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import stats as sstats
 
 from ..core.kinematics import wrap_angle
-from ..core.stats import COVERAGE_LEVELS, hdr_region, pr_to_k
+from ..core.stats import COVERAGE_LEVELS, chi2_ppf, hdr_region, pr_to_k
 from ..core.validation import check_finite, check_last_axis, check_positive, check_positive_int
 
 __all__ = [
@@ -72,7 +71,7 @@ def nees_band(dof: int, n_runs: int, confidence: float = 0.95) -> tuple[float, f
     """
     d = check_positive_int("dof", dof) * check_positive_int("n_runs", n_runs)
     a = 1.0 - float(check_positive("confidence", confidence))
-    return float(sstats.chi2.ppf(a / 2, d) / n_runs), float(sstats.chi2.ppf(1 - a / 2, d) / n_runs)
+    return float(chi2_ppf(a / 2, d) / n_runs), float(chi2_ppf(1 - a / 2, d) / n_runs)
 
 
 def gaussian_region_flags(mean: ArrayLike, cov: ArrayLike, truth: ArrayLike) -> BoolArray:

@@ -18,7 +18,7 @@ Sources of the grid
   occupied when a segment comes within ``thickness/2 + h·√2/2`` of its centre
   (every cell a segment touches, so a thin diagonal wall has no gaps a beam could
   slip through); the grid covers the segments plus ``margin`` [m];
-* an image (PGM read with numpy, P2 or P5; PNG through ``matplotlib.image``) with
+* an image (PGM read with numpy, P2 or P5; PNG through Pillow) with
   ``resolution``, ``origin``, ``occupied_thresh``, ``free_thresh`` and ``negate``
   as in ROS: a pixel of grey level ``v ∈ [0, 1]`` has occupancy ``p = 1 − v``
   (``p = v`` when negated); ``p > occupied_thresh`` is occupied and
@@ -37,10 +37,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import matplotlib.image as mpimg
 import numpy as np
 import yaml
 from numpy.typing import ArrayLike, NDArray
+from PIL import Image
 
 from ..core.grids import Grid
 from ..core.schema import first_error
@@ -306,10 +306,11 @@ def read_image(path: str | Path) -> Array:
     if suffix == ".pgm":
         return _read_pgm(p)
     if suffix == ".png":
-        img = np.asarray(mpimg.imread(p), dtype=np.float64)
-        if img.max() > 1.0:  # integer PNG read as counts
-            img = img / 255.0
-        return img if img.ndim == 2 else img[..., :3].mean(axis=-1)
+        with Image.open(p) as im:
+            if im.mode.startswith("I"):  # 16-bit grey
+                return np.asarray(im, dtype=np.float64) / 65535.0
+            rgb = np.asarray(im if im.mode == "L" else im.convert("RGB"), dtype=np.float64) / 255.0
+        return rgb if rgb.ndim == 2 else rgb.mean(axis=-1)
     raise ValueError(f"image path must end in .pgm or .png (allowed: PGM, PNG), got {p.name!r}")
 
 

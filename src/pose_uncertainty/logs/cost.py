@@ -9,26 +9,27 @@ the run is allocated), the peak resident memory [bytes] and the wall-clock time
 ========================  ===========================================  ==================================
 driver                    memory                                       time
 ========================  ===========================================  ==================================
-interpreter               64 MiB (Python, numpy, scipy, mcap)          0.5 s
+interpreter               72 MiB (Python, numpy, scipy, mcap)          0.5 s
 steps                     2 kB × (N+1): poses, Method A covariances    200 µs × (N+1): mostly writing
                           and the per-step messages of the log         the per-step log messages
 Monte Carlo               140 B × n (+ 70 B × n × C checkpoints),      100 ns × n × N (per_step),
                           + the chunks in flight: workers × 80 B ×     50 ns per_run, 220 ns with
                           max(65536, N)                                checkpoints
-accuracy metrics (n≥10)   80 MiB + 60 B × n                            1 s + 10 µs × n
+accuracy metrics (n≥10)   16 MiB + 60 B × n                            1 s + 10 µs × n
 single-step map           cells × 50 B (velocity), 160 B (odometry)    cells × 80 ns (velocity), 150 ns
                                                                        (cell-averaged), 700 ns (odometry)
-multi-step map            (35 + 1.5 M) B × padded cells: the final    cells × N × 120 ns (velocity),
-                          grid (fixed ``size``, or the spread of the   600 ns (odometry), + 5 ms × N
-                          noise, at most ``max_cells``) widened by the
-                          kernel's window, M its heading offsets
+multi-step map            64 MiB + (24 + 0.5 M) B × padded cells: the  cells × N × 120 ns (velocity),
+                          final grid (fixed ``size``, or the spread    600 ns (odometry), + 5 ms × N
+                          of the noise, at most ``max_cells``) widened
+                          by the kernel's window, M its heading offsets
 ========================  ===========================================  ==================================
 
 (N steps, n particles, C checkpoints; cells = nx·ny·nθ.) The coefficients were
 measured on this project's 2-core CI machine (the peak resident set size of a
 fresh process, ``VmHWM``); ``tests/test_cost.py`` checks the memory estimate
 against the measured peak of representative runs, within [1/1.1, 2] times it
-(1.0–1.7 when measured). Time is an order of magnitude only (machines differ): it
+(0.98–1.4 when last measured, 2026-11-30, after a run stopped importing
+``scipy.stats``). Time is an order of magnitude only (machines differ): it
 sets a cluster job's ``runtime``, with a wide margin, and the time guard.
 
 The guard (:func:`check`, called by ``execute`` before anything is allocated)
@@ -87,16 +88,16 @@ MiB = 1 << 20
 ANNOUNCE_SECONDS = 30.0
 
 # --- coefficients (measured, see the module docstring) --------------------------------------
-_BASE_BYTES, _BASE_S = 64 * MiB, 0.5
+_BASE_BYTES, _BASE_S = 72 * MiB, 0.5
 _STEP_BYTES, _STEP_S = 2000.0, 200e-6
 _PARTICLE_BYTES, _CHECKPOINT_BYTES, _CHUNK_BYTES = 140.0, 70.0, 80.0
 _CHUNK_ELEMENTS = 1 << 16  # pose_uncertainty.methods.sampling._CHUNK_ELEMENTS
 _MC_S = {"per_step": 100e-9, "per_run": 50e-9, "checkpoints": 220e-9}
-_ACCURACY_BYTES, _ACCURACY_PARTICLE_BYTES = 80 * MiB, 60.0
+_ACCURACY_BYTES, _ACCURACY_PARTICLE_BYTES = 16 * MiB, 60.0
 _ACCURACY_S, _ACCURACY_PARTICLE_S = 1.0, 10e-6
 _SINGLE_CELL_BYTES = {"velocity": 50.0, "odometry": 160.0}
 _SINGLE_CELL_S = {"velocity": 80e-9, "averaged": 150e-9, "odometry": 700e-9}
-_MULTI_PADDED_BYTES, _MULTI_OFFSET_BYTES, _MULTI_STEP_S = 35.0, 1.5, 5e-3
+_MULTI_MAP_BYTES, _MULTI_PADDED_BYTES, _MULTI_OFFSET_BYTES, _MULTI_STEP_S = 64 * MiB, 24.0, 0.5, 5e-3
 _MULTI_CELL_STEP_S = {"velocity": 120e-9, "odometry": 600e-9}
 #: the spread a growing map grid holds, in standard deviations of the model's noise, each side
 _SPREAD_SIGMAS = 6.0
@@ -311,7 +312,7 @@ def _multi_map(cfg: RunConfig, i: int, n_steps: int) -> Driver:
     return Driver(
         f"map {m.name}",
         f"maps[{i}]: {cells:,.0f} cells ({grid}) × N = {n_steps:,} steps",
-        padded * (_MULTI_PADDED_BYTES + _MULTI_OFFSET_BYTES * offsets),
+        _MULTI_MAP_BYTES + padded * (_MULTI_PADDED_BYTES + _MULTI_OFFSET_BYTES * offsets),
         cells * n_steps * _MULTI_CELL_STEP_S[m.model] + n_steps * _MULTI_STEP_S,
         cells,
     )
