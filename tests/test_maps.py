@@ -104,6 +104,7 @@ def _coarse_grid(center=(0.5, 0.24, 0.0), size=2.4):
     return Grid.centered(center, size=size, resolution=0.02, theta_resolution=math.radians(4))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("u", [(1.0, 0.0), (1.0, 1.0), (0.0, 1.0)])
 def test_one_step_multi_step_map_equals_the_single_step_map(u):
     # Two independent routes to one map: the histogram filter (control-noise quadrature,
@@ -178,6 +179,7 @@ def test_multi_step_map_matches_monte_carlo_at_default_resolution(model, u):
     assert_allclose(np.diag(m.cov())[:2], s[:, :2].var(axis=0), rtol=0.1)
 
 
+@pytest.mark.slow
 def test_rotation_in_place_multi_step_needs_sub_cell_resolution():
     # Rotation in place spreads the robot along thin lines; the histogram filter forgets
     # where in its cell the mass sits at every step, which at 1 cm costs H ≈ 0.055. Computed

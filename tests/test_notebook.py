@@ -54,6 +54,7 @@ def _text(nb: dict) -> str:
     return "\n".join(out)
 
 
+@pytest.mark.slow
 def test_notebook_runs_on_given_logs(kernel_env: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     from pose_uncertainty.logs.run import RunConfig, execute
     from pose_uncertainty.logs.runlog import write_run
@@ -84,6 +85,7 @@ def test_notebook_runs_on_given_logs(kernel_env: Path, monkeypatch: pytest.Monke
     assert images >= 3  # trajectory, σ(t), cloud
 
 
+@pytest.mark.slow
 def test_notebook_makes_demo_runs_without_logs(
     kernel_env: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -171,6 +171,7 @@ def chromium() -> str:
     return CHROMIUM
 
 
+@pytest.mark.slow
 def test_report_renders_offline_without_console_errors(
     chromium: str, tmp_path: Path, tmp_path_factory: pytest.TempPathFactory
 ) -> None:

@@ -412,6 +412,7 @@ MAP_CONFIG = {
 }
 
 
+@pytest.mark.slow
 def test_computed_maps_round_trip(tmp_path: Path) -> None:
     from pose_uncertainty.methods import maps
 

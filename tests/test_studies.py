@@ -184,6 +184,7 @@ def test_calibration_demo_interval_width_matches_fisher():
     assert rows[("cartesian", True, "k")]["relative_bias"] > rows[("expcoords", True, "k")]["relative_bias"]
 
 
+@pytest.mark.slow
 def test_coverage_vs_distance_rows():
     t = tr.straight(4.0, dt=0.02, track=0.2)
     rows = st.coverage_vs_distance(t, 5e-4, 5e-4, 2000, 1, n_checkpoints=4)

@@ -75,7 +75,7 @@ def run_timings(set_name):
 
 def run_figures(set_name, run):
     """Per-run figures of one run, by kind."""
-    base = f"reports/figures/{set_name}/{run.id}"
+    base = f"reports/figures/{set_name}/runs/{run.id}"
     figs = {"trajectory": f"{base}/trajectory.png"}
     if run.config["monte_carlo"]["n_particles"] > 0:
         figs["cloud"] = f"{base}/cloud.png"
@@ -92,11 +92,10 @@ def set_figures(set_name):
 
 
 def figures_of_set(wildcards_or_name):
-    """The figure outputs of a set: its set-level figures and one folder per run (render_run_figures)."""
+    """The figure outputs of a set: its set-level figures and the folder of its runs' figures
+    (render_run_figures: reports/figures/<set>/runs/<run>/<kind>.png)."""
     name = getattr(wildcards_or_name, "set", wildcards_or_name)
-    out = list(set_figures(name).values())
-    out.extend(f"reports/figures/{name}/{r.id}" for r in RUNS[name])
-    return out
+    return [*set_figures(name).values(), f"reports/figures/{name}/runs"]
 
 
 def all_figures(wildcards=None):
@@ -144,9 +143,9 @@ def all_benchmarks(wildcards=None):
     for s in SETS:
         for r in RUNS[s]:
             out.append(f"data/benchmarks/simulate_run/{s}/{r.id}.tsv")
-            out.append(f"data/benchmarks/render_run_figures/{s}/{r.id}.tsv")
         for kind in set_figures(s):
             out.append(f"data/benchmarks/render_{kind}_figure/{s}.tsv")
+        out.append(f"data/benchmarks/render_run_figures/{s}.tsv")
         out.append(f"data/benchmarks/collect_metrics/{s}.tsv")
     out.append("data/benchmarks/evaluate_claims/all.tsv")
     out.extend(f"data/benchmarks/run_study/{name}.tsv" for name in STUDIES)

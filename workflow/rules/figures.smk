@@ -1,15 +1,15 @@
-# Figures: per run (the same functions `pose-uncertainty replay --figures` uses) and per set.
+# Figures: per set, of every run (the same functions `pose-uncertainty replay --figures` uses), and
+# set-level figures. One job draws all runs of a set (each log read once): a Python process per run
+# cost more than its figures.
 
 
 rule render_run_figures:
-    wildcard_constraints:
-        run=r"(?![^/]*\.png$)[A-Za-z0-9_.-]+",  # a run's folder, not a set-level figure
     input:
-        log=rules.simulate_run.output.log,
+        logs=lambda w: run_logs(w.set),
     output:
         report(
-            directory("reports/figures/{set}/{run}"),
-            patterns=["{name}.png"],
+            directory("reports/figures/{set}/runs"),
+            patterns=["{run}/{name}.png"],
             caption="../report/run_figures.rst",
             category="{set}",
             subcategory="{run}",
@@ -17,11 +17,11 @@ rule render_run_figures:
         ),
     params:
         source=SOURCE_PRESENT,
-        kinds=lambda w: list(run_figures(w.set, RUN_BY_ID[(w.set, w.run)])),
+        kinds=lambda w: {r.id: list(run_figures(w.set, r)) for r in RUNS[w.set]},
     log:
-        "logs/render_run_figures/{set}/{run}.log",
+        "logs/render_run_figures/{set}.log",
     benchmark:
-        "data/benchmarks/render_run_figures/{set}/{run}.tsv"
+        "data/benchmarks/render_run_figures/{set}.tsv"
     script:
         "../scripts/render_run_figures.py"
 

@@ -436,6 +436,7 @@ def accuracy_vs_distance(
     regime: str = "per_step",
     prs: Sequence[float] = PRS,
     n_bins: int = 60,
+    n_threshold: int = 200_000,
 ) -> list[dict[str, Any]]:
     """Accuracy of the three Gaussian methods (A, banana, C) at evenly spaced points along a trajectory.
 
@@ -466,6 +467,7 @@ def accuracy_vs_distance(
             rng,
             prs=prs,
             n_bins=n_bins,
+            n_threshold=n_threshold,
             unscented=(C.poses[st], C.covs[st]),
         )
         rows.append({"step": st, "distance": float(dist[st]), **res})

@@ -74,9 +74,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import optimize
-from scipy import stats as sstats
+from scipy.special import ndtri
 
 from ..core.kinematics import wrap_angle
+from ..core.stats import chi2_ppf
 from ..core.trajectories import Trajectory
 from ..core.validation import check_choice, check_finite, check_last_axis, check_probability
 from ..methods import covariance as cv
@@ -256,8 +257,8 @@ def _finish(
         se_scaled = np.sqrt(np.maximum(np.diag(cov), 0.0))
     except np.linalg.LinAlgError:
         se_scaled = np.full(xhat.size, np.inf)
-    z = float(sstats.norm.ppf(0.5 + level / 2.0))
-    crit = float(sstats.chi2.ppf(level, 1))
+    z = float(ndtri(0.5 + level / 2.0))
+    crit = float(chi2_ppf(level, 1))
     lows, highs = [], []
     for j in range(xhat.size):
         if ci_method == "fisher":

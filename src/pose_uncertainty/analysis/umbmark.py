@@ -90,7 +90,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import stats as sstats
+from scipy.special import ndtri, stdtrit
 
 from ..core.validation import check_finite, check_positive, check_probability
 from ..methods.systematic import DIRECTIONS, WheelGeometry, return_errors_noiseless, umbmark_runs
@@ -375,7 +375,7 @@ def _estimates(
     value, grad = vals[0], ((vals[1:5] - vals[5:9]) / (2.0 * step)).T
     se, df = _delta(grad, np.cov(cw.T), np.cov(ccw.T), cw.shape[0], ccw.shape[0])
     q = 0.5 + level / 2.0
-    t = np.where(np.isfinite(df), sstats.t.ppf(q, np.where(np.isfinite(df), df, 1.0)), sstats.norm.ppf(q))
+    t = np.where(np.isfinite(df), stdtrit(np.where(np.isfinite(df), df, 1.0), q), ndtri(q))
     if boot:
         lo, hi = np.quantile(vals[9:], [(1.0 - level) / 2.0, (1.0 + level) / 2.0], axis=0)
     else:

@@ -1,0 +1,105 @@
+"""The pruned planar density of the banana (expcoords.pdf_xy) against the full quadrature sum."""
+
+import numpy as np
+import pytest
+
+from pose_uncertainty.core import trajectories as tr
+from pose_uncertainty.methods import expcoords as ec
+
+
+def dense_reference(pts, mu, S, n_quad=64):
+    """The full sum Σ_q w_q N(p; μ_q, C_q) over every quadrature node, one node at a time."""
+    cond = ec._conditional(np.asarray(mu, float), np.asarray(S, float), n_quad)
+    out = np.zeros(len(pts))
+    for q in range(cond.nodes.size):
+        d = pts - cond.means[q]
+        P = cond.prec[q]
+        m2 = P[0, 0] * d[:, 0] ** 2 + 2.0 * P[0, 1] * d[:, 0] * d[:, 1] + P[1, 1] * d[:, 1] ** 2
+        out += cond.weights[q] * np.exp(cond.log_norm[q] - 0.5 * m2)
+    return out, cond.nodes.size
+
+
+def points_around(mu, S, n, seed, spread):
+    """Draws from the banana, the same jittered by ``spread``, and a grid over their box."""
+    rng = np.random.default_rng(seed)
+    draws = ec.sample(mu, S, n, rng)[:, :2]
+    jitter = draws + spread * rng.normal(size=draws.shape)
+    lo, hi = jitter.min(axis=0), jitter.max(axis=0)
+    gx, gy = np.meshgrid(np.linspace(lo[0], hi[0], 60), np.linspace(lo[1], hi[1], 60))
+    return np.concatenate([draws, jitter, np.stack([gx.ravel(), gy.ravel()], axis=-1)])
+
+
+def assert_matches_dense(pts, mu, S, n_quad=64, min_nodes=0):
+    ref, n_nodes = dense_reference(pts, mu, S, n_quad)
+    assert n_nodes >= min_nodes
+    new = ec.pdf_xy(pts, mu, S, n_quad=n_quad)
+    big = ref > 1e-10 * ref.max()
+    assert big.sum() > 0.5 * len(pts)
+    rel = np.abs(new - ref)[big] / ref[big]
+    assert rel.max() < 1e-9, rel.max()
+    assert np.abs(new - ref).max() < 1e-12 * ref.max()  # and nothing sizeable anywhere else
+    return new
+
+
+def banana(traj, k):
+    E = ec.propagate(traj, k, k)
+    return E.poses[-1], E.covs[-1]
+
+
+def test_thin_straight_banana_matches_the_full_sum():
+    mu, S = banana(tr.straight(20.0, dt=0.05, track=0.2), 5e-4)
+    pts = points_around(mu, S, 3000, seed=11, spread=0.3)
+    assert_matches_dense(pts, mu, S, min_nodes=3000)  # the pruned path, thousands of nodes
+
+
+def test_three_lap_circle_matches_the_full_sum():
+    # the heading spread is ±5.8 rad: the curve of conditional means winds round the circle, so
+    # nodes far apart in w lie close in the plane; many nodes force the pruned path
+    mu, S = banana(tr.circle(radius=1.0, laps=3, dt=0.01, track=0.2), 5e-4)
+    pts = points_around(mu, S, 3000, seed=12, spread=0.2)
+    cond = ec._conditional(mu, S, 2048)
+    assert np.ptp(cond.nodes) > 2 * np.pi
+    assert_matches_dense(pts, mu, S, n_quad=2048, min_nodes=2048)
+
+
+@pytest.mark.parametrize("dense_nodes", [64, 0])
+def test_fat_banana_matches_the_full_sum(monkeypatch, dense_nodes):
+    # large k, few nodes: the dense sum (default), and the pruned path forced onto it
+    monkeypatch.setattr(ec, "_DENSE_NODES", dense_nodes)
+    mu, S = banana(tr.straight(0.5, dt=0.05, track=0.2), 0.05)
+    pts = points_around(mu, S, 2000, seed=13, spread=0.1)
+    assert_matches_dense(pts, mu, S)
+    assert_matches_dense(pts, mu, S, n_quad=3)  # a single, partly empty block
+
+
+def test_pruned_density_integrates_to_one():
+    mu, S = banana(tr.circle(radius=1.0, laps=3, dt=0.01, track=0.2), 5e-4)
+    x = np.linspace(-3.0, 3.0, 301)
+    y = np.linspace(-3.0, 3.0, 301)
+    Z = ec.marginal_xy_grid(x, y, mu, S, n_quad=2048)
+    assert abs(Z.sum() * (x[1] - x[0]) * (y[1] - y[0]) - 1.0) < 2e-3
+
+
+def test_deterministic_and_independent_of_chunking(monkeypatch):
+    mu, S = banana(tr.straight(20.0, dt=0.05, track=0.2), 5e-4)
+    pts = points_around(mu, S, 3000, seed=14, spread=0.3)
+    a = ec.pdf_xy(pts, mu, S)
+    assert np.array_equal(a, ec.pdf_xy(pts, mu, S))
+    perm = np.random.default_rng(0).permutation(len(pts))
+    assert np.array_equal(a[perm], ec.pdf_xy(pts[perm], mu, S))
+    halves = [ec.pdf_xy(pts[:777], mu, S), ec.pdf_xy(pts[777:], mu, S)]
+    assert np.array_equal(a, np.concatenate(halves))
+    monkeypatch.setattr(ec, "_PAIRS_PER_CHUNK", 5000)  # many small chunks
+    assert np.array_equal(a, ec.pdf_xy(pts, mu, S))
+
+
+def test_shapes_and_nan_points():
+    mu, S = banana(tr.straight(20.0, dt=0.05, track=0.2), 5e-4)
+    pts = ec.sample(mu, S, 12, np.random.default_rng(3))[:, :2].reshape(3, 4, 2)
+    out = ec.pdf_xy(pts, mu, S)
+    assert out.shape == (3, 4)
+    pts[1, 2] = np.nan
+    out2 = ec.pdf_xy(pts, mu, S)
+    assert np.isnan(out2[1, 2])
+    assert np.array_equal(np.isnan(out2), np.isnan(pts).any(-1))
+    assert ec.pdf_xy(np.zeros((0, 2)), mu, S).shape == (0,)
