@@ -20,6 +20,26 @@ include: "workflow/rules/localization.smk"
 include: "workflow/rules/report.smk"
 
 
+# On a cluster (workflow/profiles/slurm) only the computations are submitted: runs, studies and
+# localization runs. The rules below read logs and draw, tabulate or format them in a second or
+# two, less than a scheduler's round trip, so they run where Snakemake runs.
+localrules:
+    all,
+    render_run_figures,
+    render_growth_figure,
+    render_cloud_polar_figure,
+    render_drives_figure,
+    render_localization_figures,
+    render_localization_set_figure,
+    render_study_figure,
+    collect_metrics,
+    collect_localization_metrics,
+    collect_studies,
+    evaluate_claims,
+    summarize_pipeline,
+    build_report,
+
+
 rule all:
     input:
         all_outputs(),

@@ -15,7 +15,8 @@ The measurements before the work on issue 13 (commit 79ddfda, measured the same 
 the session that did it) are written beside them (``before``), so the report shows both.
 Writes ``benchmarks/results/regenerate.json``.
 
-Usage: ``python -m benchmarks.regenerate [--configfile config/quick.yaml]``.
+Usage: ``python -m benchmarks.regenerate [--configfile config/quick.yaml] [--keep DIR]``
+(``--keep``: clone into the new folder DIR and leave it, to read its report and claims).
 """
 
 from __future__ import annotations
@@ -75,36 +76,44 @@ def _snakemake(work: Path, extra: list[str]) -> float:
     return elapsed
 
 
-def measure(extra: list[str]) -> dict[str, Any]:
+def measure(extra: list[str], keep: Path | None = None) -> dict[str, Any]:
     """Clone, regenerate from scratch, regenerate again; the numbers described in the module docstring."""
+    if keep is not None:
+        if keep.exists():
+            raise SystemExit(f"--keep {keep}: the folder exists; give a new one")
+        return _measure_in(keep, extra)
     with tempfile.TemporaryDirectory(prefix="regenerate-") as tmp:
-        work = Path(tmp) / "clone"
-        subprocess.run(["git", "clone", "--quiet", str(REPO), str(work)], check=True)
-        scratch = _snakemake(work, extra)
-        no_op = _snakemake(work, extra)
-        report = work / "reports/comparison.html"
-        return {
-            "from_scratch_s": round(scratch, 1),
-            "no_op_s": round(no_op, 2),
-            "cores": os.cpu_count(),
-            "load_average_1min_at_end": round(os.getloadavg()[0], 2),
-            "report_mb": round(report.stat().st_size / 1e6, 2) if report.exists() else None,
-            "data_mb": round(_du_mb(work / "data"), 1),
-            "figures": sum(1 for _ in (work / "reports/figures").rglob("*.png")),
-            "rules": _rule_times(work / "data/benchmarks"),
-            "config": extra[-1] if extra else "config/config.yaml",
-        }
+        return _measure_in(Path(tmp) / "clone", extra)
+
+
+def _measure_in(work: Path, extra: list[str]) -> dict[str, Any]:
+    subprocess.run(["git", "clone", "--quiet", str(REPO), str(work)], check=True)
+    scratch = _snakemake(work, extra)
+    no_op = _snakemake(work, extra)
+    report = work / "reports/comparison.html"
+    return {
+        "from_scratch_s": round(scratch, 1),
+        "no_op_s": round(no_op, 2),
+        "cores": os.cpu_count(),
+        "load_average_1min_at_end": round(os.getloadavg()[0], 2),
+        "report_mb": round(report.stat().st_size / 1e6, 2) if report.exists() else None,
+        "data_mb": round(_du_mb(work / "data"), 1),
+        "figures": sum(1 for _ in (work / "reports/figures").rglob("*.png")),
+        "rules": _rule_times(work / "data/benchmarks"),
+        "config": extra[-1] if extra else "config/config.yaml",
+    }
 
 
 def main(argv: list[str] | None = None) -> None:
     """Measure and write ``benchmarks/results/regenerate.json`` (see the module docstring)."""
     parser = argparse.ArgumentParser(prog="python -m benchmarks.regenerate", description=__doc__)
     parser.add_argument("--configfile", help="another config (default: config/config.yaml)")
+    parser.add_argument("--keep", type=Path, help="clone into this new folder and keep it")
     args = parser.parse_args(argv)
     extra = ["--configfile", args.configfile] if args.configfile else []
     if shutil.which("git") is None:
         raise SystemExit("git is needed to clone the repository")
-    after = measure(extra)
+    after = measure(extra, args.keep)
     path = write_results("regenerate", {"before (79ddfda)": BEFORE, "after": after})
     print(f"wrote {path}: from scratch {after['from_scratch_s']} s, no-op {after['no_op_s']} s, "
           f"report {after['report_mb']} MB, data {after['data_mb']} MB")

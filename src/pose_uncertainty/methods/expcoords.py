@@ -608,8 +608,9 @@ def _conditional(mean_pose: NDArray, S: NDArray, n_quad: int) -> _Conditional:
 _TRUNC = 50.0
 #: :func:`pdf_xy` sums densely up to this many nodes
 _DENSE_NODES = 64
-#: target number of (point, node-range) pairs (or terms) held at once by :func:`pdf_xy`
-_PAIRS_PER_CHUNK = 1 << 21
+#: target number of (point, node-range) pairs (or terms) held at once by :func:`pdf_xy`: each
+#: array of them is 8 MiB, a few live at once (a run's peak memory: logs/cost.py)
+_PAIRS_PER_CHUNK = 1 << 20
 #: :func:`pdf_xy` sums blocks of this many consecutive nodes densely (a power of 2)
 _BLOCK = 32
 
@@ -744,7 +745,8 @@ def _pdf_xy_pruned(flat: NDArray, cond: _Conditional) -> NDArray:
     ``log w_q + log_norm_q − ½ m2_q``, is a quadratic polynomial in the point's
     offset ``d = Uᵀ(p − c)`` from the block centre in the principal frame ``U``
     of the block (where the expansion loses only ~1e-13 relative to cancellation),
-    evaluated for all pairs of a block as one matrix product; terms below
+    evaluated for all pairs of a block elementwise (no BLAS: bit-identical on any
+    thread count); terms below
     ``e^log_floor`` (⇔ ``m2_q > r2_q``) are set to 0. The block sums are added per
     point in ascending block order with ``np.bincount``. Every value depends on its
     point only (the loop runs over chunks of points and over blocks of nodes), so
@@ -760,7 +762,7 @@ def _pdf_xy_pruned(flat: NDArray, cond: _Conditional) -> NDArray:
     start = 0
     # pairs per point (an upper bound at first, then as seen in the last chunk): sizes the
     # next chunk only, so that the arrays stay in cache; the result does not depend on it
-    per_point = float(n_blocks)
+    per_point = float(n_blocks * _BLOCK)
     while start < m:
         size = int(min(m - start, max(64, _PAIRS_PER_CHUNK / per_point)))
         x, y = x_all[start : start + size], y_all[start : start + size]
@@ -795,8 +797,11 @@ def _pdf_xy_pruned(flat: NDArray, cond: _Conditional) -> NDArray:
             dy = y[pt[sel]] - tree.cy[-1][b]
             d0 = U[0, 0] * dx + U[1, 0] * dy
             d1 = U[0, 1] * dx + U[1, 1] * dy
-            F = np.stack([np.ones_like(d0), d0, d1, d0 * d0, d0 * d1, d1 * d1], axis=-1)
-            E = F @ tree.coef[b]  # log of the terms, (pairs, _BLOCK)
+            # log of the terms, (pairs, _BLOCK): the quadratic in d term by term, elementwise (a
+            # matrix product's rounding would depend on the BLAS kernel, its threads and the rows)
+            k = tree.coef[b]
+            d0, d1 = d0[:, None], d1[:, None]
+            E = k[0] + d0 * k[1] + d1 * k[2] + (d0 * d0) * k[3] + (d0 * d1) * k[4] + (d1 * d1) * k[5]
             block_sum[sel] = np.where(E >= tree.log_floor, np.exp(E), 0.0).sum(axis=1)
         out[start : start + size] = np.bincount(pt, weights=block_sum, minlength=size)
         # the dense stage holds _BLOCK terms a pair
