@@ -41,6 +41,7 @@ from ..core.grids import Grid
 from ..core.stats import PR_3SIGMA
 from ..core.tables import jsonable
 from ..methods import maps
+from .config_checks import builder_keywords
 from .config_checks import check_keys as _check_keys
 from .config_checks import fail as _fail
 from .config_checks import integer as _int
@@ -262,19 +263,7 @@ def _trajectory_params(data: Any) -> tuple[dict[str, Any], int]:
     name = data["name"]
     if name not in trajectories.BUILDERS:
         raise _fail("trajectory.name", f"one of {tuple(trajectories.BUILDERS)}", name)
-    builder = trajectories.BUILDERS[name]
-    defaults: dict[str, Any] = {}
-    for fn in (builder, trajectories.from_segments):
-        for p in inspect.signature(fn).parameters.values():
-            if p.default is not inspect.Parameter.empty and p.name != "name":
-                defaults.setdefault(p.name, p.default)
-    params = {k: v for k, v in data.items() if k != "name"}
-    unknown = sorted(set(params) - set(defaults))
-    if unknown:
-        raise ValueError(
-            f"unknown config key(s) {', '.join(repr('trajectory.' + k) for k in unknown)} "
-            f"(allowed for trajectory {name!r}: {', '.join(sorted(defaults))})"
-        )
+    defaults, params = builder_keywords("trajectory", trajectories.BUILDERS[name], data)
     params = {k: _numbers(v, defaults[k]) for k, v in params.items()}
     full = {"name": name, **jsonable({**defaults, **params})}
     try:  # validated and counted without building it (the cost guard comes first)

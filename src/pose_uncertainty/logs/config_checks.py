@@ -8,16 +8,18 @@ unknown keys, ``"unknown config key(s) '<dotted.key>' (allowed: ...)"``.
 
 from __future__ import annotations
 
+import inspect
 import math
 import re
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
 
+from ..core import trajectories
 from ..core.validation import NUMBER_HINT, parse_number
 
-__all__ = ["check_keys", "fail", "integer", "name", "numbers", "real"]
+__all__ = ["builder_keywords", "check_keys", "fail", "integer", "name", "numbers", "real"]
 
 _NAME_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$")
 
@@ -76,3 +78,27 @@ def numbers(value: Any, like: Any = None) -> Any:
         item = like[0] if isinstance(like, list | tuple) and like else None
         return [numbers(v, item) for v in value]
     return parse_number(value, like)
+
+
+def builder_keywords(
+    where: str, fn: Callable[..., Any], data: Mapping[str, Any]
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The keyword defaults of a trajectory builder ``fn`` (and of ``from_segments``, which it
+    forwards to) and the given parameters of ``data`` (all but ``name``), refusing unknown keys.
+
+    Returns ``(defaults, params)``; raises ValueError naming the unknown ``<where>.<key>`` and
+    the keys allowed for the builder ``data['name']``.
+    """
+    defaults: dict[str, Any] = {}
+    for f in (fn, trajectories.from_segments):
+        for p in inspect.signature(f).parameters.values():
+            if p.default is not inspect.Parameter.empty and p.name != "name":
+                defaults.setdefault(p.name, p.default)
+    params = {k: v for k, v in data.items() if k != "name"}
+    unknown = sorted(set(params) - set(defaults))
+    if unknown:
+        raise ValueError(
+            f"unknown config key(s) {', '.join(repr(f'{where}.{k}') for k in unknown)} "
+            f"(allowed for {where} {data['name']!r}: {', '.join(sorted(defaults))})"
+        )
+    return defaults, params

@@ -48,7 +48,6 @@ from __future__ import annotations
 import copy
 import dataclasses
 import hashlib
-import inspect
 import math
 import time
 from collections.abc import Callable, Mapping
@@ -72,6 +71,7 @@ from ..localization.result import ASSOCIATIONS, SCENARIOS, FilterResult, Start
 from ..localization.sensors import BeamSensor, RangeBearingSensor
 from ..localization.world import World, world_from_dict
 from ..methods.sampling import REGIMES
+from .config_checks import builder_keywords
 from .config_checks import check_keys as _check_keys
 from .config_checks import fail as _fail
 from .config_checks import integer as _int
@@ -188,18 +188,7 @@ def _dataclass_params(where: str, cls: Any, data: Any, skip: tuple[str, ...] = (
 
 def _builder_params(where: str, fn: Callable[..., Any], data: Mapping[str, Any]) -> dict[str, Any]:
     """Every keyword parameter of ``fn`` (and of from_segments it forwards to), defaults filled in."""
-    defaults: dict[str, Any] = {}
-    for f in (fn, trajectories.from_segments):
-        for p in inspect.signature(f).parameters.values():
-            if p.default is not inspect.Parameter.empty and p.name != "name":
-                defaults.setdefault(p.name, p.default)
-    params = {k: v for k, v in data.items() if k != "name"}
-    unknown = sorted(set(params) - set(defaults))
-    if unknown:
-        raise ValueError(
-            f"unknown config key(s) {', '.join(repr(f'{where}.{k}') for k in unknown)} "
-            f"(allowed for {where} {data['name']!r}: {', '.join(sorted(defaults))})"
-        )
+    defaults, params = builder_keywords(where, fn, data)
     return jsonable({**defaults, **params})
 
 
