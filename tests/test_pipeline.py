@@ -8,7 +8,9 @@ browser test opens the same report).
 
 from __future__ import annotations
 
+import base64
 import copy
+import io
 import json
 import math
 import re
@@ -18,8 +20,10 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
+from PIL import Image
 
 from pose_uncertainty.analysis.claims import VERDICTS
 from pose_uncertainty.core.schema import load_schema
@@ -255,9 +259,18 @@ def test_quick_pipeline_end_to_end(quick: Path) -> None:
             assert f'id="fig-{f["set"]}-{f["run"] or "set"}-{f["kind"]}"' in html, c
     # no network: no http(s) resource references, every image inlined
     assert not re.search(r'(src|href)="(https?:)?//', html)
-    sources = re.findall(r'<img src="([^"]{0,22})', html)
+    sources = re.findall(r'<img src="([^"]{0,23})', html)
     assert sources
-    assert all(s.startswith("data:image/png;base64,") for s in sources)
+    assert all(s.startswith("data:image/webp;base64,") for s in sources)
+    # the inlined WebP has the pixels of the pipeline's PNG exactly (lossless re-encoding)
+    fid = f'id="fig-A1_shape-{run.id}-trajectory"><img src="data:image/webp;base64,'
+    start = html.index(fid) + len(fid)
+    webp = base64.b64decode(html[start : html.index('"', start)])
+    with Image.open(io.BytesIO(webp)) as inlined, Image.open(
+        quick / f"reports/figures/A1_shape/runs/{run.id}/trajectory.png"
+    ) as png:
+        assert inlined.format == "WEBP"
+        assert np.array_equal(np.asarray(inlined.convert("RGB")), np.asarray(png.convert("RGB")))
 
 
 def test_report_has_the_studies_sections(quick: Path) -> None:

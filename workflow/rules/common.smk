@@ -223,7 +223,9 @@ def localization_timings(set_name):
 
 
 def localization_run_figures(set_name, run_id):
-    return {k: f"reports/figures/localization/{set_name}/{run_id}/{k}.png" for k in LOC_RUN_FIGURES}
+    """Figures of one localization run, by kind (render_localization_figures draws a set's runs into
+    reports/figures/localization/<set>/runs/<run>/<kind>.png)."""
+    return {k: f"reports/figures/localization/{set_name}/runs/{run_id}/{k}.png" for k in LOC_RUN_FIGURES}
 
 
 def localization_set_figures(set_name):
@@ -235,8 +237,7 @@ def localization_figures(wildcards=None):
     out = []
     for s in LOC_SETS:
         out.extend(localization_set_figures(s).values())
-        for r in LOC_RUNS[s]:
-            out.extend(localization_run_figures(s, r.id).values())
+        out.append(f"reports/figures/localization/{s}/runs")
     return out
 
 
@@ -254,7 +255,7 @@ def localization_benchmarks():
     for s in LOC_SETS:
         for r in LOC_RUNS[s]:
             out.append(f"data/benchmarks/simulate_localization/{s}/{r.id}.tsv")
-            out.append(f"data/benchmarks/render_localization_figures/{s}/{r.id}.tsv")
+        out.append(f"data/benchmarks/render_localization_figures/{s}.tsv")
         out.extend(f"data/benchmarks/render_localization_set_figure/{s}/{p}.tsv" for p in localization_set_figures(s))
         out.append(f"data/benchmarks/collect_localization_metrics/{s}.tsv")
     return out

@@ -1,5 +1,5 @@
 # Localization runs (config key `localization.sets`): one run → one MCAP log (byte-reproducible) and its
-# timings; its figures drawn from the log; one table per set; the set figures. The code that computes a
+# timings; the runs' figures drawn from the logs by one job per set (one interpreter start-up per set); one table per set; the set figures. The code that computes a
 # run is a rule param (SOURCE_RUNS, SOURCE_PRESENT), so a code change reruns what it affects.
 
 
@@ -20,36 +20,23 @@ rule simulate_localization:
 
 rule render_localization_figures:
     input:
-        log=rules.simulate_localization.output.log,
+        logs=lambda w: localization_logs(w.set),
     output:
-        paths=report(
-            "reports/figures/localization/{set}/{run}/paths.png",
-            caption="../report/localization_paths.rst",
+        report(
+            directory("reports/figures/localization/{set}/runs"),
+            patterns=["{run}/{name}.png"],
+            caption="../report/localization_run.rst",
             category="localization",
             subcategory="{set}",
-            labels={"run": "{run}", "figure": "paths"},
-        ),
-        errors=report(
-            "reports/figures/localization/{set}/{run}/errors.png",
-            caption="../report/localization_errors.rst",
-            category="localization",
-            subcategory="{set}",
-            labels={"run": "{run}", "figure": "errors with 3 sigma"},
-        ),
-        nees=report(
-            "reports/figures/localization/{set}/{run}/nees.png",
-            caption="../report/localization_nees.rst",
-            category="localization",
-            subcategory="{set}",
-            labels={"run": "{run}", "figure": "NEES"},
+            labels={"run": "{run}", "figure": "{name}"},
         ),
     params:
         source=SOURCE_PRESENT,
         kinds=list(LOC_RUN_FIGURES),
     log:
-        "logs/render_localization_figures/{set}/{run}.log",
+        "logs/render_localization_figures/{set}.log",
     benchmark:
-        "data/benchmarks/render_localization_figures/{set}/{run}.tsv"
+        "data/benchmarks/render_localization_figures/{set}.tsv"
     script:
         "../scripts/render_localization_figures.py"
 

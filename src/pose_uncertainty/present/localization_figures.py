@@ -201,7 +201,7 @@ def accuracy_time_figure(logs: Sequence[str | os.PathLike[str]], timings: Sequen
     The error is the logged ``loc_<f>_rms_position_error``; the time the run's
     ``<f>_step_s`` from its timings side file (wall clock: not reproducible).
     """
-    fig = figures.new_figure((6.6, 5.0))
+    fig = figures.new_figure((6.6, 5.0), dpi=figures.WIDE_DPI)
     ax = fig.add_subplot()
     seen: set[str] = set()
     runs = _read(logs)
@@ -234,7 +234,7 @@ def success_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") -> F
     Filters without particles are drawn at the same abscissae (their success does not depend on it).
     """
     runs = sorted(_read(logs), key=lambda lg: lg.config.filters.get("particle", {}).get("n_particles", 0))
-    fig = figures.new_figure((6.6, 4.6))
+    fig = figures.new_figure((6.6, 4.6), dpi=figures.WIDE_DPI)
     ax = fig.add_subplot()
     n = np.array([lg.config.filters.get("particle", {}).get("n_particles", 0) for lg in runs], dtype=float)
     for k, name in enumerate(FILTERS):

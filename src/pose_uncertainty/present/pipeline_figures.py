@@ -163,7 +163,7 @@ def growth_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") -> Fi
         rows.append({label: logged.get(key, math.nan) for label, key in measures.items()})
     rows.sort(key=lambda r: r["L"])
     L = np.array([r["L"] for r in rows])
-    fig = figures.new_figure((6.4, 5.2))
+    fig = figures.new_figure((6.4, 5.2), dpi=figures.WIDE_DPI)
     ax = fig.add_subplot()
     styles = {
         "A: σ along": ("tab:blue", "-", "o"),
@@ -211,7 +211,7 @@ def cloud_polar_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") 
     """
     runs = [open_run(p) for p in list(logs)[:8]]
     n = max(len(runs), 1)
-    fig = figures.new_figure((3.0 * n, 6.0))
+    fig = figures.new_figure((3.0 * n, 6.0), dpi=figures.WIDE_DPI)
     for j, run in enumerate(runs):
         ax = fig.add_subplot(2, n, j + 1)
         axp = fig.add_subplot(2, n, n + j + 1)
@@ -252,7 +252,7 @@ def expcoords_figure(data: Mapping[str, Any]) -> Figure:
     """
     cases = data["cases"]
     pr, n = float(data["pr"]), int(data["n"])
-    fig = figures.new_figure((5.2 * len(cases), 5.0))
+    fig = figures.new_figure((5.2 * len(cases), 5.0), dpi=figures.WIDE_DPI)
     for j, case in enumerate(cases):
         cloud, path = np.asarray(case["cloud_xy"]), np.asarray(case["path_xy"])
         ell, end = np.asarray(case["ellipse_xy"]), case["end"]
@@ -303,7 +303,7 @@ def drives_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") -> Fi
         label = f"{run.config.trajectory['name']}, {m.get('path_length', math.nan):.3g} m"
         kind = "differential" if run.config.drive is None else run.config.drive.type
         panels.setdefault(label, {})[kind] = m
-    fig = figures.new_figure((3.4 * max(len(panels), 1) + 0.6, 4.8))
+    fig = figures.new_figure((3.4 * max(len(panels), 1) + 0.6, 4.8), dpi=figures.WIDE_DPI)
     series = (("A_sigma_along", "tab:blue", "o", "Method A: σ along"),
               ("A_sigma_across", "tab:red", "s", "Method A: σ across"),
               ("MC_sigma_along", "tab:blue", "x", "Monte Carlo: σ along"),
@@ -359,7 +359,7 @@ def umbmark_figure(data: Mapping[str, Any]) -> Figure:
     umb = data["umbmark"]
     e_before = umb["estimates"]["E_max_before"]["value"]
     e_after = umb["E_max_after_measured"]["value"]
-    fig = figures.new_figure((6.4, 6.0))
+    fig = figures.new_figure((6.4, 6.0), dpi=figures.WIDE_DPI)
     ax = fig.add_subplot()
     colours = {"cw": "tab:blue", "ccw": "tab:red"}
     for d, col in colours.items():
