@@ -436,3 +436,34 @@ def test_report_has_the_drives_section(quick: Path) -> None:
     assert arc["drive_plain_odometry_mahalanobis"] > 3  # the turn bias is outside the 98.89 % ellipse
     assert f"{_fmt(arc['drive_plain_odometry_mahalanobis'], 3)} standard deviations" in section
     assert 'id="fig-D_drives-set-drives"' in html
+
+
+def test_localization_figures_one_job_per_set(quick: Path) -> None:
+    """Every localization run's figures are drawn (one job per set) into runs/<run>/ and shown in the report,
+    with the bytes the replay functions give from the run's log alone."""
+    from pose_uncertainty.logs import localization as loc
+    from pose_uncertainty.present.localization_figures import (
+        RUN_FIGURES,
+        render_localization_run_figures,
+    )
+
+    html = (quick / "reports/comparison.html").read_text(encoding="utf-8")
+    sets = loc.expand_localization(sweep.validate_config(_config("quick.yaml"), SCHEMA))
+    assert sets
+    for name, runs in sets.items():
+        folder = quick / f"reports/figures/localization/{name}/runs"
+        assert sorted(p.name for p in folder.iterdir() if p.is_dir()) == sorted(r.id for r in runs)
+        assert not (folder.parent / "runs.part").exists()
+        for r in runs:
+            for kind in RUN_FIGURES:
+                assert (folder / r.id / f"{kind}.png").is_file(), (name, r.id, kind)
+                assert f'id="fig-localization-{name}-{r.id}-{kind}"' in html, (name, r.id, kind)
+    bench = sorted(p.name for p in (quick / "data/benchmarks/render_localization_figures").iterdir())
+    assert bench == sorted(f"{name}.tsv" for name in sets)  # one job per set
+    name, runs = next(iter(sets.items()))
+    again = render_localization_run_figures(
+        quick / f"data/localization/{name}/{runs[0].id}.mcap", list(RUN_FIGURES),
+        [quick / f"replayed_{kind}.png" for kind in RUN_FIGURES],
+    )  # fmt: skip
+    for kind, path in zip(RUN_FIGURES, again, strict=True):
+        assert path.read_bytes() == (quick / f"reports/figures/localization/{name}/runs/{runs[0].id}/{kind}.png").read_bytes()
