@@ -23,11 +23,12 @@ from pose_uncertainty.core.tables import read_table
 from pose_uncertainty.localization import ekf as E
 from pose_uncertainty.localization import histogram as HF
 from pose_uncertainty.localization import particle as PF
+from pose_uncertainty.localization import resampling as R
 from pose_uncertainty.localization import sensors as S
 from pose_uncertainty.localization import simulate as SIM
 from pose_uncertainty.localization.measures import mass_region_flags, nees, pose_errors
-from pose_uncertainty.localization.motion import Motion
-from pose_uncertainty.localization.world import World
+from pose_uncertainty.localization.motion import Motion, sample_motion
+from pose_uncertainty.localization.world import World, sample_free_poses
 from pose_uncertainty.logs import localization_log as LL
 from pose_uncertainty.logs import sweep
 from pose_uncertainty.logs.localization import (
@@ -423,6 +424,53 @@ def test_particle_filter_does_not_depend_on_its_threads() -> None:
         out.append(PF.run_particle(run, world, sen, np.random.default_rng(2), cfg, keep=[run.n_steps]))
     np.testing.assert_array_equal(out[0].mean, out[1].mean)
     np.testing.assert_array_equal(out[0].snapshots[run.n_steps]["particles"], out[1].snapshots[run.n_steps]["particles"])
+
+
+def test_resampling_by_copies_in_blocks_is_the_selection(rng: np.random.Generator) -> None:
+    # pf_resample (copies per particle from the pointers' strata, written block by block, on one or
+    # two threads; the systematic pointers never built) against the seed's selection on the same
+    # draws: particles[select(q, pointers)], then the injected ones. 20 001 particles: three blocks.
+    world = World(np.zeros((0, 2)), np.zeros(0, dtype=int), bounds=(0.0, 4.0, 0.0, 3.0))
+    n = 20_001
+    P = rng.normal(0.0, 1.0, (n, 3))
+    w = rng.gamma(0.5, size=n)
+    w[rng.random(n) < 0.2] = 0.0
+    w /= w.sum()
+    for scheme in R.SCHEMES:
+        for n_inject in (0, 37):
+            g = np.random.default_rng(5)
+            T = R.pointers(n - n_inject, g, scheme)
+            injected = sample_free_poses(world, n_inject, g) if n_inject else np.zeros((0, 3))
+            want = np.vstack([P[R.select(R.cumulative_weights(w), T)], injected])
+            for workers in (1, 2):
+                got, w_new, res = PF.pf_resample(P, w, np.random.default_rng(5), scheme, 0.5, n_inject, world, workers)
+                np.testing.assert_array_equal(got, want)
+                assert res
+                assert np.all(w_new == 1.0 / n)
+
+
+def test_motion_and_likelihood_write_into_given_arrays(rng: np.random.Generator) -> None:
+    # the out= forms the particle filter uses are the allocating ones, bit for bit
+    world = World(np.array([[2.0, 1.0], [0.0, 3.0], [4.0, -1.0]]), np.arange(3))
+    sen = S.RangeBearingSensor(range_std=0.1, bearing_std=0.05)
+    run = SIM.simulate(tr.straight(1.0, speed=0.5, dt=0.1), world, np.random.default_rng(1), landmark_sensor=sen)
+    P = rng.normal(0.0, 0.1, (500, 3))
+    models = (Motion(k_r=1e-3, k_l=2e-3), Motion(model="velocity"), Motion(model="odometry"))
+    for motion in models:
+        for dtype in ("float64", "float32"):
+            out = np.full_like(P, np.nan)
+            got = sample_motion(P, motion, run, 3, np.random.default_rng(4), dtype, out=out)
+            assert got is out
+            np.testing.assert_array_equal(out, sample_motion(P, motion, run, 3, np.random.default_rng(4), dtype))
+    z, lm = run.landmark_z[4][run.landmark_valid[4]], world.landmarks[run.landmark_valid[4]]
+    assert z.shape[0] == 3
+    for dtype in ("float64", "float32"):
+        lik = S.LandmarkLikelihood(z, lm, sen, dtype)
+        out = np.full(500, np.nan)
+        lik(P, out)
+        np.testing.assert_array_equal(out, lik(P))
+        np.testing.assert_array_equal(S.LandmarkLikelihood.trusted(z, lm, sen, dtype)(P), lik(P))
+        np.testing.assert_array_equal(lik(P), S.landmark_log_likelihood(P, z, lm, sen, dtype=dtype))
 
 
 def test_particle_region_flags_from_occupied_cells_equal_the_whole_grid(rng: np.random.Generator) -> None:

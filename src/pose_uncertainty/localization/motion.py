@@ -92,35 +92,42 @@ def velocity_alphas_for_wheels(k_r: float, k_l: float, track: float, dt: float) 
 
 
 def _wheel_step(P: Array, sr: float, sl: float, m: Motion, b: float, rng: np.random.Generator,
-                trig: Any = np.float64) -> Array:  # fmt: skip
+                trig: Any = np.float64, out: Array | None = None) -> Array:  # fmt: skip
     """``Δs' ~ N(Δs, k|Δs|)`` per wheel and particle, then the midpoint step (as kinematics.step).
 
     ``trig``: the float type of ``cos φ, sin φ`` (float32 is several times faster; its rounding,
-    ~10⁻⁷ of the step, is far below the wheel noise).
+    ~10⁻⁷ of the step, is far below the wheel noise). ``out``: the (n, 3) array to write, not ``P``.
+    Every operation writes into the draws' own (2, n) buffer or ``out`` (no temporaries).
     """
-    z = rng.standard_normal((2, P.shape[0]))
+    n = P.shape[0]
+    z = rng.standard_normal((2, n))
     z[0] *= math.sqrt(m.k_r * abs(sr))
     z[0] += sr  # Δs_r'
     z[1] *= math.sqrt(m.k_l * abs(sl))
     z[1] += sl  # Δs_l'
-    ds = (z[0] + z[1]) * 0.5
-    dth = (z[0] - z[1]) * (1.0 / b)
-    phi = P[:, 2] + 0.5 * dth
-    out = np.empty_like(P)
-    if trig is np.float64:
-        out[:, 0] = P[:, 0] + ds * np.cos(phi)
-        out[:, 1] = P[:, 1] + ds * np.sin(phi)
-    else:
-        phi32 = phi.astype(trig)
-        out[:, 0] = P[:, 0] + ds * np.cos(phi32)
-        out[:, 1] = P[:, 1] + ds * np.sin(phi32)
-    out[:, 2] = P[:, 2] + dth
-    return out
+    res = np.empty_like(P) if out is None else out
+    ds = res[:, 0]  # Δs = (Δs_r' + Δs_l')/2, held in the x column until x is written
+    np.add(z[0], z[1], out=ds)
+    ds *= 0.5
+    dth = np.subtract(z[0], z[1], out=z[1])  # Δθ = (Δs_r' − Δs_l')/b
+    dth *= 1.0 / b
+    np.add(P[:, 2], dth, out=res[:, 2])  # θ' = θ + Δθ
+    phi = np.multiply(dth, 0.5, out=z[0])
+    phi += P[:, 2]  # φ = θ + Δθ/2
+    if trig is not np.float64:
+        phi = phi.astype(trig)
+    t = np.cos(phi)
+    np.multiply(ds, t, out=res[:, 1])  # Δs cos φ, held in the y column
+    np.sin(phi, out=t)
+    t = np.multiply(ds, t, out=z[1])  # Δs sin φ (Δθ is no longer needed)
+    np.add(P[:, 0], res[:, 1], out=res[:, 0])  # x' = x + Δs cos φ
+    np.add(P[:, 1], t, out=res[:, 1])  # y' = y + Δs sin φ
+    return res
 
 
 def sample_motion(
     particles: Array, motion: Motion, run: SimulatedRun, k: int, rng: np.random.Generator,
-    dtype: str = "float64",
+    dtype: str = "float64", out: Array | None = None,
 ) -> Array:  # fmt: skip
     """Move every particle by step ``k → k+1`` of ``run`` under ``motion``'s noise.
 
@@ -130,6 +137,7 @@ def sample_motion(
     motion : Motion; run : SimulatedRun; k : int in [0, N)
     rng : numpy.random.Generator
     dtype : {"float64", "float32"} — the wheel model's heading trigonometry (the pose stays float64)
+    out : ndarray, shape (n, 3), optional — where to write the moved particles (not ``particles``)
 
     Returns
     -------
@@ -138,9 +146,14 @@ def sample_motion(
     n = particles.shape[0]
     if motion.model == "wheels":
         trig = np.float64 if check_choice("dtype", dtype, ("float64", "float32")) == "float64" else np.float32
-        return _wheel_step(particles, float(run.ds_r[k]), float(run.ds_l[k]), motion, run.track, rng, trig)
+        return _wheel_step(particles, float(run.ds_r[k]), float(run.ds_l[k]), motion, run.track, rng, trig, out)
     if motion.model == "velocity":
-        return sample_velocity(particles, run.controls[k], run.dt, motion.alpha_array, n, rng,
-                               motion.noise, motion.scaling)  # fmt: skip
-    return sample_odometry(particles, run.odometry[k], run.odometry[k + 1], motion.alpha_array, n,
-                           rng, motion.noise, motion.scaling)  # fmt: skip
+        moved = sample_velocity(particles, run.controls[k], run.dt, motion.alpha_array, n, rng,
+                                motion.noise, motion.scaling)  # fmt: skip
+    else:
+        moved = sample_odometry(particles, run.odometry[k], run.odometry[k + 1], motion.alpha_array, n,
+                                rng, motion.noise, motion.scaling)  # fmt: skip
+    if out is None:
+        return moved
+    out[...] = moved
+    return out

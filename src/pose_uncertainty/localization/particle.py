@@ -42,6 +42,8 @@ from .resampling import (
     _check_threshold,
     _cumulative,
     _ess,
+    _strata_below,
+    _systematic_below,
     normalize_log_weights,
     pointers,
     select,
@@ -53,7 +55,6 @@ from .result import (
     StepCallback,
     StepRecorder,
     check_keep,
-    landmark_measurements,
 )
 from .sensors import (
     BeamSensor,
@@ -77,6 +78,8 @@ __all__ = [
 ]
 
 INJECTIONS: tuple[str, ...] = ("none", "fixed", "augmented")
+#: Schemes with one pointer per stratum [i/n, (i+1)/n): resampled by copies per particle.
+_STRATA: tuple[str, ...] = ("systematic", "stratified")
 
 Array = NDArray[np.float64]
 
@@ -155,9 +158,11 @@ def pf_resample(
 ) -> tuple[Array, Array, bool]:  # fmt: skip
     """Resample if ``ESS < threshold · n`` or particles are to be injected; inject ``n_inject``.
 
-    The selection (binary search of each pointer, then the copy) runs in the blocks of
-    :func:`~pose_uncertainty.localization.sensors.chunks` on ``workers`` threads; the result
-    does not depend on ``workers``.
+    Systematic and stratified pointers: the copies of each particle (the count of pointers below
+    each cumulative weight, found from its stratum: O(n)), then ``numpy.repeat``; the other schemes:
+    binary search of each pointer, then the copy. Either runs in the blocks of
+    :func:`~pose_uncertainty.localization.sensors.chunks` on ``workers`` threads and gives
+    :func:`~pose_uncertainty.localization.resampling.select`'s particles, whatever ``workers``.
 
     Returns
     -------
@@ -168,7 +173,13 @@ def pf_resample(
         return particles, w, False
     keep = n - n_inject
     out = np.empty_like(particles)
-    if keep:
+    if keep and scheme in _STRATA:
+        q = _cumulative(w)
+        # systematic: pointers(keep, rng, "systematic")'s one uniform, its pointers never built
+        below = (_systematic_below(keep, rng.random()) if scheme == "systematic"
+                 else _strata_below(pointers(keep, rng, scheme), scheme))  # fmt: skip
+        _repeat_blocks(particles, q, below, out[:keep], workers)
+    elif keep:
         q, T = _cumulative(w), pointers(keep, rng, scheme)
         blocks = chunks(keep)
 
@@ -180,6 +191,30 @@ def pf_resample(
     if n_inject:
         out[keep:] = sample_free_poses(world, n_inject, rng)
     return out, np.full(n, 1.0 / n), True
+
+
+def _repeat_blocks(
+    particles: Array, q: Array, below: Callable[[Array], NDArray[np.intp]], out: Array, workers: int
+) -> None:
+    """``out`` (n, 3) = each particle repeated ``C(q_j) − C(q_{j−1})`` times, by blocks of particles.
+
+    Block ``[a, b)`` counts below ``q_{a−1} … q_{b−1}`` itself and writes its copies at
+    ``out[C(q_{a−1}) : C(q_{b−1})]`` (``C(q_{N−1}) = n``: select's guard), so the blocks need no
+    other's result; with one worker the whole array is one block.
+    """
+    N, n = q.size, out.shape[0]
+    blocks = chunks(N) if workers > 1 else [(0, N)]
+
+    def part(c: int) -> None:
+        a, b = blocks[c]
+        C = below(q[max(a - 1, 0) : b])
+        if b == N:
+            C[-1] = n
+        start = int(C[0]) if a else 0  # C(q_{a−1})
+        counts = np.diff(C) if a else np.diff(C, prepend=0)
+        out[start : int(C[-1])] = np.repeat(particles[a:b], counts, axis=0)
+
+    run_blocks(part, len(blocks), workers)
 
 
 def _n_inject(cfg: ParticleFilterConfig, log_avg: float, slow_fast: list[float], rng: np.random.Generator) -> int:
@@ -200,8 +235,9 @@ def _n_inject(cfg: ParticleFilterConfig, log_avg: float, slow_fast: list[float],
     return int(rng.binomial(n, p)) if p > 0 else 0
 
 
-#: A step's measurement model on a block of particles: (log-likelihood, wrong associations or None).
-BlockModel = Callable[[Array], tuple[Array, Array | None]]
+#: A step's measurement model on a block of particles: writes the log-likelihood into its second
+#: argument, returns the wrong associations per particle (or None).
+BlockModel = Callable[[Array, Array], Array | None]
 
 
 def _measurement_model(
@@ -212,21 +248,30 @@ def _measurement_model(
         grid, zb = world.grid, run.beam_z
         if not run.beam_valid[k] or zb is None or grid is None:
             return None
-        return (lambda P: (beam_log_likelihood(P, zb[k], grid, sensor), None)), sensor.n_beams
+
+        def beams(P: Array, out: Array) -> None:
+            out[...] = beam_log_likelihood(P, zb[k], grid, sensor)
+
+        return beams, sensor.n_beams
     valid = run.landmark_valid[k]
     if not valid.any():
         return None
     if cfg.association == "ml":  # every particle associates for itself
         zk, ids = run.landmark_z[k][valid], np.flatnonzero(valid)
 
-        def ml(P: Array) -> tuple[Array, Array | None]:
-            ll, idx = landmark_log_likelihood_ml(P, zk, world.landmarks, sensor)
-            return ll, (idx != ids).sum(axis=1).astype(np.float64)
+        def ml(P: Array, out: Array) -> Array:
+            out[...], idx = landmark_log_likelihood_ml(P, zk, world.landmarks, sensor)
+            return (idx != ids).sum(axis=1).astype(np.float64)
 
         return ml, int(valid.sum())
-    z, lm, _ = landmark_measurements(run, world, sensor, k, "known", np.zeros(3), np.eye(3))
-    lik = LandmarkLikelihood(z, lm, sensor, cfg.dtype)
-    return (lambda P: (lik(P), None)), z.shape[0]
+    # the true correspondences (result.landmark_measurements "known"), from the run's own valid arrays
+    z, lm = run.landmark_z[k][valid], world.landmarks[valid]
+    lik = LandmarkLikelihood.trusted(z, lm, sensor, cfg.dtype)
+
+    def known(P: Array, out: Array) -> None:
+        lik(P, out)
+
+    return known, z.shape[0]
 
 
 def _predict_and_weigh(
@@ -247,15 +292,15 @@ def _predict_and_weigh(
     blocks = chunks(n)
     out = np.empty_like(P) if k > 0 else P
     ll = np.empty(n) if model is not None else None
-    wrong = np.zeros(n) if model is not None else None
+    wrong = np.zeros(n) if model is not None and cfg.association == "ml" else None
 
     def block(c: int) -> None:
         a, b = blocks[c]
         if k > 0:
-            out[a:b] = sample_motion(P[a:b], cfg.motion, run, k - 1, gens[c], cfg.dtype)
-        if model is not None and ll is not None and wrong is not None:
-            ll[a:b], wr = model[0](out[a:b])
-            if wr is not None:
+            sample_motion(P[a:b], cfg.motion, run, k - 1, gens[c], cfg.dtype, out=out[a:b])
+        if model is not None and ll is not None:
+            wr = model[0](out[a:b], ll[a:b])
+            if wr is not None and wrong is not None:
                 wrong[a:b] = wr
 
     if k > 0 or model is not None:

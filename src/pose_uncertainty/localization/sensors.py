@@ -231,49 +231,53 @@ def _measurement_frames(z: Array, lm: Array, center: Array, dtype: Any) -> tuple
     mx, my = lm[:, 0] - center[0], lm[:, 1] - center[1]
     c, s = np.cos(z[:, 1]), np.sin(z[:, 1])
     u, v = mx * c + my * s, my * c - mx * s
-    BX = np.stack([u, v, -c, -s], axis=1).astype(dtype)  # (m, 4)
-    BY = np.stack([v, -u, s, -c], axis=1).astype(dtype)
-    return BX, BY
+    B = np.empty((2, z.shape[0], 4), dtype)  # the columns rounded to dtype as they are written
+    B[0, :, 0], B[0, :, 1], B[0, :, 2], B[0, :, 3] = u, v, -c, -s
+    B[1, :, 0], B[1, :, 1], B[1, :, 2], B[1, :, 3] = v, -u, s, -c
+    return B[0], B[1]
 
 
-def _workspace(n: int, m: int, dtype: Any) -> tuple[Array, Array, Array, Array]:
-    """This thread's buffers for a chunk of ``n`` particles and ``m`` measurements: A (4, n), X, Y, E (m, n).
+def _workspace(n: int, m: int, dtype: Any) -> tuple[Array, Array, Array, Array, Array]:
+    """This thread's buffers for a chunk of ``n`` particles and ``m`` measurements.
 
-    Reused from call to call (large temporaries allocated at every step cost page faults);
-    measurements along the first axis, so the sums over them are ``m − 1`` contiguous vector adds.
+    A (4, n) and three scratch rows (3, n) in ``dtype``; X, Y, E (m, n) in ``dtype``; two sums (2, n)
+    in float64. Reused from call to call (large temporaries allocated at every step cost page
+    faults); measurements along the first axis, so the sums over them are ``m − 1`` contiguous vector adds.
     """
     key = (n, m, np.dtype(dtype).str)
     cache = getattr(_WORK, "buffers", None)
     if cache is None or cache[0] != key:
-        cache = (key, np.empty((4, n), dtype), np.empty((m, n), dtype), np.empty((m, n), dtype),
-                 np.empty((m, n), dtype))  # fmt: skip
+        cache = (key, np.empty((7, n), dtype), np.empty((m, n), dtype), np.empty((m, n), dtype),
+                 np.empty((m, n), dtype), np.empty((2, n)))  # fmt: skip
         _WORK.buffers = cache
-    return cache[1], cache[2], cache[3], cache[4]
+    return cache[1], cache[2], cache[3], cache[4], cache[5]
 
 
 def _loglik_chunk(
-    P: Array, z: Array, frames: tuple[Array, Array], center: Array, inv_var: tuple[float, float], const: float,
-    dtype: Any,
+    P: Array, zr: Array, frames: tuple[Array, Array], center: Array, inv_var: tuple[float, float], const: float,
+    dtype: Any, out: Array | None = None,
 ) -> Array:  # fmt: skip
     """Σ_j log N(z_j; h_j(p), Q) for a chunk of particles (n, 3) and m measurements, shape (n,).
 
     The landmark seen in the frame of the measured bearing (:func:`_measurement_frames`):
     ``X, Y = B_X·A, B_Y·A`` (two (m, 4)·(4, n) matrix products), so the predicted range is
     ``√(X² + Y²)`` and the bearing error ``atan2(Y, X) = wrap(φ̂ − φ)`` without an explicit
-    wrap. Every (m, n) array lives in this thread's reused buffers.
+    wrap. ``zr``: the measured ranges (m, 1) in ``dtype``. Every array lives in this thread's
+    reused buffers, and the result is written into ``out`` (n,) when given.
     """
-    m = z.shape[0]
-    A, X, Y, E = _workspace(P.shape[0], m, dtype)
-    c, s = A[0], A[1]
-    th = P[:, 2].astype(dtype)
+    n, m = P.shape[0], zr.shape[0]
+    W, X, Y, E, S = _workspace(n, m, dtype)
+    A, c, s = W[:4], W[0], W[1]
+    th, x, y = W[4], W[5], W[6]
+    th[...] = P[:, 2]  # (rounded to dtype)
     np.cos(th, out=c)
     np.sin(th, out=s)
-    x = (P[:, 0] - center[0]).astype(dtype)
-    y = (P[:, 1] - center[1]).astype(dtype)
+    np.subtract(P[:, 0], center[0], out=x)  # in float64, then rounded to dtype
+    np.subtract(P[:, 1], center[1], out=y)
     np.multiply(x, c, out=A[2])
-    A[2] += y * s  # a = x cos θ + y sin θ
+    A[2] += np.multiply(y, s, out=th)  # a = x cos θ + y sin θ
     np.multiply(y, c, out=A[3])
-    A[3] -= x * s  # b = y cos θ − x sin θ
+    A[3] -= np.multiply(x, s, out=th)  # b = y cos θ − x sin θ
     np.matmul(frames[0], A, out=X)
     np.matmul(frames[1], A, out=Y)
     np.arctan2(Y, X, out=E)  # φ̂ − φ, in (−π, π]
@@ -281,12 +285,18 @@ def _loglik_chunk(
     Y *= Y
     X += Y
     np.sqrt(X, out=X)
-    X -= z[:, 0, None].astype(dtype)  # predicted − measured range
+    X -= zr  # predicted − measured range
     X *= X
     E *= E
-    # Σ over the measurements: m − 1 vector adds (no matrix–vector product: OpenBLAS runs those on its
-    # own threads, whose spinning then takes the cores from the blocks)
-    return const - 0.5 * (inv_var[0] * X.sum(axis=0, dtype=np.float64) + inv_var[1] * E.sum(axis=0, dtype=np.float64))
+    # Σ over the measurements: m − 1 vector adds in float64 (no matrix–vector product: OpenBLAS runs
+    # those on its own threads, whose spinning then takes the cores from the blocks)
+    np.add.reduce(X, axis=0, dtype=np.float64, out=S[0])
+    np.add.reduce(E, axis=0, dtype=np.float64, out=S[1])
+    S[0] *= inv_var[0]
+    S[1] *= inv_var[1]
+    S[0] += S[1]
+    S[0] *= 0.5
+    return np.subtract(const, S[0], out=np.empty(n) if out is None else out)
 
 
 _WORK = threading.local()
@@ -329,27 +339,43 @@ class LandmarkLikelihood:
 
     ``LandmarkLikelihood(z, landmarks, sensor, dtype)(P)`` is :func:`landmark_log_likelihood`
     of the particles ``P`` (n, 3); a runner that splits its particles into blocks (threads)
-    prepares the measurement frames once per step.
+    prepares the measurement frames once per step. :meth:`trusted` skips the checks of the
+    inputs (a runner's own measurements, once per step).
     """
 
     def __init__(self, z: ArrayLike, landmarks: ArrayLike, sensor: RangeBearingSensor, dtype: str = "float64"):
-        self.z = check_finite("z", check_last_axis("z", z, 2)).reshape(-1, 2)
+        zz = check_finite("z", check_last_axis("z", z, 2)).reshape(-1, 2)
         lm = _check_landmarks(landmarks)
-        if lm.shape != self.z.shape:
-            raise ValueError(f"landmarks must match z (allowed: shape {self.z.shape}), got shape {lm.shape}")
+        if lm.shape != zz.shape:
+            raise ValueError(f"landmarks must match z (allowed: shape {zz.shape}), got shape {lm.shape}")
         check_choice("dtype", dtype, ("float64", "float32"))
+        self._prepare(zz, lm, sensor, dtype)
+
+    @classmethod
+    def trusted(cls, z: Array, landmarks: Array, sensor: RangeBearingSensor, dtype: str) -> LandmarkLikelihood:
+        """The same as the constructor for inputs known to be valid: z (m, 2) and landmarks (m, 2)
+        finite float64, ``dtype`` one of "float64", "float32"."""
+        self = cls.__new__(cls)
+        self._prepare(z, landmarks, sensor, dtype)
+        return self
+
+    def _prepare(self, z: Array, lm: Array, sensor: RangeBearingSensor, dtype: str) -> None:
+        self.z = z
         self.dtype: Any = np.float64 if dtype == "float64" else np.float32
-        m = self.z.shape[0]
+        m = z.shape[0]
         self.inv = (1.0 / sensor.range_std**2, 1.0 / sensor.bearing_std**2)  # of the squared errors
         self.const = -m * (_LOG_2PI + math.log(sensor.range_std * sensor.bearing_std))
-        self.center = lm.mean(axis=0) if m else np.zeros(2)
-        self.frames = _measurement_frames(self.z, lm, self.center, self.dtype)
+        self.center = np.add.reduce(lm, axis=0) / m if m else np.zeros(2)  # the mean
+        self.frames = _measurement_frames(z, lm, self.center, self.dtype)
+        self.zr: Array = z[:, 0, None].astype(self.dtype)
 
-    def __call__(self, particles: Array) -> Array:
-        """``Σ_j log p(z_j | x)`` of each particle (n, 3), shape (n,)."""
+    def __call__(self, particles: Array, out: Array | None = None) -> Array:
+        """``Σ_j log p(z_j | x)`` of each particle (n, 3), shape (n,) (written into ``out`` when given)."""
         if self.z.shape[0] == 0:
-            return np.zeros(particles.shape[0])
-        return _loglik_chunk(particles, self.z, self.frames, self.center, self.inv, self.const, self.dtype)
+            res = np.zeros(particles.shape[0]) if out is None else out
+            res[...] = 0.0
+            return res
+        return _loglik_chunk(particles, self.zr, self.frames, self.center, self.inv, self.const, self.dtype, out)
 
 
 def landmark_log_likelihood(
@@ -393,7 +419,7 @@ def landmark_log_likelihood(
 
     def block(c: int) -> None:
         a, b = blocks[c]
-        out[a:b] = lik(P[a:b])
+        lik(P[a:b], out=out[a:b])
 
     run_blocks(block, len(blocks), workers)
     return out
