@@ -97,7 +97,7 @@ def _wheel_step(P: Array, sr: float, sl: float, m: Motion, b: float, rng: np.ran
 
     ``trig``: the float type of ``cos φ, sin φ`` (float32 is several times faster; its rounding,
     ~10⁻⁷ of the step, is far below the wheel noise). ``out``: the (n, 3) array to write, not ``P``.
-    Every operation writes into the draws' own (2, n) buffer or ``out`` (no temporaries).
+    The operations write into the draws' own (2, n) buffer or ``out`` where they can.
     """
     n = P.shape[0]
     z = rng.standard_normal((2, n))
@@ -106,22 +106,21 @@ def _wheel_step(P: Array, sr: float, sl: float, m: Motion, b: float, rng: np.ran
     z[1] *= math.sqrt(m.k_l * abs(sl))
     z[1] += sl  # Δs_l'
     res = np.empty_like(P) if out is None else out
-    ds = res[:, 0]  # Δs = (Δs_r' + Δs_l')/2, held in the x column until x is written
-    np.add(z[0], z[1], out=ds)
-    ds *= 0.5
-    dth = np.subtract(z[0], z[1], out=z[1])  # Δθ = (Δs_r' − Δs_l')/b
-    dth *= 1.0 / b
+    ds = np.add(z[0], z[1])
+    ds *= 0.5  # Δs = (Δs_r' + Δs_l')/2
+    dth = np.subtract(z[0], z[1], out=z[1])
+    dth *= 1.0 / b  # Δθ = (Δs_r' − Δs_l')/b
     np.add(P[:, 2], dth, out=res[:, 2])  # θ' = θ + Δθ
     phi = np.multiply(dth, 0.5, out=z[0])
     phi += P[:, 2]  # φ = θ + Δθ/2
     if trig is not np.float64:
         phi = phi.astype(trig)
     t = np.cos(phi)
-    np.multiply(ds, t, out=res[:, 1])  # Δs cos φ, held in the y column
+    c = np.multiply(ds, t)  # Δs cos φ
     np.sin(phi, out=t)
-    t = np.multiply(ds, t, out=z[1])  # Δs sin φ (Δθ is no longer needed)
-    np.add(P[:, 0], res[:, 1], out=res[:, 0])  # x' = x + Δs cos φ
-    np.add(P[:, 1], t, out=res[:, 1])  # y' = y + Δs sin φ
+    s = np.multiply(ds, t, out=z[1])  # Δs sin φ (Δθ is no longer needed)
+    np.add(P[:, 0], c, out=res[:, 0])  # x' = x + Δs cos φ
+    np.add(P[:, 1], s, out=res[:, 1])  # y' = y + Δs sin φ
     return res
 
 

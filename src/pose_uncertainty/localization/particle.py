@@ -172,13 +172,11 @@ def pf_resample(
     if n_inject == 0 and _ess(w) >= threshold * n and threshold < 1.0:
         return particles, w, False
     keep = n - n_inject
+    if keep == n and scheme in _STRATA and workers == 1:  # one block: the copies are the new array
+        return np.repeat(particles, _strata_counts(w, keep, rng, scheme), axis=0), np.full(n, 1.0 / n), True
     out = np.empty_like(particles)
     if keep and scheme in _STRATA:
-        q = _cumulative(w)
-        # systematic: pointers(keep, rng, "systematic")'s one uniform, its pointers never built
-        below = (_systematic_below(keep, rng.random()) if scheme == "systematic"
-                 else _strata_below(pointers(keep, rng, scheme), scheme))  # fmt: skip
-        _repeat_blocks(particles, q, below, out[:keep], workers)
+        _repeat_blocks(particles, _cumulative(w), _strata_below_of(keep, rng, scheme), out[:keep], workers)
     elif keep:
         q, T = _cumulative(w), pointers(keep, rng, scheme)
         blocks = chunks(keep)
@@ -193,6 +191,24 @@ def pf_resample(
     return out, np.full(n, 1.0 / n), True
 
 
+def _strata_below_of(keep: int, rng: np.random.Generator, scheme: str) -> Callable[[Array], NDArray[np.intp]]:
+    """The count of ``keep`` new pointers of a stratified or systematic scheme below given values (draws them).
+
+    Systematic: the one uniform of ``pointers(keep, rng, "systematic")``, its pointers never built.
+    """
+    if scheme == "systematic":
+        return _systematic_below(keep, rng.random())
+    return _strata_below(pointers(keep, rng, scheme), scheme)
+
+
+def _strata_counts(w: Array, keep: int, rng: np.random.Generator, scheme: str) -> NDArray[np.intp]:
+    """Copies of each particle when ``keep`` particles are drawn by a stratified or systematic scheme."""
+    q = _cumulative(w)
+    C = _strata_below_of(keep, rng, scheme)(q)
+    C[-1] = keep  # select's guard: a pointer at 1 goes to the last particle
+    return np.diff(C, prepend=0)
+
+
 def _repeat_blocks(
     particles: Array, q: Array, below: Callable[[Array], NDArray[np.intp]], out: Array, workers: int
 ) -> None:
@@ -200,10 +216,10 @@ def _repeat_blocks(
 
     Block ``[a, b)`` counts below ``q_{a−1} … q_{b−1}`` itself and writes its copies at
     ``out[C(q_{a−1}) : C(q_{b−1})]`` (``C(q_{N−1}) = n``: select's guard), so the blocks need no
-    other's result; with one worker the whole array is one block.
+    other's result.
     """
     N, n = q.size, out.shape[0]
-    blocks = chunks(N) if workers > 1 else [(0, N)]
+    blocks = chunks(N)
 
     def part(c: int) -> None:
         a, b = blocks[c]
