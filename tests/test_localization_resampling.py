@@ -105,6 +105,10 @@ def test_copies_per_particle_equal_the_selection(rng):
                 want = R.copies(R.select(q, T), N)
                 for scheme in R.SCHEMES:
                     np.testing.assert_array_equal(R.selection_counts(q, T, scheme), want)
+            # the particle filter's systematic counts, whose pointers (i + u)/n are never built
+            for u in (0.0, 1 - 2**-53, float(rng.random())):
+                want = R.copies(R.select(q, (np.arange(n) + u) / n), N)
+                np.testing.assert_array_equal(R._counts_from_below(R._systematic_below(n, u)(q), n), want)
     q = R.cumulative_weights([0.5, 0.5, 0.0])
     np.testing.assert_array_equal(R.selection_counts(q, [0.2, 0.7, 1.0]), [1, 1, 1])
 

@@ -40,6 +40,7 @@ from .motion import Motion, sample_motion
 from .resampling import (
     SCHEMES,
     _check_threshold,
+    _counts_from_below,
     _cumulative,
     _ess,
     _strata_below,
@@ -203,10 +204,7 @@ def _strata_below_of(keep: int, rng: np.random.Generator, scheme: str) -> Callab
 
 def _strata_counts(w: Array, keep: int, rng: np.random.Generator, scheme: str) -> NDArray[np.intp]:
     """Copies of each particle when ``keep`` particles are drawn by a stratified or systematic scheme."""
-    q = _cumulative(w)
-    C = _strata_below_of(keep, rng, scheme)(q)
-    C[-1] = keep  # select's guard: a pointer at 1 goes to the last particle
-    return np.diff(C, prepend=0)
+    return _counts_from_below(_strata_below_of(keep, rng, scheme)(_cumulative(w)), keep)
 
 
 def _repeat_blocks(
@@ -226,8 +224,10 @@ def _repeat_blocks(
         C = below(q[max(a - 1, 0) : b])
         if b == N:
             C[-1] = n
-        start = int(C[0]) if a else 0  # C(q_{a−1})
-        counts = np.diff(C) if a else np.diff(C, prepend=0)
+        if a:  # C holds C(q_{a−1}) first
+            start, counts = int(C[0]), C[1:] - C[:-1]
+        else:
+            start, counts = 0, _counts_from_below(C, int(C[-1]))
         out[start : int(C[-1])] = np.repeat(particles[a:b], counts, axis=0)
 
     run_blocks(part, len(blocks), workers)

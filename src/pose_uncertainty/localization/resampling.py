@@ -198,13 +198,29 @@ def _strata_below(T: Array, scheme: str) -> Callable[[Array], IntArray]:
 
 def _systematic_below(n: int, u: float) -> Callable[[Array], IntArray]:
     """:func:`_strata_below` of the systematic pointers ``T_i = (i + u)/n`` of :func:`pointers`, which
-    are computed only where compared (the same arithmetic, the same bits: ``T`` is never built)."""
+    are computed only where compared (the same arithmetic, the same bits: ``T`` is never built).
+
+    The counts are walked as floats (integers, exact), so ``c + u`` needs no conversion; ``(c + u)/n``
+    is below 0 at ``c = −1`` and ≥ 1 at ``c ≥ n``: the sentinels come with the formula.
+    """
 
     def below(x: Array) -> IntArray:
-        g = x * n
-        g += 1.0 - u
-        # (c + u)/n is below 0 at c = −1 and ≥ 1 at c ≥ n: the sentinels come with the formula
-        return _counts_below(x, lambda c: (c + u) / n, g.astype(np.intp))
+        c = x * n
+        c += 1.0 - u
+        np.floor(c, out=c)  # ⌊n x − u + 1⌋ in [0, n + 1]
+        t = np.empty_like(c)
+        while True:
+            np.add(c, u, out=t)
+            t /= n
+            up = t < x  # T_c < x: more pointers below x
+            np.subtract(c, 1.0, out=t)
+            t += u
+            t /= n
+            down = t >= x  # T_{c−1} ≥ x: fewer
+            if not (up.any() or down.any()):
+                return c.astype(np.intp)
+            c += up
+            c -= down
 
     return below
 

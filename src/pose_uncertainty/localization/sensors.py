@@ -36,6 +36,7 @@ Beams are independent: ``log p(scan) = Σ_k log p(z_k | z*_k)``. The weights
 
 from __future__ import annotations
 
+import itertools
 import math
 import threading
 from concurrent.futures import ThreadPoolExecutor
@@ -440,15 +441,23 @@ def chunks(n: int, size: int | None = None) -> list[tuple[int, int]]:
 
 
 def run_blocks(fn: Any, n_blocks: int, workers: int = 1) -> None:
-    """Call ``fn(0) … fn(n_blocks − 1)``: with ``workers`` > 1 the calling thread takes block 0 and a
-    persistent pool of ``workers − 1`` threads the others (numpy releases the GIL in its loops)."""
+    """Call ``fn(0) … fn(n_blocks − 1)``, each once: with ``workers`` > 1 the calling thread and a
+    persistent pool of ``workers − 1`` threads take the blocks in turn (numpy releases the GIL in its
+    loops). A block goes to whichever thread is free first, so a pool thread that the system has
+    not woken yet (other jobs on the cores) never holds up the caller; ``fn`` must not depend on the thread.
+    """
     if check_positive_int("workers", workers) == 1 or n_blocks == 1:
         for c in range(n_blocks):
             fn(c)
         return
-    pool = _pool(workers - 1)
-    futures = [pool.submit(fn, c) for c in range(1, n_blocks)]
-    fn(0)
+    claim = itertools.count().__next__  # atomic under the GIL: every block is taken once
+
+    def take() -> None:
+        while (c := claim()) < n_blocks:
+            fn(c)
+
+    futures = [_pool(workers - 1).submit(take) for _ in range(min(workers, n_blocks) - 1)]
+    take()
     for f in futures:
         f.result()
 
