@@ -27,7 +27,7 @@ from pose_uncertainty.localization import resampling as R
 from pose_uncertainty.localization import sensors as S
 from pose_uncertainty.localization import simulate as SIM
 from pose_uncertainty.localization.measures import mass_region_flags, nees, pose_errors
-from pose_uncertainty.localization.motion import Motion, sample_motion
+from pose_uncertainty.localization.motion import Motion, sample_motion, wheel_draws
 from pose_uncertainty.localization.world import World, sample_free_poses
 from pose_uncertainty.logs import localization_log as LL
 from pose_uncertainty.logs import sweep
@@ -413,14 +413,20 @@ def test_landmark_likelihood_in_blocks_and_threads_is_the_whole(rng: np.random.G
     assert [b - a for a, b in S.chunks(20_000)] == [6667, 6667, 6666]
 
 
-def test_particle_filter_does_not_depend_on_its_threads() -> None:
+@pytest.mark.parametrize(
+    ("dtype", "motion"),
+    [("float32", Motion(k_r=1e-3, k_l=1e-3)),  # second thread: the next step's wheel draws, blocks on one
+     ("float64", Motion(k_r=1e-3, k_l=1e-3)),  # blocks on both threads, wheel draws during the correction
+     ("float64", Motion(model="velocity"))],  # blocks on both threads
+)
+def test_particle_filter_does_not_depend_on_its_threads(dtype: str, motion: Motion) -> None:
     # 9000 particles: two blocks, each with its own generator; one thread or two, the same run
     world = World(np.array([[2.0, 1.0], [0.0, 3.0], [4.0, -1.0]]), np.arange(3))
     sen = S.RangeBearingSensor(range_std=0.1, bearing_std=0.05, period=0.3)
     run = SIM.simulate(tr.straight(1.0, speed=0.5, dt=0.1), world, np.random.default_rng(1), landmark_sensor=sen)
     out = []
     for workers in (1, 2):
-        cfg = PF.ParticleFilterConfig(n_particles=9000, motion=Motion(k_r=1e-3, k_l=1e-3), dtype="float32", workers=workers)
+        cfg = PF.ParticleFilterConfig(n_particles=9000, motion=motion, dtype=dtype, workers=workers)
         out.append(PF.run_particle(run, world, sen, np.random.default_rng(2), cfg, keep=[run.n_steps]))
     np.testing.assert_array_equal(out[0].mean, out[1].mean)
     np.testing.assert_array_equal(out[0].snapshots[run.n_steps]["particles"], out[1].snapshots[run.n_steps]["particles"])
@@ -462,6 +468,15 @@ def test_motion_and_likelihood_write_into_given_arrays(rng: np.random.Generator)
             got = sample_motion(P, motion, run, 3, np.random.default_rng(4), dtype, out=out)
             assert got is out
             np.testing.assert_array_equal(out, sample_motion(P, motion, run, 3, np.random.default_rng(4), dtype))
+    # the wheel draws taken beforehand (as a second thread draws them ahead) move the particles alike
+    for dtype in ("float64", "float32"):
+        draws = wheel_draws(np.random.default_rng(4), 500)
+        np.testing.assert_array_equal(sample_motion(P, models[0], run, 3, np.random.default_rng(99), dtype, draws=draws),
+                                      sample_motion(P, models[0], run, 3, np.random.default_rng(4), dtype))  # fmt: skip
+    with pytest.raises(ValueError, match=r"draws must have shape \(2, 500\)"):
+        sample_motion(P, models[0], run, 3, np.random.default_rng(4), draws=np.zeros((2, 7)))
+    with pytest.raises(ValueError, match="draws are the wheel model's"):
+        sample_motion(P, models[1], run, 3, np.random.default_rng(4), draws=np.zeros((2, 500)))
     z, lm = run.landmark_z[4][run.landmark_valid[4]], world.landmarks[run.landmark_valid[4]]
     assert z.shape[0] == 3
     for dtype in ("float64", "float32"):
@@ -471,6 +486,20 @@ def test_motion_and_likelihood_write_into_given_arrays(rng: np.random.Generator)
         np.testing.assert_array_equal(out, lik(P))
         np.testing.assert_array_equal(S.LandmarkLikelihood.trusted(z, lm, sen, dtype)(P), lik(P))
         np.testing.assert_array_equal(lik(P), S.landmark_log_likelihood(P, z, lm, sen, dtype=dtype))
+
+
+def test_work_run_ahead_runs_once_on_whichever_thread() -> None:
+    # run_ahead: the result of one call, whether a pool thread or the caller ran it; run_blocks: every
+    # block once, however the caller and the pool thread share them
+    calls: list[int] = []
+    for _ in range(50):
+        finish = S.run_ahead(lambda: calls.append(1) or len(calls), 2)
+        assert finish() == len(calls)
+    assert len(calls) == 50
+    assert S.run_ahead(lambda: 7, 1)() == 7
+    seen: list[int] = []
+    S.run_blocks(seen.append, 9, 2)
+    assert sorted(seen) == list(range(9))
 
 
 def test_particle_region_flags_from_occupied_cells_equal_the_whole_grid(rng: np.random.Generator) -> None:

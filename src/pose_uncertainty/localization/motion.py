@@ -33,7 +33,7 @@ from ..core.validation import check_choice, check_nonnegative, check_positive
 from ..methods.motion_models import check_alphas, sample_odometry, sample_velocity
 from .simulate import SimulatedRun
 
-__all__ = ["MOTION_MODELS", "Motion", "sample_motion", "velocity_alphas_for_wheels"]
+__all__ = ["MOTION_MODELS", "Motion", "sample_motion", "velocity_alphas_for_wheels", "wheel_draws"]
 
 MOTION_MODELS: tuple[str, ...] = ("wheels", "velocity", "odometry")
 
@@ -91,16 +91,21 @@ def velocity_alphas_for_wheels(k_r: float, k_l: float, track: float, dt: float) 
     return (kbar / (2 * step), 0.0, 2 * kbar / (b * b * step), 0.0, 0.0, 0.0)
 
 
-def _wheel_step(P: Array, sr: float, sl: float, m: Motion, b: float, rng: np.random.Generator,
+def wheel_draws(rng: np.random.Generator, n: int) -> Array:
+    """The standard normal draws of one step of ``n`` particles under the wheel model, shape (2, n):
+    what :func:`sample_motion` draws from ``rng`` (a runner may draw them ahead and pass them)."""
+    return rng.standard_normal((2, n))
+
+
+def _wheel_step(P: Array, sr: float, sl: float, m: Motion, b: float, z: Array,
                 trig: Any = np.float64, out: Array | None = None) -> Array:  # fmt: skip
     """``Δs' ~ N(Δs, k|Δs|)`` per wheel and particle, then the midpoint step (as kinematics.step).
 
-    ``trig``: the float type of ``cos φ, sin φ`` (float32 is several times faster; its rounding,
-    ~10⁻⁷ of the step, is far below the wheel noise). ``out``: the (n, 3) array to write, not ``P``.
-    The operations write into the draws' own (2, n) buffer or ``out`` where they can.
+    ``z``: the standard normal draws (2, n) (:func:`wheel_draws`), used up in place. ``trig``: the
+    float type of ``cos φ, sin φ`` (float32 is several times faster; its rounding, ~10⁻⁷ of the step,
+    is far below the wheel noise). ``out``: the (n, 3) array to write, not ``P``. The operations write
+    into ``z`` or ``out`` where they can.
     """
-    n = P.shape[0]
-    z = rng.standard_normal((2, n))
     z[0] *= math.sqrt(m.k_r * abs(sr))
     z[0] += sr  # Δs_r'
     z[1] *= math.sqrt(m.k_l * abs(sl))
@@ -126,7 +131,7 @@ def _wheel_step(P: Array, sr: float, sl: float, m: Motion, b: float, rng: np.ran
 
 def sample_motion(
     particles: Array, motion: Motion, run: SimulatedRun, k: int, rng: np.random.Generator,
-    dtype: str = "float64", out: Array | None = None,
+    dtype: str = "float64", out: Array | None = None, draws: Array | None = None,
 ) -> Array:  # fmt: skip
     """Move every particle by step ``k → k+1`` of ``run`` under ``motion``'s noise.
 
@@ -137,6 +142,8 @@ def sample_motion(
     rng : numpy.random.Generator
     dtype : {"float64", "float32"} — the wheel model's heading trigonometry (the pose stays float64)
     out : ndarray, shape (n, 3), optional — where to write the moved particles (not ``particles``)
+    draws : ndarray, shape (2, n), optional — the wheel model only: its draws
+        (:func:`wheel_draws`) taken from ``rng`` beforehand; used up (overwritten)
 
     Returns
     -------
@@ -145,7 +152,12 @@ def sample_motion(
     n = particles.shape[0]
     if motion.model == "wheels":
         trig = np.float64 if check_choice("dtype", dtype, ("float64", "float32")) == "float64" else np.float32
-        return _wheel_step(particles, float(run.ds_r[k]), float(run.ds_l[k]), motion, run.track, rng, trig, out)
+        z = wheel_draws(rng, n) if draws is None else draws
+        if z.shape != (2, n):
+            raise ValueError(f"draws must have shape (2, {n}) (allowed: wheel_draws of the particles), got {z.shape}")
+        return _wheel_step(particles, float(run.ds_r[k]), float(run.ds_l[k]), motion, run.track, z, trig, out)
+    if draws is not None:
+        raise ValueError(f"draws are the wheel model's (allowed: motion.model 'wheels'), got model {motion.model!r}")
     if motion.model == "velocity":
         moved = sample_velocity(particles, run.controls[k], run.dt, motion.alpha_array, n, rng,
                                 motion.noise, motion.scaling)  # fmt: skip

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 from ..core.kinematics import wrap_angle
 from ..core.validation import check_choice, check_positive, check_positive_int
 from .measures import mass_region_flags, weighted_mean_cov
-from .motion import Motion, sample_motion
+from .motion import Motion, sample_motion, wheel_draws
 from .resampling import (
     SCHEMES,
     _check_threshold,
@@ -64,6 +64,7 @@ from .sensors import (
     beam_log_likelihood,
     chunks,
     landmark_log_likelihood_ml,
+    run_ahead,
     run_blocks,
 )
 from .simulate import SimulatedRun
@@ -292,13 +293,14 @@ def _measurement_model(
 
 def _predict_and_weigh(
     P: Array, model: tuple[BlockModel, int] | None, run: SimulatedRun, k: int, cfg: ParticleFilterConfig,
-    gens: Sequence[np.random.Generator],
+    gens: Sequence[np.random.Generator], draws: Sequence[Array] | None = None,
 ) -> tuple[Array, Array | None, Array | None]:  # fmt: skip
     """Move the particles by step ``k−1 → k`` and evaluate step ``k``'s likelihood, block by block.
 
     Block ``c`` of :func:`~pose_uncertainty.localization.sensors.chunks` draws its motion from its
     own generator ``gens[c]`` (spawned once per run from the filter's), so the result does not
-    depend on ``cfg.workers``, the threads the blocks run on.
+    depend on ``cfg.workers``, the threads the blocks run on; ``draws``: the wheel model's draws of
+    each block for this step, drawn ahead (:func:`_draw_ahead`).
 
     Returns
     -------
@@ -313,7 +315,8 @@ def _predict_and_weigh(
     def block(c: int) -> None:
         a, b = blocks[c]
         if k > 0:
-            sample_motion(P[a:b], cfg.motion, run, k - 1, gens[c], cfg.dtype, out=out[a:b])
+            sample_motion(P[a:b], cfg.motion, run, k - 1, gens[c], cfg.dtype, out=out[a:b],
+                          draws=None if draws is None else draws[c])  # fmt: skip
         if model is not None and ll is not None:
             wr = model[0](out[a:b], ll[a:b])
             if wr is not None and wrong is not None:
@@ -322,6 +325,35 @@ def _predict_and_weigh(
     if k > 0 or model is not None:
         run_blocks(block, len(blocks), cfg.workers)
     return out, ll, wrong
+
+
+def _thread_plan(cfg: ParticleFilterConfig, sensor: RangeBearingSensor | BeamSensor) -> tuple[bool, bool]:
+    """How a run uses ``cfg.workers`` > 1 threads: (draw the wheel normals ahead, split the blocks).
+
+    The results are the same either way. Blocks whose numpy calls are long (float64 trigonometry,
+    beams, maximum-likelihood association) run on the threads together, and the next step's wheel
+    draws are made during the serial correction. The float32 landmark likelihood is many short
+    calls, which two threads spend handing the GIL to each other (measured: slower than one
+    thread), so its blocks stay on the calling thread and the other draws the next step's normals
+    meanwhile (~20 % of a step).
+    """
+    if cfg.workers == 1:
+        return False, False
+    ahead = cfg.motion.model == "wheels"
+    short_calls = cfg.dtype == "float32" and isinstance(sensor, RangeBearingSensor) and cfg.association == "known"
+    return ahead, not (ahead and short_calls)
+
+
+def _draw_ahead(gens: Sequence[np.random.Generator], n: int, workers: int) -> Callable[[], list[Array]]:
+    """Start drawing the wheel model's normals of every block for the next step on a pool thread.
+
+    Returns ``finish()`` (:func:`~pose_uncertainty.localization.sensors.run_ahead`), which gives the
+    draws. Each block's generator serves its motion only and gives the same numbers in the same
+    order whichever thread draws them, so the run does not depend on it; the draws (~20 % of a
+    step on one thread) then overlap the correction and the resampling of the current step.
+    """
+    blocks = chunks(n)
+    return run_ahead(lambda: [wheel_draws(g, b - a) for g, (a, b) in zip(gens, blocks, strict=True)], workers)
 
 
 def _particle_region_flags(particles: Array, w: Array, world: World, truth: Array, h: float) -> NDArray[np.bool_]:
@@ -371,10 +403,18 @@ def run_particle(
     lw = np.full(n, uniform)  # log w, kept beside w: a correction adds, no logarithm per step
     slow_fast = [-math.inf, -math.inf]
     gens = rng.spawn(len(chunks(n)))  # the motion's generator of each block of particles
+    ahead, split = _thread_plan(cfg, sensor)
+    kcfg = cfg if split else replace(cfg, workers=1)  # the blocks' and the resampling's threads
+    draws = None  # this step's wheel draws when drawn ahead
     for k in range(run.n_steps + 1):
         rec.tic()
+        finish, here = None, draws
+        if ahead and not split and k < run.n_steps:  # the next step's draws during all of this one
+            finish = _draw_ahead(gens, n, cfg.workers)
         model = _measurement_model(run, world, sensor, k, cfg)
-        P, ll, wrong_each = _predict_and_weigh(P, model, run, k, cfg, gens)
+        P, ll, wrong_each = _predict_and_weigh(P, model, run, k, kcfg, gens, here)
+        if ahead and split and k < run.n_steps:  # during the correction and the resampling
+            finish = _draw_ahead(gens, n, cfg.workers)
         ess, res, inj, logev, m, wrong = _ess(w), False, 0, 0.0, 0, 0.0
         if model is not None and ll is not None:
             m = model[1]
@@ -384,9 +424,11 @@ def run_particle(
             lw -= logev
             ess = _ess(w)
             inj = _n_inject(cfg, logev / max(m, 1), slow_fast, rng)
-            P, w, res = pf_resample(P, w, rng, cfg.resampling, cfg.ess_threshold, inj, world, cfg.workers)
+            P, w, res = pf_resample(P, w, rng, cfg.resampling, cfg.ess_threshold, inj, world, kcfg.workers)
             if res:
                 lw.fill(uniform)
+        if finish is not None:
+            draws = finish()  # within the step's clock
         rec.toc(k)
         mean, cov = weighted_mean_cov(P, w)
         flags = _particle_region_flags(P, w, world, run.true_poses[k], cfg.hdr_resolution)

@@ -39,6 +39,7 @@ from __future__ import annotations
 import itertools
 import math
 import threading
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
@@ -75,6 +76,7 @@ __all__ = [
     "landmark_log_likelihood",
     "landmark_log_likelihood_ml",
     "landmark_visible",
+    "run_ahead",
     "run_blocks",
     "sample_beam_measurements",
     "sample_landmark_measurements",
@@ -460,6 +462,29 @@ def run_blocks(fn: Any, n_blocks: int, workers: int = 1) -> None:
     take()
     for f in futures:
         f.result()
+
+
+def run_ahead(fn: Callable[[], Any], workers: int) -> Callable[[], Any]:
+    """Start ``fn()`` on the pool of :func:`run_blocks` and return ``finish``, which gives its result.
+
+    ``finish()`` runs ``fn`` in the caller if no pool thread has started it yet (a pool thread the
+    system has not woken never holds the caller up), else waits for it; with one worker it just runs
+    ``fn``. ``fn`` runs once, and must not depend on the thread.
+    """
+    if check_positive_int("workers", workers) == 1:
+        return fn
+    claim = itertools.count().__next__
+
+    def once() -> tuple[bool, Any]:
+        return (True, fn()) if claim() == 0 else (False, None)
+
+    future = _pool(workers - 1).submit(once)
+
+    def finish() -> Any:
+        ran, value = once()
+        return value if ran else future.result()[1]
+
+    return finish
 
 
 #: Largest block of particles of :func:`chunks`.
