@@ -505,8 +505,9 @@ def test_work_run_ahead_runs_once_on_whichever_thread() -> None:
 def test_particle_region_flags_from_occupied_cells_equal_the_whole_grid(rng: np.random.Generator) -> None:
     world = World(np.zeros((0, 2)), np.zeros(0, dtype=int), bounds=(0.0, 4.0, 0.0, 3.0))
     h = 0.1
-    for _ in range(20):
-        P = np.column_stack([rng.normal(2, 0.3, 400), rng.normal(1.5, 0.2, 400), np.zeros(400)])
+    for trial in range(40):
+        spread = 0.3 if trial % 2 else 1.5  # a tight cloud (a box of cells), or one partly off the grid
+        P = np.column_stack([rng.normal(2, spread, 400), rng.normal(1.5, spread * 2 / 3, 400), np.zeros(400)])
         w = rng.random(400)
         w /= w.sum()
         truth = np.array([rng.normal(2, 0.4), rng.normal(1.5, 0.3), 0.0])

@@ -357,22 +357,33 @@ def _draw_ahead(gens: Sequence[np.random.Generator], n: int, workers: int) -> Ca
 
 
 def _particle_region_flags(particles: Array, w: Array, world: World, truth: Array, h: float) -> NDArray[np.bool_]:
-    """Truth in the highest-density regions of the particles' weighted (x, y) histogram (cells of ``h``)."""
+    """Truth in the highest-density regions of the particles' weighted (x, y) histogram (cells of ``h``).
+
+    Only cells with mass can be in a region (and the truth's cell is outside without mass): the
+    flags of the occupied cells alone are those of the whole grid. They are counted on the box of
+    cells the particles span, numbered row by row as the grid is (so the occupied cells come in
+    the grid's order, each summed over its particles in their order: the same numbers).
+    """
     x0, x1, y0, y1 = world.bounds  # type: ignore[misc]
     nx, ny = max(1, math.ceil((x1 - x0) / h)), max(1, math.ceil((y1 - y0) / h))
     i = np.floor((particles[:, 0] - x0) / h).astype(np.int64)
     j = np.floor((particles[:, 1] - y0) / h).astype(np.int64)
     ok = (i >= 0) & (i < nx) & (j >= 0) & (j < ny)
-    hist = np.bincount(i[ok] * ny + j[ok], w[ok], minlength=nx * ny)
     ti, tj = math.floor((truth[0] - x0) / h), math.floor((truth[1] - y0) / h)
-    if not hist.sum() > 0 or not (0 <= ti < nx and 0 <= tj < ny):
-        return np.zeros(3, dtype=bool)
-    # only cells with mass can be in a region (and the truth's cell is outside without mass):
-    # the flags of the occupied cells alone are those of the whole grid, at the cost of ≤ n cells
+    none = np.zeros(3, dtype=bool)
+    if not ok.any() or not (0 <= ti < nx and 0 <= tj < ny):
+        return none
+    i, j = i[ok], j[ok]
+    i0, j0 = int(i.min()), int(j.min())
+    span = int(j.max()) - j0 + 1
+    hist = np.bincount((i - i0) * span + (j - j0), w[ok])
+    key = (ti - i0) * span + (tj - j0)
+    if not hist.sum() > 0 or not (0 <= tj - j0 < span and 0 <= key < hist.size):
+        return none
     occupied = np.flatnonzero(hist)
-    cell = int(np.searchsorted(occupied, ti * ny + tj))
-    if cell == occupied.size or occupied[cell] != ti * ny + tj:
-        return np.zeros(3, dtype=bool)
+    cell = int(np.searchsorted(occupied, key))
+    if cell == occupied.size or occupied[cell] != key:
+        return none
     return mass_region_flags(hist[occupied][:, None], (cell, 0))
 
 
