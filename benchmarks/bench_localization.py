@@ -284,6 +284,10 @@ def _bench_particle(world: W.World, sen: S.RangeBearingSensor, run: SIM.Simulate
     best = max(("float32", "float32_1_thread", "float64", "float64_1_thread"),
                key=lambda key: out[key]["particle_updates_per_second"])  # fmt: skip
     out["best"] = {"config": best, "particle_updates_per_second": out[best]["particle_updates_per_second"]}
+    out["note"] = ("2 threads: float64 splits the particles' blocks over the threads and draws the next step's "
+                   "wheel normals during the correction; float32 keeps the blocks on one thread (its short numpy "
+                   "calls would hand the GIL back and forth) and the other draws the next step's normals. The "
+                   "cores are shared with other jobs (load_average_1_min): the 2-thread numbers suffer most.")  # fmt: skip
     out["goal_met"] = bool(out[best]["particle_updates_per_second"] >= 1e7)  # on at most the 2 cores
     print(f"PF python loop ≈ {t_loop:.0f} s → ×{out['speedup_vs_loop_float64']}")
     return out

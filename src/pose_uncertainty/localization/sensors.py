@@ -445,23 +445,35 @@ def chunks(n: int, size: int | None = None) -> list[tuple[int, int]]:
 def run_blocks(fn: Any, n_blocks: int, workers: int = 1) -> None:
     """Call ``fn(0) … fn(n_blocks − 1)``, each once: with ``workers`` > 1 the calling thread and a
     persistent pool of ``workers − 1`` threads take the blocks in turn (numpy releases the GIL in its
-    loops). A block goes to whichever thread is free first, so a pool thread that the system has
-    not woken yet (other jobs on the cores) never holds up the caller; ``fn`` must not depend on the thread.
+    loops). A block goes to whichever thread is free first, and the caller waits only for blocks
+    another thread has taken, so a pool thread that is busy or not yet woken (other jobs on the
+    cores) never holds it up; ``fn`` must not depend on the thread. An error of a block is raised here.
     """
     if check_positive_int("workers", workers) == 1 or n_blocks == 1:
         for c in range(n_blocks):
             fn(c)
         return
     claim = itertools.count().__next__  # atomic under the GIL: every block is taken once
+    done = threading.Semaphore(0)  # released once per finished block
+    errors: list[BaseException] = []
 
     def take() -> None:
         while (c := claim()) < n_blocks:
-            fn(c)
+            try:
+                fn(c)
+            except Exception as e:  # noqa: BLE001 - any error of a block is re-raised in the caller
+                errors.append(e)
+            finally:
+                done.release()
 
-    futures = [_pool(workers - 1).submit(take) for _ in range(min(workers, n_blocks) - 1)]
+    pool = _pool(workers - 1)
+    for _ in range(min(workers, n_blocks) - 1):
+        pool.submit(take)
     take()
-    for f in futures:
-        f.result()
+    for _ in range(n_blocks):
+        done.acquire()
+    if errors:
+        raise errors[0]
 
 
 def run_ahead(fn: Callable[[], Any], workers: int) -> Callable[[], Any]:
