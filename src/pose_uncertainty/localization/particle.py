@@ -104,7 +104,8 @@ class ParticleFilterConfig:
         ``wrong_associations`` is then the weighted mean count of wrong ones
     dtype : {"float64", "float32"} — arithmetic of the landmark likelihood
     hdr_resolution : float [m], > 0 — cell of the particle histogram for the region coverage
-    workers : int ≥ 1 — threads of the landmark likelihood (results do not depend on it)
+    workers : int ≥ 1 — threads of a step: the blocks of particles and the next step's wheel
+        draws (:func:`_thread_plan`); the results do not depend on it
     """
 
     n_particles: int = 2000
@@ -419,11 +420,11 @@ def run_particle(
     draws = None  # this step's wheel draws when drawn ahead
     for k in range(run.n_steps + 1):
         rec.tic()
-        finish, here = None, draws
+        finish = None
         if ahead and not split and k < run.n_steps:  # the next step's draws during all of this one
             finish = _draw_ahead(gens, n, cfg.workers)
         model = _measurement_model(run, world, sensor, k, cfg)
-        P, ll, wrong_each = _predict_and_weigh(P, model, run, k, kcfg, gens, here)
+        P, ll, wrong_each = _predict_and_weigh(P, model, run, k, kcfg, gens, draws)
         if ahead and split and k < run.n_steps:  # during the correction and the resampling
             finish = _draw_ahead(gens, n, cfg.workers)
         ess, res, inj, logev, m, wrong = _ess(w), False, 0, 0.0, 0, 0.0
