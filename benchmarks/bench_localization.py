@@ -6,10 +6,13 @@ Writes ``benchmarks/results/localization.json``.
 1. Particle filter (MCL): 10⁴ particles, 20 landmarks, 1000 steps (a 20 m × 20 m room,
    two laps of a 6 m square at 0.5 m/s, Δt = 0.1 s, range–bearing sensor every step with an
    8 m range and a full field of view: 13 landmarks seen per step on average), wheel-noise
-   prediction, systematic resampling at ESS < n/2; float64 and float32 arithmetic, on 1 and
+   prediction, systematic resampling at ESS < n/2; float64 and float32 arithmetic, each on 1 and
    2 threads (the particles in two blocks, each with its own spawned generator: the same result
-   on any number of threads). Particle-updates per second = particles × steps / Σ per-step
+   on any number of threads), the fastest of ``REPEATS`` runs (the machine is shared: the load
+   average is recorded). Particle-updates per second = particles × steps / Σ per-step
    kernel time (prediction + weighting + resampling; the measures computed for the logs are outside).
+   ``goal_met``: the best configuration (at most the 2 cores) reaches 10⁷. A profile of one thread's
+   step (ms per step in each part, the measures between the steps as in a run) says where the time goes.
    Baseline: the per-particle Python loop of PythonRobotics' ``particle_filter.py``
    (sample motion, weight by each observed landmark with ``math.exp``, low-variance
    resampling in a loop), timed on 100 particles × 100 steps and scaled.
@@ -37,18 +40,22 @@ import numpy as np
 
 from pose_uncertainty.core import trajectories as tr
 from pose_uncertainty.core.grids import Grid
+from pose_uncertainty.core.kinematics import wrap_angle
 from pose_uncertainty.localization import ekf as E
 from pose_uncertainty.localization import histogram as HF
 from pose_uncertainty.localization import particle as PF
 from pose_uncertainty.localization import sensors as S
 from pose_uncertainty.localization import simulate as SIM
 from pose_uncertainty.localization import world as W
-from pose_uncertainty.localization.motion import Motion
+from pose_uncertainty.localization.measures import weighted_mean_cov
+from pose_uncertainty.localization.motion import Motion, sample_motion
+from pose_uncertainty.localization.resampling import normalize_log_weights
 from pose_uncertainty.methods import maps as M
 
 from ._common import write_results
 
 K = 1e-3  # wheel-noise constant [m]
+REPEATS = 3  # runs of each particle-filter configuration (the fastest is reported)
 
 
 def _room() -> tuple[W.World, S.RangeBearingSensor, SIM.SimulatedRun]:
@@ -175,30 +182,95 @@ def _pr_ekf(run: SIM.SimulatedRun, lm: np.ndarray, steps: int) -> None:
 # ----------------------------------------------------------------------------- benchmarks
 
 
+def _particle_profile(world: W.World, sen: S.RangeBearingSensor, run: SIM.SimulatedRun, n: int,
+                      dtype: str) -> dict[str, float]:  # fmt: skip
+    """Where one thread's kernel time goes [ms per step]: run_particle's loop with a clock per part.
+
+    The same calls as :func:`run_particle` (one thread, the blocks one after the other), the
+    measures for the logs computed between the steps as there; the normal draws of the motion
+    timed apart on a generator of their own (the same sizes).
+    """
+    cfg = PF.ParticleFilterConfig(n_particles=n, motion=Motion(k_r=K, k_l=K), dtype=dtype, workers=1)
+    rng = np.random.default_rng(1)
+    P = PF.initial_particles(PF.Start(pose=tuple(run.true_poses[0])), world, n, rng)
+    w, lw = np.full(n, 1.0 / n), np.full(n, -math.log(n))
+    blocks = S.chunks(n)
+    gens, spare = rng.spawn(len(blocks)), np.random.default_rng(0)
+    parts = dict.fromkeys(("measurement_preparation", "motion", "likelihood", "normalisation", "resampling",
+                           "measures_outside_the_kernel"), 0.0)  # fmt: skip
+    clock = time.perf_counter
+    for k in range(run.n_steps + 1):
+        t0 = clock()
+        model = PF._measurement_model(run, world, sen, k, cfg)
+        parts["measurement_preparation"] += clock() - t0
+        moved, ll = (np.empty_like(P) if k else P), np.empty(n)
+        for c, (a, b) in enumerate(blocks):
+            t0 = clock()
+            if k:
+                sample_motion(P[a:b], cfg.motion, run, k - 1, gens[c], dtype, out=moved[a:b])
+            t1 = clock()
+            if model is not None:
+                model[0](moved[a:b], ll[a:b])
+            parts["motion"] += t1 - t0
+            parts["likelihood"] += clock() - t1
+        P = moved
+        if model is not None:
+            t0 = clock()
+            lw += ll
+            w, logev = normalize_log_weights(lw)
+            lw -= logev
+            t1 = clock()
+            P, w, res = PF.pf_resample(P, w, rng, cfg.resampling, cfg.ess_threshold, 0, world, 1)
+            if res:
+                lw.fill(-math.log(n))
+            parts["normalisation"] += t1 - t0
+            parts["resampling"] += clock() - t1
+        t0 = clock()
+        weighted_mean_cov(P, w)
+        PF._particle_region_flags(P, w, world, run.true_poses[k], cfg.hdr_resolution)
+        P[:, 2] = wrap_angle(P[:, 2])
+        parts["measures_outside_the_kernel"] += clock() - t0
+    t0 = clock()
+    for _ in range(run.n_steps):
+        for a, b in blocks:
+            spare.standard_normal((2, b - a))
+    out = {key: round(1e3 * v / run.n_steps, 4) for key, v in parts.items()}
+    out["motion_of_which_normal_draws"] = round(1e3 * (clock() - t0) / run.n_steps, 4)
+    out["kernel_total"] = round(sum(v for key, v in out.items() if key in parts and key != "measures_outside_the_kernel"), 4)
+    return out
+
+
 def _bench_particle(world: W.World, sen: S.RangeBearingSensor, run: SIM.SimulatedRun) -> dict[str, Any]:
     n, steps = 10_000, run.n_steps
     out: dict[str, Any] = {"particles": n, "steps": steps, "landmarks": world.n_landmarks,
-                           "mean_measurements_per_step": round(float(run.landmark_valid[1:].sum(axis=1).mean()), 2)}  # fmt: skip
+                           "mean_measurements_per_step": round(float(run.landmark_valid[1:].sum(axis=1).mean()), 2),
+                           "repeats": REPEATS}  # fmt: skip
     means = {}
-    for dtype, workers in (("float64", 2), ("float32", 1), ("float32", 2)):
+    for dtype, workers in (("float64", 2), ("float64", 1), ("float32", 1), ("float32", 2)):
         cfg = PF.ParticleFilterConfig(n_particles=n, motion=Motion(k_r=K, k_l=K), dtype=dtype, workers=workers)
-        t0 = time.perf_counter()
-        res = PF.run_particle(run, world, sen, np.random.default_rng(1), cfg)
-        wall = time.perf_counter() - t0
-        kernel = float(res.step_seconds.sum())
+        runs = []
+        for _ in range(REPEATS):  # the machine is shared: the fastest of a few runs
+            t0 = time.perf_counter()
+            res = PF.run_particle(run, world, sen, np.random.default_rng(1), cfg)
+            runs.append((float(res.step_seconds.sum()), time.perf_counter() - t0, res))
+        kernel, wall, res = min(runs, key=lambda r: r[0])
         err = np.hypot(*(res.mean[:, :2] - run.true_poses[:, :2]).T)
         means[(dtype, workers)] = res.mean
         key = dtype if workers == 2 else f"{dtype}_1_thread"
         out[key] = {
             "threads": workers,
             "kernel_seconds": round(kernel, 3),
+            "kernel_seconds_of_each_repeat": [round(r[0], 3) for r in runs],
             "wall_seconds_with_measures": round(wall, 3),
             "particle_updates_per_second": float(f"{n * steps / kernel:.3g}"),
             "resampling_steps": int(res.diagnostics["resampled"].sum()),
             "rms_position_error_m": round(float(np.sqrt(np.mean(err**2))), 4),
         }
         print(f"PF {key}: {kernel:.2f} s kernels ({wall:.2f} s wall) → {n * steps / kernel:.3g} particle-updates/s")
-    out["float32_same_result_on_1_and_2_threads"] = bool(np.array_equal(means[("float32", 1)], means[("float32", 2)]))
+    for dtype in ("float64", "float32"):
+        out[f"{dtype}_same_result_on_1_and_2_threads"] = bool(np.array_equal(means[(dtype, 1)], means[(dtype, 2)]))
+    out["float32_1_thread_profile_ms_per_step"] = _particle_profile(world, sen, run, n, "float32")
+    out["float64_1_thread_profile_ms_per_step"] = _particle_profile(world, sen, run, n, "float64")
     sub_n, sub_steps = 100, 100
     t0 = time.perf_counter()
     _pr_particle_filter(run, world.landmarks, sub_n, sub_steps, np.random.default_rng(0))
@@ -209,7 +281,14 @@ def _bench_particle(world: W.World, sen: S.RangeBearingSensor, run: SIM.Simulate
     out["speedup_vs_loop_float64"] = round(t_loop / out["float64"]["kernel_seconds"], 1)
     out["speedup_vs_loop_float32"] = round(t_loop / out["float32"]["kernel_seconds"], 1)
     out["goal_particle_updates_per_second"] = 1e7
-    out["goal_met"] = bool(out["float32"]["particle_updates_per_second"] >= 1e7)
+    best = max(("float32", "float32_1_thread", "float64", "float64_1_thread"),
+               key=lambda key: out[key]["particle_updates_per_second"])  # fmt: skip
+    out["best"] = {"config": best, "particle_updates_per_second": out[best]["particle_updates_per_second"]}
+    out["note"] = ("2 threads: float64 splits the particles' blocks over the threads and draws the next step's "
+                   "wheel normals during the correction; float32 keeps the blocks on one thread (its short numpy "
+                   "calls would hand the GIL back and forth) and the other draws the next step's normals. The "
+                   "cores are shared with other jobs (load_average_1_min): the 2-thread numbers suffer most.")  # fmt: skip
+    out["goal_met"] = bool(out[best]["particle_updates_per_second"] >= 1e7)  # on at most the 2 cores
     print(f"PF python loop ≈ {t_loop:.0f} s → ×{out['speedup_vs_loop_float64']}")
     return out
 

@@ -104,6 +104,18 @@ def test_wrap_angle_range():
     assert kin.wrap_angle(-math.pi) == math.pi
 
 
+def test_wrap_angle_of_angles_in_range_is_the_modulo_bit_for_bit():
+    # the shortcut for large arrays already in (−π, π] (no division) against mod, with the edges:
+    # ±π, the neighbours of ±π, ±0, tiny and random angles; one angle out of range (or NaN) takes mod for all
+    edges = [math.pi, -math.pi, np.nextafter(math.pi, 0), np.nextafter(-math.pi, 0), 0.0, -0.0, 1e-300, -1e-300]
+    a = np.concatenate([edges, np.random.default_rng(3).uniform(-math.pi, math.pi, 1000)])
+    for angles in (a, np.append(a, 7.0), np.append(a, np.nan)):
+        want = np.where(np.mod(angles + np.pi, 2 * np.pi) - np.pi == -np.pi, np.pi, np.mod(angles + np.pi, 2 * np.pi) - np.pi)
+        got = kin.wrap_angle(angles)
+        np.testing.assert_array_equal(got, want)  # (NaN where NaN)
+        np.testing.assert_array_equal(np.signbit(got), np.signbit(want))
+
+
 @pytest.mark.parametrize(
     ("track", "match"),
     [(0.0, r"track must be > 0.*got 0\.0"), (-0.1, r"track must be > 0.*-0\.1"),

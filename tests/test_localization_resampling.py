@@ -90,6 +90,29 @@ def test_selection_equals_the_seeds_loop(rng):
         np.testing.assert_array_equal(R.select(q, T), _seed_loop(q, T))
 
 
+def test_copies_per_particle_equal_the_selection(rng):
+    # selection_counts (a guess from each pointer's stratum, corrected by comparisons) against
+    # the binary-search selection it replaces, on uneven weights, zero weights (equal cumulative
+    # weights), pointers exactly on cumulative weights (ties: T_i = q_j selects past j), a pointer
+    # at 1 (select's guard sends it to the last particle), and more or fewer pointers than particles
+    cases = [_weights(), np.full(N, 1.0 / N), np.eye(N)[3], np.r_[np.zeros(N - 1), 1.0]]
+    for w in cases:
+        q = R.cumulative_weights(w)
+        for n in (1, 7, N, 3 * N + 1):
+            pointer_sets = [R.pointers(n, rng, scheme) for scheme in R.SCHEMES]
+            pointer_sets += [np.arange(n) / n, (np.arange(n) + (1 - 2**-53)) / n, np.sort(rng.choice(q, n))]
+            for T in pointer_sets:
+                want = R.copies(R.select(q, T), N)
+                for scheme in R.SCHEMES:
+                    np.testing.assert_array_equal(R.selection_counts(q, T, scheme), want)
+            # the particle filter's systematic counts, whose pointers (i + u)/n are never built
+            for u in (0.0, 1 - 2**-53, float(rng.random())):
+                want = R.copies(R.select(q, (np.arange(n) + u) / n), N)
+                np.testing.assert_array_equal(R._counts_from_below(R._systematic_below(n, u)(q), n), want)
+    q = R.cumulative_weights([0.5, 0.5, 0.0])
+    np.testing.assert_array_equal(R.selection_counts(q, [0.2, 0.7, 1.0]), [1, 1, 1])
+
+
 def test_linear_time_scheme_is_sorting_based_selection(rng):
     # the same uniforms, shuffled and selected by sorting (roulette wheel, binary search per
     # pointer) give the same multiset as the linear-time merge of the sorted exponential spacings

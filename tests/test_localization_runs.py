@@ -23,11 +23,12 @@ from pose_uncertainty.core.tables import read_table
 from pose_uncertainty.localization import ekf as E
 from pose_uncertainty.localization import histogram as HF
 from pose_uncertainty.localization import particle as PF
+from pose_uncertainty.localization import resampling as R
 from pose_uncertainty.localization import sensors as S
 from pose_uncertainty.localization import simulate as SIM
 from pose_uncertainty.localization.measures import mass_region_flags, nees, pose_errors
-from pose_uncertainty.localization.motion import Motion
-from pose_uncertainty.localization.world import World
+from pose_uncertainty.localization.motion import Motion, sample_motion, wheel_draws
+from pose_uncertainty.localization.world import World, sample_free_poses
 from pose_uncertainty.logs import localization_log as LL
 from pose_uncertainty.logs import sweep
 from pose_uncertainty.logs.localization import (
@@ -412,24 +413,101 @@ def test_landmark_likelihood_in_blocks_and_threads_is_the_whole(rng: np.random.G
     assert [b - a for a, b in S.chunks(20_000)] == [6667, 6667, 6666]
 
 
-def test_particle_filter_does_not_depend_on_its_threads() -> None:
+@pytest.mark.parametrize(
+    ("dtype", "motion"),
+    [("float32", Motion(k_r=1e-3, k_l=1e-3)),  # second thread: the next step's wheel draws, blocks on one
+     ("float64", Motion(k_r=1e-3, k_l=1e-3)),  # blocks on both threads, wheel draws during the correction
+     ("float64", Motion(model="velocity"))],  # blocks on both threads
+)
+def test_particle_filter_does_not_depend_on_its_threads(dtype: str, motion: Motion) -> None:
     # 9000 particles: two blocks, each with its own generator; one thread or two, the same run
     world = World(np.array([[2.0, 1.0], [0.0, 3.0], [4.0, -1.0]]), np.arange(3))
     sen = S.RangeBearingSensor(range_std=0.1, bearing_std=0.05, period=0.3)
     run = SIM.simulate(tr.straight(1.0, speed=0.5, dt=0.1), world, np.random.default_rng(1), landmark_sensor=sen)
     out = []
     for workers in (1, 2):
-        cfg = PF.ParticleFilterConfig(n_particles=9000, motion=Motion(k_r=1e-3, k_l=1e-3), dtype="float32", workers=workers)
+        cfg = PF.ParticleFilterConfig(n_particles=9000, motion=motion, dtype=dtype, workers=workers)
         out.append(PF.run_particle(run, world, sen, np.random.default_rng(2), cfg, keep=[run.n_steps]))
     np.testing.assert_array_equal(out[0].mean, out[1].mean)
     np.testing.assert_array_equal(out[0].snapshots[run.n_steps]["particles"], out[1].snapshots[run.n_steps]["particles"])
 
 
+def test_resampling_by_copies_in_blocks_is_the_selection(rng: np.random.Generator) -> None:
+    # pf_resample (copies per particle from the pointers' strata, written block by block, on one or
+    # two threads; the systematic pointers never built) against the seed's selection on the same
+    # draws: particles[select(q, pointers)], then the injected ones. 20 001 particles: three blocks.
+    world = World(np.zeros((0, 2)), np.zeros(0, dtype=int), bounds=(0.0, 4.0, 0.0, 3.0))
+    n = 20_001
+    P = rng.normal(0.0, 1.0, (n, 3))
+    w = rng.gamma(0.5, size=n)
+    w[rng.random(n) < 0.2] = 0.0
+    w /= w.sum()
+    for scheme in R.SCHEMES:
+        for n_inject in (0, 37):
+            g = np.random.default_rng(5)
+            T = R.pointers(n - n_inject, g, scheme)
+            injected = sample_free_poses(world, n_inject, g) if n_inject else np.zeros((0, 3))
+            want = np.vstack([P[R.select(R.cumulative_weights(w), T)], injected])
+            for workers in (1, 2):
+                got, w_new, res = PF.pf_resample(P, w, np.random.default_rng(5), scheme, 0.5, n_inject, world, workers)
+                np.testing.assert_array_equal(got, want)
+                assert res
+                assert np.all(w_new == 1.0 / n)
+
+
+def test_motion_and_likelihood_write_into_given_arrays(rng: np.random.Generator) -> None:
+    # the out= forms the particle filter uses are the allocating ones, bit for bit
+    world = World(np.array([[2.0, 1.0], [0.0, 3.0], [4.0, -1.0]]), np.arange(3))
+    sen = S.RangeBearingSensor(range_std=0.1, bearing_std=0.05)
+    run = SIM.simulate(tr.straight(1.0, speed=0.5, dt=0.1), world, np.random.default_rng(1), landmark_sensor=sen)
+    P = rng.normal(0.0, 0.1, (500, 3))
+    models = (Motion(k_r=1e-3, k_l=2e-3), Motion(model="velocity"), Motion(model="odometry"))
+    for motion in models:
+        for dtype in ("float64", "float32"):
+            out = np.full_like(P, np.nan)
+            got = sample_motion(P, motion, run, 3, np.random.default_rng(4), dtype, out=out)
+            assert got is out
+            np.testing.assert_array_equal(out, sample_motion(P, motion, run, 3, np.random.default_rng(4), dtype))
+    # the wheel draws taken beforehand (as a second thread draws them ahead) move the particles alike
+    for dtype in ("float64", "float32"):
+        draws = wheel_draws(np.random.default_rng(4), 500)
+        np.testing.assert_array_equal(sample_motion(P, models[0], run, 3, np.random.default_rng(99), dtype, draws=draws),
+                                      sample_motion(P, models[0], run, 3, np.random.default_rng(4), dtype))  # fmt: skip
+    with pytest.raises(ValueError, match=r"draws must have shape \(2, 500\)"):
+        sample_motion(P, models[0], run, 3, np.random.default_rng(4), draws=np.zeros((2, 7)))
+    with pytest.raises(ValueError, match="draws are the wheel model's"):
+        sample_motion(P, models[1], run, 3, np.random.default_rng(4), draws=np.zeros((2, 500)))
+    z, lm = run.landmark_z[4][run.landmark_valid[4]], world.landmarks[run.landmark_valid[4]]
+    assert z.shape[0] == 3
+    for dtype in ("float64", "float32"):
+        lik = S.LandmarkLikelihood(z, lm, sen, dtype)
+        out = np.full(500, np.nan)
+        lik(P, out)
+        np.testing.assert_array_equal(out, lik(P))
+        np.testing.assert_array_equal(S.LandmarkLikelihood.trusted(z, lm, sen, dtype)(P), lik(P))
+        np.testing.assert_array_equal(lik(P), S.landmark_log_likelihood(P, z, lm, sen, dtype=dtype))
+
+
+def test_work_run_ahead_runs_once_on_whichever_thread() -> None:
+    # run_ahead: the result of one call, whether a pool thread or the caller ran it; run_blocks: every
+    # block once, however the caller and the pool thread share them
+    calls: list[int] = []
+    for _ in range(50):
+        finish = S.run_ahead(lambda: calls.append(1) or len(calls), 2)
+        assert finish() == len(calls)
+    assert len(calls) == 50
+    assert S.run_ahead(lambda: 7, 1)() == 7
+    seen: list[int] = []
+    S.run_blocks(seen.append, 9, 2)
+    assert sorted(seen) == list(range(9))
+
+
 def test_particle_region_flags_from_occupied_cells_equal_the_whole_grid(rng: np.random.Generator) -> None:
     world = World(np.zeros((0, 2)), np.zeros(0, dtype=int), bounds=(0.0, 4.0, 0.0, 3.0))
     h = 0.1
-    for _ in range(20):
-        P = np.column_stack([rng.normal(2, 0.3, 400), rng.normal(1.5, 0.2, 400), np.zeros(400)])
+    for trial in range(40):
+        spread = 0.3 if trial % 2 else 1.5  # a tight cloud (a box of cells), or one partly off the grid
+        P = np.column_stack([rng.normal(2, spread, 400), rng.normal(1.5, spread * 2 / 3, 400), np.zeros(400)])
         w = rng.random(400)
         w /= w.sum()
         truth = np.array([rng.normal(2, 0.4), rng.normal(1.5, 0.3), 0.0])

@@ -46,9 +46,18 @@ def wrap_angle(angle: ArrayLike) -> NDArray[np.float64]:
     angle : array_like, any shape [rad]
     """
     a = np.asarray(angle, dtype=np.float64)
-    wrapped = np.mod(a + np.pi, 2.0 * np.pi) - np.pi
+    t = a + np.pi
+    # mod(t, 2π) is t itself, bit for bit, for t in [0, 2π) (fmod is exact there): a large array
+    # already in range (a particle cloud wrapped a step ago) skips the division
+    in_range = t.size > _WRAP_CHECK and t.min() >= 0.0 and t.max() < 2.0 * np.pi  # (NaN: not in range)
+    wrapped = t if in_range else np.mod(t, 2.0 * np.pi)
+    wrapped -= np.pi
     # mod maps +π to −π; the convention here is (−π, π]
     return np.where(wrapped == -np.pi, np.pi, wrapped)
+
+
+#: Size above which :func:`wrap_angle` first checks whether its angles are already in range.
+_WRAP_CHECK = 64
 
 
 def wheel_to_body(

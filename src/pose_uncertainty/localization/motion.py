@@ -33,7 +33,7 @@ from ..core.validation import check_choice, check_nonnegative, check_positive
 from ..methods.motion_models import check_alphas, sample_odometry, sample_velocity
 from .simulate import SimulatedRun
 
-__all__ = ["MOTION_MODELS", "Motion", "sample_motion", "velocity_alphas_for_wheels"]
+__all__ = ["MOTION_MODELS", "Motion", "sample_motion", "velocity_alphas_for_wheels", "wheel_draws"]
 
 MOTION_MODELS: tuple[str, ...] = ("wheels", "velocity", "odometry")
 
@@ -91,36 +91,47 @@ def velocity_alphas_for_wheels(k_r: float, k_l: float, track: float, dt: float) 
     return (kbar / (2 * step), 0.0, 2 * kbar / (b * b * step), 0.0, 0.0, 0.0)
 
 
-def _wheel_step(P: Array, sr: float, sl: float, m: Motion, b: float, rng: np.random.Generator,
-                trig: Any = np.float64) -> Array:  # fmt: skip
+def wheel_draws(rng: np.random.Generator, n: int) -> Array:
+    """The standard normal draws of one step of ``n`` particles under the wheel model, shape (2, n):
+    what :func:`sample_motion` draws from ``rng`` (a runner may draw them ahead and pass them)."""
+    return rng.standard_normal((2, n))
+
+
+def _wheel_step(P: Array, sr: float, sl: float, m: Motion, b: float, z: Array,
+                trig: Any = np.float64, out: Array | None = None) -> Array:  # fmt: skip
     """``Δs' ~ N(Δs, k|Δs|)`` per wheel and particle, then the midpoint step (as kinematics.step).
 
-    ``trig``: the float type of ``cos φ, sin φ`` (float32 is several times faster; its rounding,
-    ~10⁻⁷ of the step, is far below the wheel noise).
+    ``z``: the standard normal draws (2, n) (:func:`wheel_draws`), used up in place. ``trig``: the
+    float type of ``cos φ, sin φ`` (float32 is several times faster; its rounding, ~10⁻⁷ of the step,
+    is far below the wheel noise). ``out``: the (n, 3) array to write, not ``P``. The operations write
+    into ``z`` or ``out`` where they can.
     """
-    z = rng.standard_normal((2, P.shape[0]))
     z[0] *= math.sqrt(m.k_r * abs(sr))
     z[0] += sr  # Δs_r'
     z[1] *= math.sqrt(m.k_l * abs(sl))
     z[1] += sl  # Δs_l'
-    ds = (z[0] + z[1]) * 0.5
-    dth = (z[0] - z[1]) * (1.0 / b)
-    phi = P[:, 2] + 0.5 * dth
-    out = np.empty_like(P)
-    if trig is np.float64:
-        out[:, 0] = P[:, 0] + ds * np.cos(phi)
-        out[:, 1] = P[:, 1] + ds * np.sin(phi)
-    else:
-        phi32 = phi.astype(trig)
-        out[:, 0] = P[:, 0] + ds * np.cos(phi32)
-        out[:, 1] = P[:, 1] + ds * np.sin(phi32)
-    out[:, 2] = P[:, 2] + dth
-    return out
+    res = np.empty_like(P) if out is None else out
+    ds = np.add(z[0], z[1])
+    ds *= 0.5  # Δs = (Δs_r' + Δs_l')/2
+    dth = np.subtract(z[0], z[1], out=z[1])
+    dth *= 1.0 / b  # Δθ = (Δs_r' − Δs_l')/b
+    np.add(P[:, 2], dth, out=res[:, 2])  # θ' = θ + Δθ
+    phi = np.multiply(dth, 0.5, out=z[0])
+    phi += P[:, 2]  # φ = θ + Δθ/2
+    if trig is not np.float64:
+        phi = phi.astype(trig)
+    t = np.cos(phi)
+    c = np.multiply(ds, t)  # Δs cos φ
+    np.sin(phi, out=t)
+    s = np.multiply(ds, t, out=z[1])  # Δs sin φ (Δθ is no longer needed)
+    np.add(P[:, 0], c, out=res[:, 0])  # x' = x + Δs cos φ
+    np.add(P[:, 1], s, out=res[:, 1])  # y' = y + Δs sin φ
+    return res
 
 
 def sample_motion(
     particles: Array, motion: Motion, run: SimulatedRun, k: int, rng: np.random.Generator,
-    dtype: str = "float64",
+    dtype: str = "float64", out: Array | None = None, draws: Array | None = None,
 ) -> Array:  # fmt: skip
     """Move every particle by step ``k → k+1`` of ``run`` under ``motion``'s noise.
 
@@ -130,6 +141,9 @@ def sample_motion(
     motion : Motion; run : SimulatedRun; k : int in [0, N)
     rng : numpy.random.Generator
     dtype : {"float64", "float32"} — the wheel model's heading trigonometry (the pose stays float64)
+    out : ndarray, shape (n, 3), optional — where to write the moved particles (not ``particles``)
+    draws : ndarray, shape (2, n), optional — the wheel model only: its draws
+        (:func:`wheel_draws`) taken from ``rng`` beforehand; used up (overwritten)
 
     Returns
     -------
@@ -138,9 +152,19 @@ def sample_motion(
     n = particles.shape[0]
     if motion.model == "wheels":
         trig = np.float64 if check_choice("dtype", dtype, ("float64", "float32")) == "float64" else np.float32
-        return _wheel_step(particles, float(run.ds_r[k]), float(run.ds_l[k]), motion, run.track, rng, trig)
+        z = wheel_draws(rng, n) if draws is None else draws
+        if z.shape != (2, n):
+            raise ValueError(f"draws must have shape (2, {n}) (allowed: wheel_draws of the particles), got {z.shape}")
+        return _wheel_step(particles, float(run.ds_r[k]), float(run.ds_l[k]), motion, run.track, z, trig, out)
+    if draws is not None:
+        raise ValueError(f"draws are the wheel model's (allowed: motion.model 'wheels'), got model {motion.model!r}")
     if motion.model == "velocity":
-        return sample_velocity(particles, run.controls[k], run.dt, motion.alpha_array, n, rng,
-                               motion.noise, motion.scaling)  # fmt: skip
-    return sample_odometry(particles, run.odometry[k], run.odometry[k + 1], motion.alpha_array, n,
-                           rng, motion.noise, motion.scaling)  # fmt: skip
+        moved = sample_velocity(particles, run.controls[k], run.dt, motion.alpha_array, n, rng,
+                                motion.noise, motion.scaling)  # fmt: skip
+    else:
+        moved = sample_odometry(particles, run.odometry[k], run.odometry[k + 1], motion.alpha_array, n,
+                                rng, motion.noise, motion.scaling)  # fmt: skip
+    if out is None:
+        return moved
+    out[...] = moved
+    return out

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -36,12 +36,15 @@ from numpy.typing import NDArray
 from ..core.kinematics import wrap_angle
 from ..core.validation import check_choice, check_positive, check_positive_int
 from .measures import mass_region_flags, weighted_mean_cov
-from .motion import Motion, sample_motion
+from .motion import Motion, sample_motion, wheel_draws
 from .resampling import (
     SCHEMES,
     _check_threshold,
+    _counts_from_below,
     _cumulative,
     _ess,
+    _strata_below,
+    _systematic_below,
     normalize_log_weights,
     pointers,
     select,
@@ -53,7 +56,6 @@ from .result import (
     StepCallback,
     StepRecorder,
     check_keep,
-    landmark_measurements,
 )
 from .sensors import (
     BeamSensor,
@@ -62,6 +64,7 @@ from .sensors import (
     beam_log_likelihood,
     chunks,
     landmark_log_likelihood_ml,
+    run_ahead,
     run_blocks,
 )
 from .simulate import SimulatedRun
@@ -77,6 +80,8 @@ __all__ = [
 ]
 
 INJECTIONS: tuple[str, ...] = ("none", "fixed", "augmented")
+#: Schemes with one pointer per stratum [i/n, (i+1)/n): resampled by copies per particle.
+_STRATA: tuple[str, ...] = ("systematic", "stratified")
 
 Array = NDArray[np.float64]
 
@@ -99,7 +104,8 @@ class ParticleFilterConfig:
         ``wrong_associations`` is then the weighted mean count of wrong ones
     dtype : {"float64", "float32"} — arithmetic of the landmark likelihood
     hdr_resolution : float [m], > 0 — cell of the particle histogram for the region coverage
-    workers : int ≥ 1 — threads of the landmark likelihood (results do not depend on it)
+    workers : int ≥ 1 — threads of a step: the blocks of particles and the next step's wheel
+        draws (:func:`_thread_plan`); the results do not depend on it
     """
 
     n_particles: int = 2000
@@ -155,9 +161,11 @@ def pf_resample(
 ) -> tuple[Array, Array, bool]:  # fmt: skip
     """Resample if ``ESS < threshold · n`` or particles are to be injected; inject ``n_inject``.
 
-    The selection (binary search of each pointer, then the copy) runs in the blocks of
-    :func:`~pose_uncertainty.localization.sensors.chunks` on ``workers`` threads; the result
-    does not depend on ``workers``.
+    Systematic and stratified pointers: the copies of each particle (the count of pointers below
+    each cumulative weight, found from its stratum: O(n)), then ``numpy.repeat``; the other schemes:
+    binary search of each pointer, then the copy. Either runs in the blocks of
+    :func:`~pose_uncertainty.localization.sensors.chunks` on ``workers`` threads and gives
+    :func:`~pose_uncertainty.localization.resampling.select`'s particles, whatever ``workers``.
 
     Returns
     -------
@@ -167,8 +175,12 @@ def pf_resample(
     if n_inject == 0 and _ess(w) >= threshold * n and threshold < 1.0:
         return particles, w, False
     keep = n - n_inject
+    if keep == n and scheme in _STRATA and workers == 1:  # one block: the copies are the new array
+        return np.repeat(particles, _strata_counts(w, keep, rng, scheme), axis=0), np.full(n, 1.0 / n), True
     out = np.empty_like(particles)
-    if keep:
+    if keep and scheme in _STRATA:
+        _repeat_blocks(particles, _cumulative(w), _strata_below_of(keep, rng, scheme), out[:keep], workers)
+    elif keep:
         q, T = _cumulative(w), pointers(keep, rng, scheme)
         blocks = chunks(keep)
 
@@ -180,6 +192,47 @@ def pf_resample(
     if n_inject:
         out[keep:] = sample_free_poses(world, n_inject, rng)
     return out, np.full(n, 1.0 / n), True
+
+
+def _strata_below_of(keep: int, rng: np.random.Generator, scheme: str) -> Callable[[Array], NDArray[np.intp]]:
+    """The count of ``keep`` new pointers of a stratified or systematic scheme below given values (draws them).
+
+    Systematic: the one uniform of ``pointers(keep, rng, "systematic")``, its pointers never built.
+    """
+    if scheme == "systematic":
+        return _systematic_below(keep, rng.random())
+    return _strata_below(pointers(keep, rng, scheme), scheme)
+
+
+def _strata_counts(w: Array, keep: int, rng: np.random.Generator, scheme: str) -> NDArray[np.intp]:
+    """Copies of each particle when ``keep`` particles are drawn by a stratified or systematic scheme."""
+    return _counts_from_below(_strata_below_of(keep, rng, scheme)(_cumulative(w)), keep)
+
+
+def _repeat_blocks(
+    particles: Array, q: Array, below: Callable[[Array], NDArray[np.intp]], out: Array, workers: int
+) -> None:
+    """``out`` (n, 3) = each particle repeated ``C(q_j) − C(q_{j−1})`` times, by blocks of particles.
+
+    Block ``[a, b)`` counts below ``q_{a−1} … q_{b−1}`` itself and writes its copies at
+    ``out[C(q_{a−1}) : C(q_{b−1})]`` (``C(q_{N−1}) = n``: select's guard), so the blocks need no
+    other's result.
+    """
+    N, n = q.size, out.shape[0]
+    blocks = chunks(N)
+
+    def part(c: int) -> None:
+        a, b = blocks[c]
+        C = below(q[max(a - 1, 0) : b])
+        if b == N:
+            C[-1] = n
+        if a:  # C holds C(q_{a−1}) first
+            start, counts = int(C[0]), C[1:] - C[:-1]
+        else:
+            start, counts = 0, _counts_from_below(C, int(C[-1]))
+        out[start : int(C[-1])] = np.repeat(particles[a:b], counts, axis=0)
+
+    run_blocks(part, len(blocks), workers)
 
 
 def _n_inject(cfg: ParticleFilterConfig, log_avg: float, slow_fast: list[float], rng: np.random.Generator) -> int:
@@ -200,8 +253,9 @@ def _n_inject(cfg: ParticleFilterConfig, log_avg: float, slow_fast: list[float],
     return int(rng.binomial(n, p)) if p > 0 else 0
 
 
-#: A step's measurement model on a block of particles: (log-likelihood, wrong associations or None).
-BlockModel = Callable[[Array], tuple[Array, Array | None]]
+#: A step's measurement model on a block of particles: writes the log-likelihood into its second
+#: argument, returns the wrong associations per particle (or None).
+BlockModel = Callable[[Array, Array], Array | None]
 
 
 def _measurement_model(
@@ -212,32 +266,42 @@ def _measurement_model(
         grid, zb = world.grid, run.beam_z
         if not run.beam_valid[k] or zb is None or grid is None:
             return None
-        return (lambda P: (beam_log_likelihood(P, zb[k], grid, sensor), None)), sensor.n_beams
+
+        def beams(P: Array, out: Array) -> None:
+            out[...] = beam_log_likelihood(P, zb[k], grid, sensor)
+
+        return beams, sensor.n_beams
     valid = run.landmark_valid[k]
     if not valid.any():
         return None
     if cfg.association == "ml":  # every particle associates for itself
         zk, ids = run.landmark_z[k][valid], np.flatnonzero(valid)
 
-        def ml(P: Array) -> tuple[Array, Array | None]:
-            ll, idx = landmark_log_likelihood_ml(P, zk, world.landmarks, sensor)
-            return ll, (idx != ids).sum(axis=1).astype(np.float64)
+        def ml(P: Array, out: Array) -> Array:
+            out[...], idx = landmark_log_likelihood_ml(P, zk, world.landmarks, sensor)
+            return (idx != ids).sum(axis=1).astype(np.float64)
 
         return ml, int(valid.sum())
-    z, lm, _ = landmark_measurements(run, world, sensor, k, "known", np.zeros(3), np.eye(3))
-    lik = LandmarkLikelihood(z, lm, sensor, cfg.dtype)
-    return (lambda P: (lik(P), None)), z.shape[0]
+    # the true correspondences (result.landmark_measurements "known"), from the run's own valid arrays
+    z, lm = run.landmark_z[k][valid], world.landmarks[valid]
+    lik = LandmarkLikelihood.trusted(z, lm, sensor, cfg.dtype)
+
+    def known(P: Array, out: Array) -> None:
+        lik(P, out)
+
+    return known, z.shape[0]
 
 
 def _predict_and_weigh(
     P: Array, model: tuple[BlockModel, int] | None, run: SimulatedRun, k: int, cfg: ParticleFilterConfig,
-    gens: Sequence[np.random.Generator],
+    gens: Sequence[np.random.Generator], draws: Sequence[Array] | None = None,
 ) -> tuple[Array, Array | None, Array | None]:  # fmt: skip
     """Move the particles by step ``k−1 → k`` and evaluate step ``k``'s likelihood, block by block.
 
     Block ``c`` of :func:`~pose_uncertainty.localization.sensors.chunks` draws its motion from its
     own generator ``gens[c]`` (spawned once per run from the filter's), so the result does not
-    depend on ``cfg.workers``, the threads the blocks run on.
+    depend on ``cfg.workers``, the threads the blocks run on; ``draws``: the wheel model's draws of
+    each block for this step, drawn ahead (:func:`_draw_ahead`).
 
     Returns
     -------
@@ -247,15 +311,16 @@ def _predict_and_weigh(
     blocks = chunks(n)
     out = np.empty_like(P) if k > 0 else P
     ll = np.empty(n) if model is not None else None
-    wrong = np.zeros(n) if model is not None else None
+    wrong = np.zeros(n) if model is not None and cfg.association == "ml" else None
 
     def block(c: int) -> None:
         a, b = blocks[c]
         if k > 0:
-            out[a:b] = sample_motion(P[a:b], cfg.motion, run, k - 1, gens[c], cfg.dtype)
-        if model is not None and ll is not None and wrong is not None:
-            ll[a:b], wr = model[0](out[a:b])
-            if wr is not None:
+            sample_motion(P[a:b], cfg.motion, run, k - 1, gens[c], cfg.dtype, out=out[a:b],
+                          draws=None if draws is None else draws[c])  # fmt: skip
+        if model is not None and ll is not None:
+            wr = model[0](out[a:b], ll[a:b])
+            if wr is not None and wrong is not None:
                 wrong[a:b] = wr
 
     if k > 0 or model is not None:
@@ -263,23 +328,63 @@ def _predict_and_weigh(
     return out, ll, wrong
 
 
+def _thread_plan(cfg: ParticleFilterConfig, sensor: RangeBearingSensor | BeamSensor) -> tuple[bool, bool]:
+    """How a run uses ``cfg.workers`` > 1 threads: (draw the wheel normals ahead, split the blocks).
+
+    The results are the same either way. Blocks whose numpy calls are long (float64 trigonometry,
+    beams, maximum-likelihood association) run on the threads together, and the next step's wheel
+    draws are made during the serial correction. The float32 landmark likelihood is many short
+    calls, which two threads spend handing the GIL to each other (measured: slower than one
+    thread), so its blocks stay on the calling thread and the other draws the next step's normals
+    meanwhile (~20 % of a step).
+    """
+    if cfg.workers == 1:
+        return False, False
+    ahead = cfg.motion.model == "wheels"
+    short_calls = cfg.dtype == "float32" and isinstance(sensor, RangeBearingSensor) and cfg.association == "known"
+    return ahead, not (ahead and short_calls)
+
+
+def _draw_ahead(gens: Sequence[np.random.Generator], n: int, workers: int) -> Callable[[], list[Array]]:
+    """Start drawing the wheel model's normals of every block for the next step on a pool thread.
+
+    Returns ``finish()`` (:func:`~pose_uncertainty.localization.sensors.run_ahead`), which gives the
+    draws. Each block's generator serves its motion only and gives the same numbers in the same
+    order whichever thread draws them, so the run does not depend on it; the draws (~20 % of a
+    step on one thread) then overlap the correction and the resampling of the current step.
+    """
+    blocks = chunks(n)
+    return run_ahead(lambda: [wheel_draws(g, b - a) for g, (a, b) in zip(gens, blocks, strict=True)], workers)
+
+
 def _particle_region_flags(particles: Array, w: Array, world: World, truth: Array, h: float) -> NDArray[np.bool_]:
-    """Truth in the highest-density regions of the particles' weighted (x, y) histogram (cells of ``h``)."""
+    """Truth in the highest-density regions of the particles' weighted (x, y) histogram (cells of ``h``).
+
+    Only cells with mass can be in a region (and the truth's cell is outside without mass): the
+    flags of the occupied cells alone are those of the whole grid. They are counted on the box of
+    cells the particles span, numbered row by row as the grid is (so the occupied cells come in
+    the grid's order, each summed over its particles in their order: the same numbers).
+    """
     x0, x1, y0, y1 = world.bounds  # type: ignore[misc]
     nx, ny = max(1, math.ceil((x1 - x0) / h)), max(1, math.ceil((y1 - y0) / h))
     i = np.floor((particles[:, 0] - x0) / h).astype(np.int64)
     j = np.floor((particles[:, 1] - y0) / h).astype(np.int64)
     ok = (i >= 0) & (i < nx) & (j >= 0) & (j < ny)
-    hist = np.bincount(i[ok] * ny + j[ok], w[ok], minlength=nx * ny)
     ti, tj = math.floor((truth[0] - x0) / h), math.floor((truth[1] - y0) / h)
-    if not hist.sum() > 0 or not (0 <= ti < nx and 0 <= tj < ny):
-        return np.zeros(3, dtype=bool)
-    # only cells with mass can be in a region (and the truth's cell is outside without mass):
-    # the flags of the occupied cells alone are those of the whole grid, at the cost of ≤ n cells
+    none = np.zeros(3, dtype=bool)
+    if not ok.any() or not (0 <= ti < nx and 0 <= tj < ny):
+        return none
+    i, j = i[ok], j[ok]
+    i0, j0 = int(i.min()), int(j.min())
+    span = int(j.max()) - j0 + 1
+    hist = np.bincount((i - i0) * span + (j - j0), w[ok])
+    key = (ti - i0) * span + (tj - j0)
+    if not hist.sum() > 0 or not (0 <= tj - j0 < span and 0 <= key < hist.size):
+        return none
     occupied = np.flatnonzero(hist)
-    cell = int(np.searchsorted(occupied, ti * ny + tj))
-    if cell == occupied.size or occupied[cell] != ti * ny + tj:
-        return np.zeros(3, dtype=bool)
+    cell = int(np.searchsorted(occupied, key))
+    if cell == occupied.size or occupied[cell] != key:
+        return none
     return mass_region_flags(hist[occupied][:, None], (cell, 0))
 
 
@@ -310,10 +415,18 @@ def run_particle(
     lw = np.full(n, uniform)  # log w, kept beside w: a correction adds, no logarithm per step
     slow_fast = [-math.inf, -math.inf]
     gens = rng.spawn(len(chunks(n)))  # the motion's generator of each block of particles
+    ahead, split = _thread_plan(cfg, sensor)
+    kcfg = cfg if split else replace(cfg, workers=1)  # the blocks' and the resampling's threads
+    draws = None  # this step's wheel draws when drawn ahead
     for k in range(run.n_steps + 1):
         rec.tic()
+        finish = None
+        if ahead and not split and k < run.n_steps:  # the next step's draws during all of this one
+            finish = _draw_ahead(gens, n, cfg.workers)
         model = _measurement_model(run, world, sensor, k, cfg)
-        P, ll, wrong_each = _predict_and_weigh(P, model, run, k, cfg, gens)
+        P, ll, wrong_each = _predict_and_weigh(P, model, run, k, kcfg, gens, draws)
+        if ahead and split and k < run.n_steps:  # during the correction and the resampling
+            finish = _draw_ahead(gens, n, cfg.workers)
         ess, res, inj, logev, m, wrong = _ess(w), False, 0, 0.0, 0, 0.0
         if model is not None and ll is not None:
             m = model[1]
@@ -323,9 +436,11 @@ def run_particle(
             lw -= logev
             ess = _ess(w)
             inj = _n_inject(cfg, logev / max(m, 1), slow_fast, rng)
-            P, w, res = pf_resample(P, w, rng, cfg.resampling, cfg.ess_threshold, inj, world, cfg.workers)
+            P, w, res = pf_resample(P, w, rng, cfg.resampling, cfg.ess_threshold, inj, world, kcfg.workers)
             if res:
                 lw.fill(uniform)
+        if finish is not None:
+            draws = finish()  # within the step's clock
         rec.toc(k)
         mean, cov = weighted_mean_cov(P, w)
         flags = _particle_region_flags(P, w, world, run.true_poses[k], cfg.hdr_resolution)

@@ -29,11 +29,20 @@ search of every pointer in ``q`` (``numpy.searchsorted``, O(n log N) but vectori
 measured 3× faster here than a linear merge by a stable sort of the concatenation).
 The O(n) of the systematic and linear-time schemes is the cost of their pointers,
 which need no sort (multinomial's sort is its O(n log n)).
+
+:func:`selection_counts` gives the same selection as copies per particle, ``c_j = C(q_j) −
+C(q_{j−1})`` with ``C(x) = #{i : T_i < x}``: for the systematic and stratified schemes, whose
+pointer ``T_i`` lies in its stratum ``[i/n, (i+1)/n)``, ``C(q_j)`` is within one of
+``n q_j`` (of ``⌈n q_j − u⌉`` for the systematic offset ``u``), and a guess corrected by
+comparing ``T`` at it is exact in O(n + N) — measured 2–3× faster than the binary searches
+(the particle filter's systematic pointers are not even built: only compared where needed);
+the copies then fill the new particle array with one ``numpy.repeat``.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -49,6 +58,7 @@ __all__ = [
     "pointers",
     "resample",
     "select",
+    "selection_counts",
 ]
 
 SCHEMES: tuple[str, ...] = ("multinomial", "stratified", "systematic", "linear_time")
@@ -139,6 +149,94 @@ def select(q: ArrayLike, T: ArrayLike) -> IntArray:
     qq = np.asarray(q, dtype=np.float64)
     out = np.searchsorted(qq, np.asarray(T, dtype=np.float64), side="right")
     return np.minimum(out, qq.size - 1).astype(np.int64)  # T < 1 = q_{N−1}; guard rounding
+
+
+def selection_counts(q: ArrayLike, T: ArrayLike, scheme: str = "systematic") -> IntArray:
+    """Copies of each particle under :func:`select` of sorted pointers: ``copies(select(q, T), N)``.
+
+    Parameters
+    ----------
+    q : array_like, shape (N,) — cumulative weights (:func:`cumulative_weights`)
+    T : array_like, shape (n,) — sorted pointers of ``scheme`` (:func:`pointers`)
+    scheme : {"multinomial", "stratified", "systematic", "linear_time"} — with
+        ``"systematic"`` / ``"stratified"`` the count below each ``q_j`` is found from its
+        stratum and corrected (O(n + N)); otherwise by binary search of ``q`` in ``T``
+
+    Returns
+    -------
+    ndarray of int, shape (N,) — sums to n; ``numpy.repeat(particles, counts, axis=0)`` is
+    ``particles[select(q, T)]``
+    """
+    qq = np.asarray(q, dtype=np.float64)
+    TT = np.asarray(T, dtype=np.float64)
+    check_choice("scheme", scheme, SCHEMES)
+    if scheme not in ("systematic", "stratified") or TT.size == 0:
+        return _counts_from_below(np.searchsorted(TT, qq, side="left"), TT.size)
+    return _counts_from_below(_strata_below(TT, scheme)(qq), TT.size)
+
+
+def _strata_below(T: Array, scheme: str) -> Callable[[Array], IntArray]:
+    """``C(x) = #{i : T_i < x}`` for sorted pointers ``T`` (n,) with one in each stratum ``[i/n, (i+1)/n)``.
+
+    Returns a function of values ``x`` in [0, 1] (any part of ``q``): the guess ``⌊n x⌋``
+    (stratified) or ``⌊n x − u + 1⌋`` (systematic, ``u = n T_0``: ``⌈n x − u⌉`` but at integers),
+    corrected by comparing ``T`` around it (:func:`_counts_below`).
+    """
+    n = T.size
+    Tp = np.empty(n + 3)
+    Tp[0], Tp[-2:] = -np.inf, np.inf
+    Tp[1:-2] = T  # Tp[c + 1] = T_c, with T_{−1} = −∞ and T_n = T_{n+1} = +∞
+    shift = 1.0 - T[0] * n if scheme == "systematic" else 0.0
+
+    def below(x: Array) -> IntArray:
+        g = x * n
+        g += shift
+        np.clip(g, 0, n + 1, out=g)  # any sorted T and x: the walk corrects any guess in [0, n + 1]
+        return _counts_below(x, lambda c: Tp[c + 1], g.astype(np.intp))  # truncation: the floor of g ≥ 0
+
+    return below
+
+
+def _systematic_below(n: int, u: float) -> Callable[[Array], IntArray]:
+    """:func:`_strata_below` of the systematic pointers ``T_i = (i + u)/n`` of :func:`pointers`, which
+    are computed only where compared (the same arithmetic, the same bits: ``T`` is never built).
+
+    ``(c + u)/n`` is below 0 at ``c = −1`` and ≥ 1 at ``c ≥ n``: the sentinels come with the formula.
+    """
+
+    def below(x: Array) -> IntArray:
+        g = x * n
+        g += 1.0 - u  # ⌊n x − u + 1⌋ in [0, n + 1]
+        return _counts_below(x, lambda c: (c + u) / n, g.astype(np.intp))
+
+    return below
+
+
+def _counts_below(q: Array, pointer: Callable[[IntArray], Array], guess: IntArray) -> IntArray:
+    """``C(q_j) = #{i : T_i < q_j}`` for sorted pointers ``T_c = pointer(c)``, walking each ``guess_j`` to it.
+
+    ``C`` is the one ``c`` with ``T_{c−1} < q_j ≤ T_c`` (``pointer`` gives ``T_{−1} < 0`` and
+    ``T_c ≥ 1`` for ``c ≥ n``; ``guess`` in [0, n + 1]); each pass moves every guess that breaks
+    it by one towards it, so a guess off by ``d`` takes ``d + 1`` passes.
+    """
+    c = guess
+    while True:
+        up = pointer(c) < q  # T_c < q_j: more pointers below q_j
+        down = pointer(c - 1) >= q  # T_{c−1} ≥ q_j: fewer
+        if not (up.any() or down.any()):
+            return c
+        c += up
+        c -= down
+
+
+def _counts_from_below(C: IntArray, n: int) -> IntArray:
+    """Copies ``c_j = C(q_j) − C(q_{j−1})`` from the counts below ``C`` (N,), with ``C_{N−1} = n``
+    (:func:`select`'s guard: a pointer at 1 goes to the last particle)."""
+    counts = np.empty(C.shape, dtype=np.intp)
+    counts[0] = C[0]
+    np.subtract(C[1:], C[:-1], out=counts[1:])
+    counts[-1] = n - (C[-2] if C.size > 1 else 0)
+    return counts
 
 
 def resample(w: ArrayLike, rng: np.random.Generator, scheme: str = "systematic", n: int | None = None) -> IntArray:

@@ -36,8 +36,10 @@ Beams are independent: ``log p(scan) = Σ_k log p(z_k | z*_k)``. The weights
 
 from __future__ import annotations
 
+import itertools
 import math
 import threading
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
@@ -74,6 +76,7 @@ __all__ = [
     "landmark_log_likelihood",
     "landmark_log_likelihood_ml",
     "landmark_visible",
+    "run_ahead",
     "run_blocks",
     "sample_beam_measurements",
     "sample_landmark_measurements",
@@ -231,49 +234,53 @@ def _measurement_frames(z: Array, lm: Array, center: Array, dtype: Any) -> tuple
     mx, my = lm[:, 0] - center[0], lm[:, 1] - center[1]
     c, s = np.cos(z[:, 1]), np.sin(z[:, 1])
     u, v = mx * c + my * s, my * c - mx * s
-    BX = np.stack([u, v, -c, -s], axis=1).astype(dtype)  # (m, 4)
-    BY = np.stack([v, -u, s, -c], axis=1).astype(dtype)
-    return BX, BY
+    B = np.empty((2, z.shape[0], 4), dtype)  # the columns rounded to dtype as they are written
+    B[0, :, 0], B[0, :, 1], B[0, :, 2], B[0, :, 3] = u, v, -c, -s
+    B[1, :, 0], B[1, :, 1], B[1, :, 2], B[1, :, 3] = v, -u, s, -c
+    return B[0], B[1]
 
 
-def _workspace(n: int, m: int, dtype: Any) -> tuple[Array, Array, Array, Array]:
-    """This thread's buffers for a chunk of ``n`` particles and ``m`` measurements: A (4, n), X, Y, E (m, n).
+def _workspace(n: int, m: int, dtype: Any) -> tuple[Array, Array, Array, Array, Array]:
+    """This thread's buffers for a chunk of ``n`` particles and ``m`` measurements.
 
-    Reused from call to call (large temporaries allocated at every step cost page faults);
-    measurements along the first axis, so the sums over them are ``m − 1`` contiguous vector adds.
+    A (4, n) and three scratch rows (3, n) in ``dtype``; X, Y, E (m, n) in ``dtype``; two sums (2, n)
+    in float64. Reused from call to call (large temporaries allocated at every step cost page
+    faults); measurements along the first axis, so the sums over them are ``m − 1`` contiguous vector adds.
     """
     key = (n, m, np.dtype(dtype).str)
     cache = getattr(_WORK, "buffers", None)
     if cache is None or cache[0] != key:
-        cache = (key, np.empty((4, n), dtype), np.empty((m, n), dtype), np.empty((m, n), dtype),
-                 np.empty((m, n), dtype))  # fmt: skip
+        cache = (key, np.empty((7, n), dtype), np.empty((m, n), dtype), np.empty((m, n), dtype),
+                 np.empty((m, n), dtype), np.empty((2, n)))  # fmt: skip
         _WORK.buffers = cache
-    return cache[1], cache[2], cache[3], cache[4]
+    return cache[1], cache[2], cache[3], cache[4], cache[5]
 
 
 def _loglik_chunk(
-    P: Array, z: Array, frames: tuple[Array, Array], center: Array, inv_var: tuple[float, float], const: float,
-    dtype: Any,
+    P: Array, zr: Array, frames: tuple[Array, Array], center: Array, inv_var: tuple[float, float], const: float,
+    dtype: Any, out: Array | None = None,
 ) -> Array:  # fmt: skip
     """Σ_j log N(z_j; h_j(p), Q) for a chunk of particles (n, 3) and m measurements, shape (n,).
 
     The landmark seen in the frame of the measured bearing (:func:`_measurement_frames`):
     ``X, Y = B_X·A, B_Y·A`` (two (m, 4)·(4, n) matrix products), so the predicted range is
     ``√(X² + Y²)`` and the bearing error ``atan2(Y, X) = wrap(φ̂ − φ)`` without an explicit
-    wrap. Every (m, n) array lives in this thread's reused buffers.
+    wrap. ``zr``: the measured ranges (m, 1) in ``dtype``. Every array lives in this thread's
+    reused buffers, and the result is written into ``out`` (n,) when given.
     """
-    m = z.shape[0]
-    A, X, Y, E = _workspace(P.shape[0], m, dtype)
-    c, s = A[0], A[1]
-    th = P[:, 2].astype(dtype)
+    n, m = P.shape[0], zr.shape[0]
+    W, X, Y, E, S = _workspace(n, m, dtype)
+    A, c, s = W[:4], W[0], W[1]
+    th, x, y = W[4], W[5], W[6]
+    th[...] = P[:, 2]  # (rounded to dtype)
     np.cos(th, out=c)
     np.sin(th, out=s)
-    x = (P[:, 0] - center[0]).astype(dtype)
-    y = (P[:, 1] - center[1]).astype(dtype)
+    np.subtract(P[:, 0], center[0], out=x)  # in float64, then rounded to dtype
+    np.subtract(P[:, 1], center[1], out=y)
     np.multiply(x, c, out=A[2])
-    A[2] += y * s  # a = x cos θ + y sin θ
+    A[2] += np.multiply(y, s, out=th)  # a = x cos θ + y sin θ
     np.multiply(y, c, out=A[3])
-    A[3] -= x * s  # b = y cos θ − x sin θ
+    A[3] -= np.multiply(x, s, out=th)  # b = y cos θ − x sin θ
     np.matmul(frames[0], A, out=X)
     np.matmul(frames[1], A, out=Y)
     np.arctan2(Y, X, out=E)  # φ̂ − φ, in (−π, π]
@@ -281,12 +288,18 @@ def _loglik_chunk(
     Y *= Y
     X += Y
     np.sqrt(X, out=X)
-    X -= z[:, 0, None].astype(dtype)  # predicted − measured range
+    X -= zr  # predicted − measured range
     X *= X
     E *= E
-    # Σ over the measurements: m − 1 vector adds (no matrix–vector product: OpenBLAS runs those on its
-    # own threads, whose spinning then takes the cores from the blocks)
-    return const - 0.5 * (inv_var[0] * X.sum(axis=0, dtype=np.float64) + inv_var[1] * E.sum(axis=0, dtype=np.float64))
+    # Σ over the measurements: m − 1 vector adds in float64 (no matrix–vector product: OpenBLAS runs
+    # those on its own threads, whose spinning then takes the cores from the blocks)
+    np.add.reduce(X, axis=0, dtype=np.float64, out=S[0])
+    np.add.reduce(E, axis=0, dtype=np.float64, out=S[1])
+    S[0] *= inv_var[0]
+    S[1] *= inv_var[1]
+    S[0] += S[1]
+    S[0] *= 0.5
+    return np.subtract(const, S[0], out=np.empty(n) if out is None else out)
 
 
 _WORK = threading.local()
@@ -329,27 +342,43 @@ class LandmarkLikelihood:
 
     ``LandmarkLikelihood(z, landmarks, sensor, dtype)(P)`` is :func:`landmark_log_likelihood`
     of the particles ``P`` (n, 3); a runner that splits its particles into blocks (threads)
-    prepares the measurement frames once per step.
+    prepares the measurement frames once per step. :meth:`trusted` skips the checks of the
+    inputs (a runner's own measurements, once per step).
     """
 
     def __init__(self, z: ArrayLike, landmarks: ArrayLike, sensor: RangeBearingSensor, dtype: str = "float64"):
-        self.z = check_finite("z", check_last_axis("z", z, 2)).reshape(-1, 2)
+        zz = check_finite("z", check_last_axis("z", z, 2)).reshape(-1, 2)
         lm = _check_landmarks(landmarks)
-        if lm.shape != self.z.shape:
-            raise ValueError(f"landmarks must match z (allowed: shape {self.z.shape}), got shape {lm.shape}")
+        if lm.shape != zz.shape:
+            raise ValueError(f"landmarks must match z (allowed: shape {zz.shape}), got shape {lm.shape}")
         check_choice("dtype", dtype, ("float64", "float32"))
+        self._prepare(zz, lm, sensor, dtype)
+
+    @classmethod
+    def trusted(cls, z: Array, landmarks: Array, sensor: RangeBearingSensor, dtype: str) -> LandmarkLikelihood:
+        """The same as the constructor for inputs known to be valid: z (m, 2) and landmarks (m, 2)
+        finite float64, ``dtype`` one of "float64", "float32"."""
+        self = cls.__new__(cls)
+        self._prepare(z, landmarks, sensor, dtype)
+        return self
+
+    def _prepare(self, z: Array, lm: Array, sensor: RangeBearingSensor, dtype: str) -> None:
+        self.z = z
         self.dtype: Any = np.float64 if dtype == "float64" else np.float32
-        m = self.z.shape[0]
+        m = z.shape[0]
         self.inv = (1.0 / sensor.range_std**2, 1.0 / sensor.bearing_std**2)  # of the squared errors
         self.const = -m * (_LOG_2PI + math.log(sensor.range_std * sensor.bearing_std))
-        self.center = lm.mean(axis=0) if m else np.zeros(2)
-        self.frames = _measurement_frames(self.z, lm, self.center, self.dtype)
+        self.center = np.add.reduce(lm, axis=0) / m if m else np.zeros(2)  # the mean
+        self.frames = _measurement_frames(z, lm, self.center, self.dtype)
+        self.zr: Array = z[:, 0, None].astype(self.dtype)
 
-    def __call__(self, particles: Array) -> Array:
-        """``Σ_j log p(z_j | x)`` of each particle (n, 3), shape (n,)."""
+    def __call__(self, particles: Array, out: Array | None = None) -> Array:
+        """``Σ_j log p(z_j | x)`` of each particle (n, 3), shape (n,) (written into ``out`` when given)."""
         if self.z.shape[0] == 0:
-            return np.zeros(particles.shape[0])
-        return _loglik_chunk(particles, self.z, self.frames, self.center, self.inv, self.const, self.dtype)
+            res = np.zeros(particles.shape[0]) if out is None else out
+            res[...] = 0.0
+            return res
+        return _loglik_chunk(particles, self.zr, self.frames, self.center, self.inv, self.const, self.dtype, out)
 
 
 def landmark_log_likelihood(
@@ -393,7 +422,7 @@ def landmark_log_likelihood(
 
     def block(c: int) -> None:
         a, b = blocks[c]
-        out[a:b] = lik(P[a:b])
+        lik(P[a:b], out=out[a:b])
 
     run_blocks(block, len(blocks), workers)
     return out
@@ -414,17 +443,60 @@ def chunks(n: int, size: int | None = None) -> list[tuple[int, int]]:
 
 
 def run_blocks(fn: Any, n_blocks: int, workers: int = 1) -> None:
-    """Call ``fn(0) … fn(n_blocks − 1)``: with ``workers`` > 1 the calling thread takes block 0 and a
-    persistent pool of ``workers − 1`` threads the others (numpy releases the GIL in its loops)."""
+    """Call ``fn(0) … fn(n_blocks − 1)``, each once: with ``workers`` > 1 the calling thread and a
+    persistent pool of ``workers − 1`` threads take the blocks in turn (numpy releases the GIL in its
+    loops). A block goes to whichever thread is free first, and the caller waits only for blocks
+    another thread has taken, so a pool thread that is busy or not yet woken (other jobs on the
+    cores) never holds it up; ``fn`` must not depend on the thread. An error of a block is raised here.
+    """
     if check_positive_int("workers", workers) == 1 or n_blocks == 1:
         for c in range(n_blocks):
             fn(c)
         return
+    claim = itertools.count().__next__  # atomic under the GIL: every block is taken once
+    done = threading.Semaphore(0)  # released once per finished block
+    errors: list[BaseException] = []
+
+    def take() -> None:
+        while (c := claim()) < n_blocks:
+            try:
+                fn(c)
+            except Exception as e:  # noqa: BLE001 - any error of a block is re-raised in the caller
+                errors.append(e)
+            finally:
+                done.release()
+
     pool = _pool(workers - 1)
-    futures = [pool.submit(fn, c) for c in range(1, n_blocks)]
-    fn(0)
-    for f in futures:
-        f.result()
+    for _ in range(min(workers, n_blocks) - 1):
+        pool.submit(take)
+    take()
+    for _ in range(n_blocks):
+        done.acquire()
+    if errors:
+        raise errors[0]
+
+
+def run_ahead(fn: Callable[[], Any], workers: int) -> Callable[[], Any]:
+    """Start ``fn()`` on the pool of :func:`run_blocks` and return ``finish``, which gives its result.
+
+    ``finish()`` runs ``fn`` in the caller if no pool thread has started it yet (a pool thread the
+    system has not woken never holds the caller up), else waits for it; with one worker it just runs
+    ``fn``. ``fn`` runs once, and must not depend on the thread.
+    """
+    if check_positive_int("workers", workers) == 1:
+        return fn
+    claim = itertools.count().__next__
+
+    def once() -> tuple[bool, Any]:
+        return (True, fn()) if claim() == 0 else (False, None)
+
+    future = _pool(workers - 1).submit(once)
+
+    def finish() -> Any:
+        ran, value = once()
+        return value if ran else future.result()[1]
+
+    return finish
 
 
 #: Largest block of particles of :func:`chunks`.
