@@ -211,17 +211,26 @@ def beam_range_table(occupancy: OccupancyGrid, grid: Grid, sensor: BeamSensor) -
     return np.asarray(out, dtype=np.float64)
 
 
-def hf_correct(belief: Array, loglik: Array) -> tuple[Array, float]:
+def hf_correct(belief: Array, loglik: Array, *, overwrite_belief: bool = False) -> tuple[Array, float]:
     """``Bel ← η p(z|x) Bel``: the posterior masses and ``log Σ p(z|x) Bel(x)`` (the log evidence).
 
+    Evaluated on the cells with mass only (the others stay 0). With ``overwrite_belief``
+    the posterior is written into ``belief`` (a float64 array the caller no longer needs).
     Raises ValueError when no cell with mass explains the measurement.
     """
-    top = float(np.max(np.where(belief > 0, loglik, -np.inf)))
+    cells = np.flatnonzero(belief > 0)
+    ll = loglik.reshape(-1)[cells]
+    top = float(ll.max()) if cells.size else -math.inf
     if not math.isfinite(top):
         raise ValueError("measurement has zero likelihood on every cell with mass (allowed: some p(z|x) > 0)")
-    post = belief * np.exp(loglik - top)
+    ll -= top
+    np.exp(ll, out=ll)  # p(z|x) / max p(z|x)
+    ll *= belief.reshape(-1)[cells]
+    post = belief if overwrite_belief and belief.flags.c_contiguous else np.zeros(belief.shape)
+    post.reshape(-1)[cells] = ll
     s = float(post.sum())
-    return post / s, top + math.log(s)
+    post /= s
+    return post, top + math.log(s)
 
 
 def hf_estimate(belief: Array, grid: Grid) -> tuple[Array, Array]:
@@ -230,9 +239,9 @@ def hf_estimate(belief: Array, grid: Grid) -> tuple[Array, Array]:
     The histogram filter's density is uniform inside each cell, so its covariance is
     the covariance of the cell centres plus ``diag(h², h², h_θ²)/12`` (Sheppard).
     """
-    pm = ProbabilityMap(grid.x, grid.y, grid.theta, belief, 0.0, "histogram", grid)
+    mean, cov = ProbabilityMap(grid.x, grid.y, grid.theta, belief, 0.0, "histogram", grid).moments()
     h, ht = grid.resolution, grid.theta_resolution
-    return pm.mean(), pm.cov() + np.diag([h * h, h * h, ht * ht]) / 12.0
+    return mean, cov + np.diag([h * h, h * h, ht * ht]) / 12.0
 
 
 def _transition(cache: dict[tuple[float, ...], GridTransition], run: SimulatedRun, k: int,
@@ -298,7 +307,7 @@ def run_histogram(
     st = start or Start(pose=tuple(run.true_poses[0]))  # type: ignore[arg-type]
     rec = StepRecorder("histogram", run, check_keep(keep, run.n_steps), on_step)
     grid = pose_grid_for(world, cfg.resolution, cfg.ntheta)
-    free = _free_mask(world, grid) if cfg.mask_occupied else None
+    free = _free_mask(world, grid)[:, :, None].astype(np.float64) if cfg.mask_occupied else None
     table = beam_range_table(world.grid, grid, sensor) if isinstance(sensor, BeamSensor) and world.grid else None
     terms = beam_terms(table, sensor) if table is not None and isinstance(sensor, BeamSensor) else None
     belief = initial_belief(st, world, grid)
@@ -307,16 +316,18 @@ def run_histogram(
         rec.tic()
         lost = masked = logev = 0.0
         if k > 0:
-            belief, info = predict_on_grid(belief, _transition(cache, run, k - 1, grid, cfg.motion), cfg.workers)
+            belief, info = predict_on_grid(belief, _transition(cache, run, k - 1, grid, cfg.motion), cfg.workers,
+                                           overwrite_belief=True)  # fmt: skip
             lost = info["lost_mass"]
-            if free is not None:
-                before = float(belief.sum())
-                belief = belief * free[:, :, None]
-                masked = before - float(belief.sum())
-            belief = belief / belief.sum()
+            total = float(belief.sum())
+            if free is not None:  # (the prediction is the filter's own array: scaled in place)
+                belief *= free
+                after = float(belief.sum())
+                masked, total = total - after, after
+            belief /= total
         ll, m, wrong = _loglik_grid(run, world, sensor, k, grid, belief, cfg, table, terms)
         if ll is not None:
-            belief, logev = hf_correct(belief, ll)
+            belief, logev = hf_correct(belief, ll, overwrite_belief=True)
         rec.toc(k)
         mean, cov = hf_estimate(belief, grid)
         xy = belief.sum(axis=2)
