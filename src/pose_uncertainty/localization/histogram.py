@@ -211,23 +211,16 @@ def beam_range_table(occupancy: OccupancyGrid, grid: Grid, sensor: BeamSensor) -
     return np.asarray(out, dtype=np.float64)
 
 
-def hf_correct(belief: Array, loglik: Array, *, overwrite_belief: bool = False) -> tuple[Array, float]:
+def hf_correct(belief: Array, loglik: Array) -> tuple[Array, float]:
     """``Bel ← η p(z|x) Bel``: the posterior masses and ``log Σ p(z|x) Bel(x)`` (the log evidence).
 
-    Evaluated on the cells with mass only (the others stay 0). With ``overwrite_belief``
-    the posterior is written into ``belief`` (a float64 array the caller no longer needs).
     Raises ValueError when no cell with mass explains the measurement.
     """
-    cells = np.flatnonzero(belief > 0)
-    ll = loglik.reshape(-1)[cells]
-    top = float(ll.max()) if cells.size else -math.inf
+    with_mass = loglik[belief > 0]
+    top = float(with_mass.max()) if with_mass.size else -math.inf
     if not math.isfinite(top):
         raise ValueError("measurement has zero likelihood on every cell with mass (allowed: some p(z|x) > 0)")
-    ll -= top
-    np.exp(ll, out=ll)  # p(z|x) / max p(z|x)
-    ll *= belief.reshape(-1)[cells]
-    post = belief if overwrite_belief and belief.flags.c_contiguous else np.zeros(belief.shape)
-    post.reshape(-1)[cells] = ll
+    post = belief * np.exp(loglik - top)
     s = float(post.sum())
     post /= s
     return post, top + math.log(s)
@@ -327,7 +320,7 @@ def run_histogram(
             belief /= total
         ll, m, wrong = _loglik_grid(run, world, sensor, k, grid, belief, cfg, table, terms)
         if ll is not None:
-            belief, logev = hf_correct(belief, ll, overwrite_belief=True)
+            belief, logev = hf_correct(belief, ll)
         rec.toc(k)
         mean, cov = hf_estimate(belief, grid)
         xy = belief.sum(axis=2)

@@ -1310,12 +1310,13 @@ def predict_on_grid(
     b = check_nonnegative("belief", belief)
     if b.shape != g.shape:
         raise ValueError(f"belief must have the grid's shape {g.shape}, got shape {b.shape}")
-    b, dropped, active = _drop_negligible_slices(b, copy=not overwrite_belief)
+    own = overwrite_belief or not b.flags.c_contiguous  # (a C-ordered copy is ours; sums run in C order)
+    b, dropped, active = _drop_negligible_slices(np.ascontiguousarray(b), copy=not own)
     if active.size == 0:
         return np.zeros(g.shape), {"lost_mass": dropped, "roundoff": 0.0, "negligible_slices": dropped}
     new, roundoff, lost = _convolve_step(
         b, g, transition.kernel, active, transition.windows, g.theta, workers, transition.source_windows,
-        b if overwrite_belief and b.flags.c_contiguous else None,
+        b if own else None,
     )  # fmt: skip
     return new, {"lost_mass": lost + dropped, "roundoff": roundoff, "negligible_slices": dropped}
 
