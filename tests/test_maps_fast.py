@@ -1,10 +1,11 @@
-"""The batched kernels of the histogram step against their one-at-a-time forms, bit for bit.
+"""The batched kernels of the histogram filter against their one-at-a-time forms, bit for bit.
 
 The transition kernel of a step is built for all source headings at once
 (``maps._source_windows``) and the step's FFTs run on batches of headings and blocks of
 rows; each must give exactly the numbers of the plain loop (one heading, one part, one
 ``bincount`` at a time), whatever the batch, block and thread count. The belief's moments
-are checked against the sums over the whole grid.
+are checked against the sums over the whole grid; the likelihoods computed on blocks of
+rows against the whole grid at once.
 """
 
 from __future__ import annotations
@@ -18,6 +19,14 @@ from numpy.testing import assert_allclose, assert_array_equal
 from pose_uncertainty.core.grids import Grid
 from pose_uncertainty.core.validation import check_finite, check_nonnegative
 from pose_uncertainty.localization import histogram as HF
+from pose_uncertainty.localization.sensors import (
+    BeamSensor,
+    RangeBearingSensor,
+    beam_probability,
+    beam_terms,
+    landmark_h,
+)
+from pose_uncertainty.localization.world import World
 from pose_uncertainty.methods import maps as M
 
 ROOM = Grid.square(0.1, 0.1, 40, 30, 0.2, 36)
@@ -190,3 +199,36 @@ def test_large_arrays_are_checked_as_small_ones(bad):
     huge = np.full(10_000, 1e308)  # finite, though the sum overflows
     assert check_finite("huge", huge) is huge
     assert check_nonnegative("huge", huge) is huge
+
+
+def test_unknown_correspondences_take_each_cells_best_landmark(monkeypatch):
+    world = World(np.array([[0.3, 0.9], [-0.8, 0.2], [0.6, -0.5]]), np.arange(3), bounds=(-1.0, 1.0, -0.8, 0.8))
+    grid = HF.pose_grid_for(world, 0.1, 24)
+    sen = RangeBearingSensor(range_std=0.2, bearing_std=0.1)
+    z = landmark_h(np.array([0.05, -0.1, 2.5]), world.landmarks)[:2] + np.random.default_rng(4).normal(0, 0.05, (2, 2))
+    ref = np.zeros(grid.shape)
+    for zi in z:  # per measurement, the best landmark of every cell
+        ref += np.max([HF.landmark_log_likelihood_grid(grid, zi[None], mj[None], sen) for mj in world.landmarks],
+                      axis=0)  # fmt: skip
+    assert_array_equal(HF.landmark_log_likelihood_grid_ml(grid, z, world.landmarks, sen), ref)
+    monkeypatch.setattr(HF, "_BLOCK", 1000)  # blocks of 2 rows
+    assert_array_equal(HF.landmark_log_likelihood_grid_ml(grid, z, world.landmarks, sen), ref)
+
+
+@pytest.mark.parametrize("theta_major", [True, False])
+def test_beam_likelihood_in_blocks_is_the_whole_table(theta_major, monkeypatch):
+    sen = BeamSensor(n_beams=4, max_range=5.0, sigma_hit=0.1)
+    rng = np.random.default_rng(2)
+    nx, ny, nt = 15, 11, 12
+    # the table of beam_range_table is stored θ-major (nθ, B, nx, ny); a sum over the beams
+    # then runs in that order, and the result keeps it
+    table = (np.moveaxis(rng.uniform(0, 5, (nt, 4, nx, ny)), (0, 1), (2, 3)) if theta_major
+             else rng.uniform(0, 5, (nx, ny, nt, 4)))  # fmt: skip
+    table[2, 3, 4, 1] = 0.0  # a wall at the sensor
+    z = np.array([1.0, 5.0, 0.0, 3.3])  # a max reading and a zero one
+    with np.errstate(divide="ignore"):
+        whole = np.log(beam_probability(z, table, sen, beam_terms(table, sen))).sum(axis=-1)
+    monkeypatch.setattr(HF, "_BLOCK", 3 * ny * nt * 4)  # blocks of 3 rows
+    got = HF._beam_log_likelihood_grid(z, table, sen, beam_terms(table, sen))
+    assert got.tobytes(order="A") == whole.tobytes(order="A")
+    assert got.strides == whole.strides

@@ -139,37 +139,12 @@ def landmark_log_likelihood_grid(grid: Grid, z: Array, landmarks: Array, sensor:
     as ``wrap(a(x, y) + θ)`` with ``a`` computed once per position. The (x, y, θ) arithmetic
     runs on blocks of x rows that stay in cache, in reused buffers.
     """
-    X, Y = np.meshgrid(grid.x, grid.y, indexing="ij")
-    nx, ny, nt = grid.shape
-    theta = grid.theta
-    ir, ib = 1.0 / sensor.range_std**2, 1.0 / sensor.bearing_std**2
-    range_sq = np.zeros((nx, ny))
-    a = np.empty((len(z), nx, ny))  # a_j(x, y) = φ_j − atan2(m_y − y, m_x − x)
-    for j, ((r, phi), (mx, my)) in enumerate(zip(z, landmarks, strict=True)):
-        dx, dy = mx - X, my - Y
-        er = np.hypot(dx, dy) - r
-        range_sq += er * er
-        np.subtract(phi, np.arctan2(dy, dx), out=a[j])
+    range_sq, a = _range_bearing_terms(grid, z, landmarks)
     out = np.empty(grid.shape)
-    rows = max(1, _BLOCK // (ny * nt))
-    e = np.empty((rows, ny, nt))
-    t = np.empty((rows, ny, nt))
-    for i0 in range(0, nx, rows):
-        i1 = min(nx, i0 + rows)
-        acc, eb, tb = out[i0:i1], e[: i1 - i0], t[: i1 - i0]
-        acc.fill(0.0)
-        for aj in a[:, i0:i1]:
-            np.add(aj[:, :, None], theta, out=eb)  # bearing error before wrapping
-            np.multiply(eb, 1.0 / _TWO_PI, out=tb)
-            np.rint(tb, out=tb)
-            tb *= _TWO_PI
-            eb -= tb  # wrapped by the nearest multiple of 2π
-            eb *= eb
-            acc += eb
-        acc *= -0.5 * ib
-        acc -= (0.5 * ir) * range_sq[i0:i1, :, None]
-    const = -z.shape[0] * (math.log(_TWO_PI) + math.log(sensor.range_std * sensor.bearing_std))
-    out += const
+    e, t = np.empty((2, *_block_shape(grid)))
+    for i0, i1 in _row_blocks(grid):
+        _landmark_sum(a[:, i0:i1], range_sq[i0:i1], grid.theta, sensor, out[i0:i1], e[: i1 - i0], t[: i1 - i0])
+    out += _log_norm(z.shape[0], sensor)
     return out
 
 
@@ -177,19 +152,79 @@ def landmark_log_likelihood_grid(grid: Grid, z: Array, landmarks: Array, sensor:
 _BLOCK = 1 << 17
 
 
+def _block_shape(grid: Grid) -> tuple[int, int, int]:
+    """Shape of a block of x rows of :func:`_row_blocks`."""
+    return max(1, _BLOCK // (grid.ny * grid.ntheta)), grid.ny, grid.ntheta
+
+
+def _row_blocks(grid: Grid) -> list[tuple[int, int]]:
+    """``(i0, i1)`` of the blocks of x rows of ``grid`` (about :data:`_BLOCK` cells each)."""
+    rows = _block_shape(grid)[0]
+    return [(i0, min(grid.nx, i0 + rows)) for i0 in range(0, grid.nx, rows)]
+
+
+def _log_norm(n: int, sensor: RangeBearingSensor) -> float:
+    """``log`` of the normalising constant of ``n`` range–bearing measurements."""
+    return -n * (math.log(_TWO_PI) + math.log(sensor.range_std * sensor.bearing_std))
+
+
+def _range_bearing_terms(grid: Grid, z: Array, landmarks: Array) -> tuple[Array, Array]:
+    """Per position (nx, ny): ``Σ_j (|m_j − x| − r_j)²`` and ``a_j = φ_j − atan2(m_y − y, m_x − x)`` (J, nx, ny)."""
+    X, Y = np.meshgrid(grid.x, grid.y, indexing="ij")
+    range_sq = np.zeros(X.shape)
+    a = np.empty((len(z), *X.shape))
+    for j, ((r, phi), (mx, my)) in enumerate(zip(z, landmarks, strict=True)):
+        dx, dy = mx - X, my - Y
+        er = np.hypot(dx, dy) - r
+        range_sq += er * er
+        np.subtract(phi, np.arctan2(dy, dx), out=a[j])
+    return range_sq, a
+
+
+def _landmark_sum(a: Array, range_sq: Array, theta: Array, sensor: RangeBearingSensor, acc: Array,
+                  eb: Array, tb: Array) -> None:  # fmt: skip
+    """``acc ← −½ Σ_j wrap(a_j + θ)²/σ_b² − ½ range_sq/σ_r²`` on a block of rows (in place).
+
+    ``a`` (J, rows, ny), ``range_sq`` (rows, ny), ``theta`` (nθ,); ``acc``, ``eb``, ``tb``
+    (rows, ny, nθ), the last two buffers.
+    """
+    ir, ib = 1.0 / sensor.range_std**2, 1.0 / sensor.bearing_std**2
+    acc.fill(0.0)
+    for aj in a:
+        np.add(aj[:, :, None], theta, out=eb)  # bearing error before wrapping
+        np.multiply(eb, 1.0 / _TWO_PI, out=tb)
+        np.rint(tb, out=tb)
+        tb *= _TWO_PI
+        eb -= tb  # wrapped by the nearest multiple of 2π
+        eb *= eb
+        acc += eb
+    acc *= -0.5 * ib
+    acc -= (0.5 * ir) * range_sq[:, :, None]
+
+
 def landmark_log_likelihood_grid_ml(
     grid: Grid, z: Array, landmarks: Array, sensor: RangeBearingSensor
 ) -> Array:
     """As :func:`landmark_log_likelihood_grid` with unknown correspondences: each cell takes,
     per measurement, the landmark of maximum likelihood (all ``L`` landmarks tried), shape (nx, ny, nθ).
+
+    Per block of rows: for each measurement the maximum over the landmarks of the
+    one-measurement log-likelihood (normalising constant included), summed over the measurements.
     """
+    terms = [[_range_bearing_terms(grid, zi[None], mj[None]) for mj in landmarks] for zi in z]
+    const = _log_norm(1, sensor)
     out = np.zeros(grid.shape)
-    for zi in z:
-        best = np.full(grid.shape, -np.inf)
-        for mj in landmarks:
-            best = np.maximum(best, landmark_log_likelihood_grid(grid, zi[None], mj[None], sensor))
-        out += best
-    return out  # each term holds its normalising constant
+    ll, best, e, t = np.empty((4, *_block_shape(grid)))
+    for i0, i1 in _row_blocks(grid):
+        n = i1 - i0
+        for per_landmark in terms:
+            best[:n] = -np.inf
+            for range_sq, a in per_landmark:
+                _landmark_sum(a[:, i0:i1], range_sq[i0:i1], grid.theta, sensor, ll[:n], e[:n], t[:n])
+                ll[:n] += const
+                np.maximum(best[:n], ll[:n], out=best[:n])
+            out[i0:i1] += best[:n]
+    return out
 
 
 def beam_range_table(occupancy: OccupancyGrid, grid: Grid, sensor: BeamSensor) -> Array:
@@ -209,6 +244,23 @@ def beam_range_table(occupancy: OccupancyGrid, grid: Grid, sensor: BeamSensor) -
         table[:, a_idx] = cast_rays(occupancy, xy, np.full(xy.shape[0], a), sensor.max_range)
     out = table[:, inv.reshape(ang.shape)].reshape(grid.nx, grid.ny, grid.ntheta, sensor.n_beams)
     return np.asarray(out, dtype=np.float64)
+
+
+def _beam_log_likelihood_grid(z: Array, table: Array, sensor: BeamSensor, terms: tuple[Array, Array] | None) -> Array:
+    """``Σ_b log p(z_b | z*_b(x))`` at every cell of a table of expected ranges (nx, ny, nθ, B).
+
+    On blocks of x rows (cache-sized temporaries); each cell's terms, their sum over the
+    beams and the result's memory order are those of the whole table at once.
+    """
+    mass, eta = beam_terms(table, sensor) if terms is None else terms
+    out = np.empty_like(table[..., 0])
+    rows = max(1, _BLOCK // (table[0].size))
+    with np.errstate(divide="ignore"):
+        for i0 in range(0, table.shape[0], rows):
+            i1 = i0 + rows
+            p = beam_probability(z, table[i0:i1], sensor, (mass[i0:i1], eta[i0:i1]))
+            out[i0:i1] = np.log(p).sum(axis=-1)
+    return out
 
 
 def hf_correct(belief: Array, loglik: Array) -> tuple[Array, float]:
@@ -265,9 +317,7 @@ def _loglik_grid(run: SimulatedRun, world: World, sensor: RangeBearingSensor | B
     if isinstance(sensor, BeamSensor):
         if not run.beam_valid[k] or run.beam_z is None or table is None:
             return None, 0, 0
-        with np.errstate(divide="ignore"):
-            ll = np.log(beam_probability(run.beam_z[k], table, sensor, terms)).sum(axis=-1)
-        return ll, sensor.n_beams, 0
+        return _beam_log_likelihood_grid(run.beam_z[k], table, sensor, terms), sensor.n_beams, 0
     if cfg.association == "ml":  # every cell associates for itself
         valid = run.landmark_valid[k]
         if not valid.any():
