@@ -266,16 +266,31 @@ def _beam_log_likelihood_grid(z: Array, table: Array, sensor: BeamSensor, terms:
 def hf_correct(belief: Array, loglik: Array) -> tuple[Array, float]:
     """``Bel ← η p(z|x) Bel``: the posterior masses and ``log Σ p(z|x) Bel(x)`` (the log evidence).
 
-    Raises ValueError when no cell with mass explains the measurement.
+    On blocks of x rows (cache-sized temporaries); the posterior is laid out in memory as
+    the likelihood (its sum runs in that order). Raises ValueError when no cell with mass
+    explains the measurement.
     """
-    with_mass = loglik[belief > 0]
-    top = float(with_mass.max()) if with_mass.size else -math.inf
+    rows = max(1, _BLOCK // max(1, belief[0].size))
+    blocks = [slice(i0, i0 + rows) for i0 in range(0, belief.shape[0], rows)]
+    top = float(np.max([np.max(np.where(belief[b] > 0, loglik[b], -np.inf), initial=-np.inf) for b in blocks]))
     if not math.isfinite(top):
         raise ValueError("measurement has zero likelihood on every cell with mass (allowed: some p(z|x) > 0)")
-    post = belief * np.exp(loglik - top)
+    post = np.empty_like(loglik, dtype=np.float64)
+    for b in blocks:
+        # p(z|x) / max p(z|x), the exponential only where it does not underflow to 0 (an
+        # underflowing exp takes a slow path, and a sharp likelihood underflows on most cells)
+        arg = loglik[b] - top
+        ratio = np.zeros_like(arg)
+        live = arg > _EXP_ZERO
+        ratio[live] = np.exp(arg[live])
+        np.multiply(ratio, belief[b], out=post[b])
     s = float(post.sum())
     post /= s
     return post, top + math.log(s)
+
+
+#: Below this argument ``exp`` is 0 in double precision (``exp(−745.14)`` is half the smallest subnormal).
+_EXP_ZERO = -746.0
 
 
 def hf_estimate(belief: Array, grid: Grid) -> tuple[Array, Array]:
