@@ -52,10 +52,28 @@ def as_float_array(name: str, value: ArrayLike) -> NDArray[np.float64]:
         raise ValueError(f"{name} must be numeric (allowed: real numbers{hint}), got {value!r}") from exc
 
 
+def _all_finite(arr: NDArray[np.float64]) -> bool:
+    """Whether every element is finite; a large array without an elementwise temporary.
+
+    A finite sum proves every element finite (a NaN or an infinity makes any sum NaN
+    or infinite); only a sum that overflows needs the elementwise test.
+    """
+    if arr.size >= _LARGE:
+        with np.errstate(over="ignore", invalid="ignore"):
+            if np.isfinite(arr.sum()):
+                return True
+    return bool(np.all(np.isfinite(arr)))
+
+
+#: Elements from which :func:`_all_finite` and :func:`check_nonnegative` reduce instead of
+#: testing elementwise (the belief of a histogram filter is checked at every step).
+_LARGE = 1 << 12
+
+
 def check_finite(name: str, value: ArrayLike) -> NDArray[np.float64]:
     """Return ``value`` as float64, rejecting NaN and ±inf."""
     arr = as_float_array(name, value)
-    if not np.all(np.isfinite(arr)):
+    if not _all_finite(arr):
         bad = arr[~np.isfinite(arr)] if arr.ndim else arr
         raise ValueError(
             f"{name} must be finite (allowed: real numbers, no NaN or inf), got {_show(bad)}"
@@ -74,7 +92,7 @@ def check_positive(name: str, value: ArrayLike) -> NDArray[np.float64]:
 def check_nonnegative(name: str, value: ArrayLike) -> NDArray[np.float64]:
     """Return ``value`` as float64, requiring every element finite and >= 0."""
     arr = check_finite(name, value)
-    if not np.all(arr >= 0):
+    if not (arr.min() >= 0 if arr.size >= _LARGE else np.all(arr >= 0)):
         raise ValueError(f"{name} must be >= 0 (allowed: [0, inf)), got {_show(arr[arr < 0])}")
     return arr
 

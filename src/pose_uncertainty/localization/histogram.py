@@ -139,37 +139,12 @@ def landmark_log_likelihood_grid(grid: Grid, z: Array, landmarks: Array, sensor:
     as ``wrap(a(x, y) + θ)`` with ``a`` computed once per position. The (x, y, θ) arithmetic
     runs on blocks of x rows that stay in cache, in reused buffers.
     """
-    X, Y = np.meshgrid(grid.x, grid.y, indexing="ij")
-    nx, ny, nt = grid.shape
-    theta = grid.theta
-    ir, ib = 1.0 / sensor.range_std**2, 1.0 / sensor.bearing_std**2
-    range_sq = np.zeros((nx, ny))
-    a = np.empty((len(z), nx, ny))  # a_j(x, y) = φ_j − atan2(m_y − y, m_x − x)
-    for j, ((r, phi), (mx, my)) in enumerate(zip(z, landmarks, strict=True)):
-        dx, dy = mx - X, my - Y
-        er = np.hypot(dx, dy) - r
-        range_sq += er * er
-        np.subtract(phi, np.arctan2(dy, dx), out=a[j])
+    range_sq, a = _range_bearing_terms(grid, z, landmarks)
     out = np.empty(grid.shape)
-    rows = max(1, _BLOCK // (ny * nt))
-    e = np.empty((rows, ny, nt))
-    t = np.empty((rows, ny, nt))
-    for i0 in range(0, nx, rows):
-        i1 = min(nx, i0 + rows)
-        acc, eb, tb = out[i0:i1], e[: i1 - i0], t[: i1 - i0]
-        acc.fill(0.0)
-        for aj in a[:, i0:i1]:
-            np.add(aj[:, :, None], theta, out=eb)  # bearing error before wrapping
-            np.multiply(eb, 1.0 / _TWO_PI, out=tb)
-            np.rint(tb, out=tb)
-            tb *= _TWO_PI
-            eb -= tb  # wrapped by the nearest multiple of 2π
-            eb *= eb
-            acc += eb
-        acc *= -0.5 * ib
-        acc -= (0.5 * ir) * range_sq[i0:i1, :, None]
-    const = -z.shape[0] * (math.log(_TWO_PI) + math.log(sensor.range_std * sensor.bearing_std))
-    out += const
+    e, t = np.empty((2, *_block_shape(grid)))
+    for i0, i1 in _row_blocks(grid):
+        _landmark_sum(a[:, i0:i1], range_sq[i0:i1], grid.theta, sensor, out[i0:i1], e[: i1 - i0], t[: i1 - i0])
+    out += _log_norm(z.shape[0], sensor)
     return out
 
 
@@ -177,19 +152,79 @@ def landmark_log_likelihood_grid(grid: Grid, z: Array, landmarks: Array, sensor:
 _BLOCK = 1 << 17
 
 
+def _block_shape(grid: Grid) -> tuple[int, int, int]:
+    """Shape of a block of x rows of :func:`_row_blocks`."""
+    return max(1, _BLOCK // (grid.ny * grid.ntheta)), grid.ny, grid.ntheta
+
+
+def _row_blocks(grid: Grid) -> list[tuple[int, int]]:
+    """``(i0, i1)`` of the blocks of x rows of ``grid`` (about :data:`_BLOCK` cells each)."""
+    rows = _block_shape(grid)[0]
+    return [(i0, min(grid.nx, i0 + rows)) for i0 in range(0, grid.nx, rows)]
+
+
+def _log_norm(n: int, sensor: RangeBearingSensor) -> float:
+    """``log`` of the normalising constant of ``n`` range–bearing measurements."""
+    return -n * (math.log(_TWO_PI) + math.log(sensor.range_std * sensor.bearing_std))
+
+
+def _range_bearing_terms(grid: Grid, z: Array, landmarks: Array) -> tuple[Array, Array]:
+    """Per position (nx, ny): ``Σ_j (|m_j − x| − r_j)²`` and ``a_j = φ_j − atan2(m_y − y, m_x − x)`` (J, nx, ny)."""
+    X, Y = np.meshgrid(grid.x, grid.y, indexing="ij")
+    range_sq = np.zeros(X.shape)
+    a = np.empty((len(z), *X.shape))
+    for j, ((r, phi), (mx, my)) in enumerate(zip(z, landmarks, strict=True)):
+        dx, dy = mx - X, my - Y
+        er = np.hypot(dx, dy) - r
+        range_sq += er * er
+        np.subtract(phi, np.arctan2(dy, dx), out=a[j])
+    return range_sq, a
+
+
+def _landmark_sum(a: Array, range_sq: Array, theta: Array, sensor: RangeBearingSensor, acc: Array,
+                  eb: Array, tb: Array) -> None:  # fmt: skip
+    """``acc ← −½ Σ_j wrap(a_j + θ)²/σ_b² − ½ range_sq/σ_r²`` on a block of rows (in place).
+
+    ``a`` (J, rows, ny), ``range_sq`` (rows, ny), ``theta`` (nθ,); ``acc``, ``eb``, ``tb``
+    (rows, ny, nθ), the last two buffers.
+    """
+    ir, ib = 1.0 / sensor.range_std**2, 1.0 / sensor.bearing_std**2
+    acc.fill(0.0)
+    for aj in a:
+        np.add(aj[:, :, None], theta, out=eb)  # bearing error before wrapping
+        np.multiply(eb, 1.0 / _TWO_PI, out=tb)
+        np.rint(tb, out=tb)
+        tb *= _TWO_PI
+        eb -= tb  # wrapped by the nearest multiple of 2π
+        eb *= eb
+        acc += eb
+    acc *= -0.5 * ib
+    acc -= (0.5 * ir) * range_sq[:, :, None]
+
+
 def landmark_log_likelihood_grid_ml(
     grid: Grid, z: Array, landmarks: Array, sensor: RangeBearingSensor
 ) -> Array:
     """As :func:`landmark_log_likelihood_grid` with unknown correspondences: each cell takes,
     per measurement, the landmark of maximum likelihood (all ``L`` landmarks tried), shape (nx, ny, nθ).
+
+    Per block of rows: for each measurement the maximum over the landmarks of the
+    one-measurement log-likelihood (normalising constant included), summed over the measurements.
     """
+    terms = [[_range_bearing_terms(grid, zi[None], mj[None]) for mj in landmarks] for zi in z]
+    const = _log_norm(1, sensor)
     out = np.zeros(grid.shape)
-    for zi in z:
-        best = np.full(grid.shape, -np.inf)
-        for mj in landmarks:
-            best = np.maximum(best, landmark_log_likelihood_grid(grid, zi[None], mj[None], sensor))
-        out += best
-    return out  # each term holds its normalising constant
+    ll, best, e, t = np.empty((4, *_block_shape(grid)))
+    for i0, i1 in _row_blocks(grid):
+        n = i1 - i0
+        for per_landmark in terms:
+            best[:n] = -np.inf
+            for range_sq, a in per_landmark:
+                _landmark_sum(a[:, i0:i1], range_sq[i0:i1], grid.theta, sensor, ll[:n], e[:n], t[:n])
+                ll[:n] += const
+                np.maximum(best[:n], ll[:n], out=best[:n])
+            out[i0:i1] += best[:n]
+    return out
 
 
 def beam_range_table(occupancy: OccupancyGrid, grid: Grid, sensor: BeamSensor) -> Array:
@@ -211,17 +246,51 @@ def beam_range_table(occupancy: OccupancyGrid, grid: Grid, sensor: BeamSensor) -
     return np.asarray(out, dtype=np.float64)
 
 
+def _beam_log_likelihood_grid(z: Array, table: Array, sensor: BeamSensor, terms: tuple[Array, Array] | None) -> Array:
+    """``Σ_b log p(z_b | z*_b(x))`` at every cell of a table of expected ranges (nx, ny, nθ, B).
+
+    On blocks of x rows (cache-sized temporaries); each cell's terms, their sum over the
+    beams and the result's memory order are those of the whole table at once.
+    """
+    mass, eta = beam_terms(table, sensor) if terms is None else terms
+    out = np.empty_like(table[..., 0])
+    rows = max(1, _BLOCK // (table[0].size))
+    with np.errstate(divide="ignore"):
+        for i0 in range(0, table.shape[0], rows):
+            i1 = i0 + rows
+            p = beam_probability(z, table[i0:i1], sensor, (mass[i0:i1], eta[i0:i1]))
+            out[i0:i1] = np.log(p).sum(axis=-1)
+    return out
+
+
 def hf_correct(belief: Array, loglik: Array) -> tuple[Array, float]:
     """``Bel ← η p(z|x) Bel``: the posterior masses and ``log Σ p(z|x) Bel(x)`` (the log evidence).
 
-    Raises ValueError when no cell with mass explains the measurement.
+    On blocks of x rows (cache-sized temporaries); the posterior is laid out in memory as
+    the likelihood (its sum runs in that order). Raises ValueError when no cell with mass
+    explains the measurement.
     """
-    top = float(np.max(np.where(belief > 0, loglik, -np.inf)))
+    rows = max(1, _BLOCK // max(1, belief[0].size))
+    blocks = [slice(i0, i0 + rows) for i0 in range(0, belief.shape[0], rows)]
+    top = float(np.max([np.max(np.where(belief[b] > 0, loglik[b], -np.inf), initial=-np.inf) for b in blocks]))
     if not math.isfinite(top):
         raise ValueError("measurement has zero likelihood on every cell with mass (allowed: some p(z|x) > 0)")
-    post = belief * np.exp(loglik - top)
+    post = np.empty_like(loglik, dtype=np.float64)
+    for b in blocks:
+        # p(z|x) / max p(z|x), the exponential only where it does not underflow to 0 (an
+        # underflowing exp takes a slow path, and a sharp likelihood underflows on most cells)
+        arg = loglik[b] - top
+        ratio = np.zeros_like(arg)
+        live = arg > _EXP_ZERO
+        ratio[live] = np.exp(arg[live])
+        np.multiply(ratio, belief[b], out=post[b])
     s = float(post.sum())
-    return post / s, top + math.log(s)
+    post /= s
+    return post, top + math.log(s)
+
+
+#: Below this argument ``exp`` is 0 in double precision (``exp(−745.14)`` is half the smallest subnormal).
+_EXP_ZERO = -746.0
 
 
 def hf_estimate(belief: Array, grid: Grid) -> tuple[Array, Array]:
@@ -230,9 +299,9 @@ def hf_estimate(belief: Array, grid: Grid) -> tuple[Array, Array]:
     The histogram filter's density is uniform inside each cell, so its covariance is
     the covariance of the cell centres plus ``diag(h², h², h_θ²)/12`` (Sheppard).
     """
-    pm = ProbabilityMap(grid.x, grid.y, grid.theta, belief, 0.0, "histogram", grid)
+    mean, cov = ProbabilityMap(grid.x, grid.y, grid.theta, belief, 0.0, "histogram", grid).moments()
     h, ht = grid.resolution, grid.theta_resolution
-    return pm.mean(), pm.cov() + np.diag([h * h, h * h, ht * ht]) / 12.0
+    return mean, cov + np.diag([h * h, h * h, ht * ht]) / 12.0
 
 
 def _transition(cache: dict[tuple[float, ...], GridTransition], run: SimulatedRun, k: int,
@@ -263,9 +332,7 @@ def _loglik_grid(run: SimulatedRun, world: World, sensor: RangeBearingSensor | B
     if isinstance(sensor, BeamSensor):
         if not run.beam_valid[k] or run.beam_z is None or table is None:
             return None, 0, 0
-        with np.errstate(divide="ignore"):
-            ll = np.log(beam_probability(run.beam_z[k], table, sensor, terms)).sum(axis=-1)
-        return ll, sensor.n_beams, 0
+        return _beam_log_likelihood_grid(run.beam_z[k], table, sensor, terms), sensor.n_beams, 0
     if cfg.association == "ml":  # every cell associates for itself
         valid = run.landmark_valid[k]
         if not valid.any():
@@ -298,7 +365,7 @@ def run_histogram(
     st = start or Start(pose=tuple(run.true_poses[0]))  # type: ignore[arg-type]
     rec = StepRecorder("histogram", run, check_keep(keep, run.n_steps), on_step)
     grid = pose_grid_for(world, cfg.resolution, cfg.ntheta)
-    free = _free_mask(world, grid) if cfg.mask_occupied else None
+    free = _free_mask(world, grid)[:, :, None].astype(np.float64) if cfg.mask_occupied else None
     table = beam_range_table(world.grid, grid, sensor) if isinstance(sensor, BeamSensor) and world.grid else None
     terms = beam_terms(table, sensor) if table is not None and isinstance(sensor, BeamSensor) else None
     belief = initial_belief(st, world, grid)
@@ -307,13 +374,15 @@ def run_histogram(
         rec.tic()
         lost = masked = logev = 0.0
         if k > 0:
-            belief, info = predict_on_grid(belief, _transition(cache, run, k - 1, grid, cfg.motion), cfg.workers)
+            belief, info = predict_on_grid(belief, _transition(cache, run, k - 1, grid, cfg.motion), cfg.workers,
+                                           overwrite_belief=True)  # fmt: skip
             lost = info["lost_mass"]
-            if free is not None:
-                before = float(belief.sum())
-                belief = belief * free[:, :, None]
-                masked = before - float(belief.sum())
-            belief = belief / belief.sum()
+            total = float(belief.sum())
+            if free is not None:  # (the prediction is the filter's own array: scaled in place)
+                belief *= free
+                after = float(belief.sum())
+                masked, total = total - after, after
+            belief /= total
         ll, m, wrong = _loglik_grid(run, world, sensor, k, grid, belief, cfg, table, terms)
         if ll is not None:
             belief, logev = hf_correct(belief, ll)

@@ -224,16 +224,9 @@ class ProbabilityMap:
             )
         return area
 
-    def _weights(self) -> Array:
-        v = self.values
-        return v / v.sum()
-
     def mean(self) -> Array:
         """Mean ``(x, y, θ)`` of the in-grid mass (θ: circular mean), shape (3,)."""
-        w = self._weights()
-        wx, wy, wt = w.sum(axis=(1, 2)), w.sum(axis=(0, 2)), w.sum(axis=(0, 1))
-        th = math.atan2(float(wt @ np.sin(self.theta)), float(wt @ np.cos(self.theta)))
-        return np.array([float(wx @ self.x), float(wy @ self.y), th])
+        return self.moments()[0]
 
     def cov(self) -> Array:
         """Covariance of ``(x, y, θ)`` over the in-grid mass, shape (3, 3).
@@ -242,17 +235,29 @@ class ProbabilityMap:
         centres (no Sheppard correction: a continuous density's variance is
         about ``h²/12`` smaller per axis).
         """
-        w = self._weights()
-        mu = self.mean()
-        dx = (self.x - mu[0])[:, None, None]
-        dy = (self.y - mu[1])[None, :, None]
-        dt = wrap_angle(self.theta - mu[2])[None, None, :]
-        d = [dx, dy, dt]
-        out = np.empty((3, 3))
+        return self.moments()[1]
+
+    def moments(self) -> tuple[Array, Array]:
+        """:meth:`mean` and :meth:`cov` at once, shapes (3,), (3, 3).
+
+        Each product of deviations depends on two axes only, so its sum over the
+        grid is taken on the 2-D marginals of the mass.
+        """
+        v = self.values
+        total = float(v.sum())
+        # (einsum: a sum over the short last axis without a per-row reduction)
+        m2 = {(0, 1): np.einsum("ijk->ij", v) / total, (0, 2): np.einsum("ijk->ik", v) / total,
+              (1, 2): v.sum(axis=0) / total}  # fmt: skip
+        m1 = (m2[0, 1].sum(axis=1), m2[0, 1].sum(axis=0), m2[1, 2].sum(axis=0))
+        th = math.atan2(float(m1[2] @ np.sin(self.theta)), float(m1[2] @ np.cos(self.theta)))
+        mu = np.array([float(m1[0] @ self.x), float(m1[1] @ self.y), th])
+        d = (self.x - mu[0], self.y - mu[1], wrap_angle(self.theta - mu[2]))
+        cov = np.empty((3, 3))
         for a in range(3):
-            for b in range(a, 3):
-                out[a, b] = out[b, a] = float(np.sum(w * d[a] * d[b]))
-        return out
+            cov[a, a] = float(m1[a] @ (d[a] * d[a]))  # Σ w d_a²
+            for b in range(a + 1, 3):  # Σ w d_a d_b, elementwise (a matrix product rounds by threads)
+                cov[a, b] = cov[b, a] = float(np.sum(m2[a, b] * np.multiply.outer(d[a], d[b])))
+        return mu, cov
 
 
 # ============================================================================= helpers
@@ -658,7 +663,7 @@ class _Kernel:
     step_a: Array  # (Q, 3) pose change between neighbouring nodes along the first control axis
     step_b: Array  # (Q, 3) … along the second control axis
     heading_variance_mismatch: float  # discrete − continuous heading variance per step [rad²]
-    head_parts: list[tuple[AnyArray, AnyArray | float]]  # heading cells (offsets from head_m_lo) of the nodes
+    head_parts: tuple[AnyArray, Array]  # (S, Q) heading cells (offsets from head_m_lo) of the nodes, factors
     head_m_lo: int
     head_mp: int
     head_lo: int
@@ -739,7 +744,7 @@ def _odometry_nodes(stp: _Step, sd: Array, h: float, ht: float, n_max: int) -> _
 
 
 def _node_heading_variances(
-    t_parts: list[tuple[AnyArray, AnyArray | float]], mp: int, weight: Array, fth: Array, wth: Array
+    t_parts: tuple[AnyArray, Array], mp: int, weight: Array, fth: Array, wth: Array
 ) -> tuple[float, float]:
     """Heading variance [cells²] the position nodes carry: (deposited on the cells, continuous).
 
@@ -748,7 +753,7 @@ def _node_heading_variances(
     ``mp`` heading offsets.
     """
     phi_mass = np.zeros(mp)
-    for i_, w_ in t_parts:
+    for i_, w_ in zip(*t_parts, strict=True):
         phi_mass += np.bincount(i_, weight * w_, minlength=mp)
     var_phi_disc = _discrete_var(phi_mass)
     mu = float(weight @ fth)
@@ -802,10 +807,10 @@ def _quadrature_kernel(
     # heading cells of the position nodes (same rule as the x, y axes)
     fth = pose[:, 2] / ht
     wth = np.minimum((np.abs(step_a[..., 2]) + np.abs(step_b[..., 2])).ravel() / ht, 1.0)
-    t_parts = _axis_parts(fth, wth, weight)
-    m_lo_p = min(int(p_[0].min()) for p_ in t_parts)
-    mp = max(int(p_[0].max()) for p_ in t_parts) - m_lo_p + 1
-    t_parts = [(i_ - m_lo_p, w_) for i_, w_ in t_parts]
+    jt, vt = (a_[0] for a_ in _axis_parts(fth[None], wth[None], weight))
+    m_lo_p = int(jt.min())
+    mp = int(jt.max()) - m_lo_p + 1
+    t_parts = (jt - m_lo_p, vt)
     var_phi_disc, var_phi_true = _node_heading_variances(t_parts, mp, weight, fth, wth)
     target = var_phi_true + (head_std / ht) ** 2 - var_phi_disc  # bins²
     head_sd = _matched_heading_std(head_mean, head_std, target, stp.noise, ht, compensate)
@@ -829,42 +834,76 @@ def _quadrature_kernel(
     )
 
 
-def _splat(f: Array, width: Array) -> list[tuple[AnyArray, AnyArray | float]]:
-    """Deposit segments ``[f − w/2, f + w/2]`` (cell units, ``w ≤ 1``) by exact overlap with cells."""
+def _splat(f: Array, width: Array) -> tuple[AnyArray, Array]:
+    """Deposit segments ``[f − w/2, f + w/2]`` (cell units, ``w ≤ 1``) by exact overlap with cells.
+
+    Returns the first cell ``i`` and the fraction ``first`` of the segment in it (the rest
+    is in ``i + 1``), both of the shape of ``f``.
+    """
     left = f - width / 2.0
     i = np.floor(left + 0.5).astype(np.int64)
     safe = np.where(width > 0, width, 1.0)
     first = np.where(width > 0, np.clip((i + 0.5 - left) / safe, 0.0, 1.0), 1.0)
-    return [(i, first), (i + 1, 1.0 - first)]
+    return i, first
 
 
-def _axis_parts(
-    f: Array, width: Array, weight: Array
-) -> list[tuple[AnyArray, AnyArray | float]]:
+def _axis_parts(f: Array, width: Array, weight: Array) -> tuple[AnyArray, Array]:
     """How the nodes at continuous cell coordinates ``f`` are deposited on one axis.
 
-    Returns ``[(cell index array, weight factor array), …]``. Each node stands for a
-    segment of ``width`` cells (its control interval seen on this axis) and is
-    deposited by exact overlap with the cells: with nodes ≤ ½ cell apart this
-    integrates the kernel over the cells, as a histogram of samples does, without
-    the aliasing of nearest-cell rounding and with only ``w²/12`` of spread. When
-    the kernel is narrower than half a cell on this axis (weighted standard
-    deviation < ½) it is split into its mean ``μ`` and the deviations ``f − μ``:
-    the deviations are deposited as above (exact for a thin centred ridge) and the
-    mean is shared linearly between ``⌊μ⌋`` and ``⌊μ⌋+1`` (cloud-in-cell), so a
-    sub-cell drift is kept, not rounded away, at the price of ``frac(1−frac)`` cell².
+    Parameters
+    ----------
+    f, width : ndarray, shape (K, Q) — K rows (source headings) of the Q nodes [cells]
+    weight : ndarray, shape (Q,) — the nodes' masses (for each row's mean and spread)
+
+    Returns
+    -------
+    index : ndarray of int64, shape (K, S, Q) — cell of each node in each of the S parts
+    factor : ndarray, shape (K, S, Q) — the share of the node's mass that part carries
+
+    Each node stands for a segment of ``width`` cells (its control interval seen on
+    this axis) and is deposited by exact overlap with the cells: with nodes ≤ ½ cell
+    apart this integrates the kernel over the cells, as a histogram of samples does,
+    without the aliasing of nearest-cell rounding and with only ``w²/12`` of spread
+    (two parts: the first cell and the next). When the kernel of a row is narrower
+    than half a cell (weighted standard deviation < ½) it is split into its mean
+    ``μ`` and the deviations ``f − μ``: the deviations are deposited as above (exact
+    for a thin centred ridge) and the mean is shared linearly between ``⌊μ⌋`` and
+    ``⌊μ⌋+1`` (cloud-in-cell), so a sub-cell drift is kept, not rounded away, at the
+    price of ``frac(1−frac)`` cell² (four parts). When some rows are split and others
+    not, S = 4 and the unsplit rows carry two parts of zero mass (an exact no-op in
+    any sum).
     """
-    mean = float(weight @ f)
-    std = math.sqrt(max(float(weight @ (f - mean) ** 2), 0.0))
-    if std >= 0.5:
-        return _splat(f, width)
-    base = math.floor(mean)
+    mean, split = _split_rows(f, weight)
+    dev = f - mean[:, None]
+    i, first = _splat(np.where(split[:, None], dev, f), width)
+    rest = 1.0 - first
+    if not split.any():
+        return np.stack([i, i + 1], axis=1), np.stack([first, rest], axis=1)
+    base = np.where(split, np.floor(mean), 0.0)
     frac = mean - base
-    out = []
-    for idx, w in _splat(f - mean, width):
-        out.append((idx + base, w * (1.0 - frac)))
-        out.append((idx + base + 1, w * frac))
-    return out
+    lo, hi = np.where(split, 1.0 - frac, 1.0)[:, None], np.where(split, frac, 0.0)[:, None]
+    ib = i + base.astype(np.int64)[:, None]
+    return (np.stack([ib, ib + split[:, None], ib + 1, ib + 1 + split[:, None]], axis=1),
+            np.stack([first * lo, first * hi, rest * lo, rest * hi], axis=1))  # fmt: skip
+
+
+def _split_rows(f: Array, weight: Array) -> tuple[Array, AnyArray]:
+    """Which rows of ``f`` (K, Q) :func:`_axis_parts` splits (spread < ½ cell), and their weighted means.
+
+    Returns ``(mean, split)``, shapes (K,): ``mean`` is exact (the dot product of one row,
+    as for a single row) where ``split``, else only an estimate (unused). The decision is
+    taken on vectorised estimates of the spread, which differ from the row-by-row value
+    by round-off only: rows within 10⁻⁹ of ½ are decided row by row.
+    """
+    mean = f @ weight
+    std = np.sqrt(np.maximum(((f - mean[:, None]) ** 2) @ weight, 0.0))
+    split = std < 0.5
+    for r in np.flatnonzero(np.abs(std - 0.5) <= 1e-9):  # a spread at the threshold: as one row
+        m = float(weight @ f[r])
+        split[r] = not math.sqrt(max(float(weight @ (f[r] - m) ** 2), 0.0)) >= 0.5
+    for r in np.flatnonzero(split):
+        mean[r] = float(weight @ f[r])
+    return mean, split
 
 
 def _rotated_cells(kern: _Kernel, theta: Array, h: float, idx: Array | None = None) -> tuple[Array, Array]:
@@ -932,67 +971,139 @@ def _kernel_windows(kern: _Kernel, thetas: Array, h: float) -> tuple[AnyArray, A
     return ax, ay, wx, wy
 
 
-def _drop_negligible_slices(belief: Array) -> tuple[float, AnyArray]:
-    """Zero the heading slices holding < 1e-14 (in place): (mass dropped, indices of the others)."""
+def _drop_negligible_slices(belief: Array, copy: bool = False) -> tuple[Array, float, AnyArray]:
+    """Zero the heading slices holding < 1e-14: (belief, mass dropped, indices of the others).
+
+    In place, or with ``copy`` on a copy made only when a slice has to be zeroed.
+    """
     mass_k = belief.sum(axis=(0, 1))
     tiny = mass_k < 1e-14
     dropped = 0.0
-    if np.any(tiny & (mass_k != 0.0)):
+    drop = np.flatnonzero(tiny & (mass_k != 0.0))  # (the other tiny slices hold zeros only)
+    if drop.size:
         dropped = float(mass_k[tiny].sum())
-        belief[:, :, tiny] = 0.0
-    return dropped, np.flatnonzero(~tiny)
+        belief = belief.copy() if copy else belief
+        belief[:, :, drop] = 0.0
+    return belief, dropped, np.flatnonzero(~tiny)
 
 
-def _source_window(
+#: Scratch bytes of :func:`_source_windows` per batch of headings (the cells and masses of
+#: every part of every node: a cache-sized block).
+_WINDOW_BATCH_BYTES = 1 << 20
+
+
+def _source_windows(
     kern: _Kernel,
-    k: int,
-    fxy: tuple[Array, Array],
+    ks: AnyArray,
     thetas: Array,
     h: float,
     windows: tuple[AnyArray, AnyArray, int, int],
 ) -> Array:
-    """Kernel of source heading ``k`` on its window: mass per (x, y, heading offset), shape (wx, wy, mp).
+    """Kernels of the source headings ``ks`` (K,) on their windows: mass per (x, y, heading offset).
 
-    ``fxy``: the nodes' world offsets [cells] for this heading (:func:`_rotated_cells`).
+    Returns shape (K, wx, wy, mp). Every node is deposited on the three axes
+    (:func:`_axis_parts`: ``S_x · S_y · S_t`` parts), summed by :func:`_sum_parts`; a
+    heading's window does not depend on which other headings share its batch.
     """
     ax, ay, wx, wy = windows
     # heading offsets carried by the position nodes (CIC); the heading-only noise
     # (γΔt or δrot2) is applied afterwards as a circular convolution along θ
-    t_parts, mp = kern.head_parts, kern.head_mp
-    # position kernel of source heading k: trilinear deposit of the nodes
-    fx, fy = fxy
-    c_, s_ = math.cos(thetas[k]), math.sin(thetas[k])
-    wdx = (np.abs(c_ * kern.step_a[:, 0] - s_ * kern.step_a[:, 1])
-           + np.abs(c_ * kern.step_b[:, 0] - s_ * kern.step_b[:, 1])) / h  # fmt: skip
-    wdy = (np.abs(s_ * kern.step_a[:, 0] + c_ * kern.step_a[:, 1])
-           + np.abs(s_ * kern.step_b[:, 0] + c_ * kern.step_b[:, 1])) / h  # fmt: skip
-    x_parts = _axis_parts(fx, np.minimum(wdx, 1.0), kern.weight)
-    y_parts = _axis_parts(fy, np.minimum(wdy, 1.0), kern.weight)
-    lo_x = min(int(np.min(p_[0])) for p_ in x_parts)
-    hi_x = max(int(np.max(p_[0])) for p_ in x_parts)
-    lo_y = min(int(np.min(p_[0])) for p_ in y_parts)
-    hi_y = max(int(np.max(p_[0])) for p_ in y_parts)
-    if lo_x < ax[k] or lo_y < ay[k] or hi_x >= ax[k] + wx or hi_y >= ay[k] + wy:
-        raise RuntimeError("kernel node outside its window (internal error)")
-    win = np.zeros(wx * wy * mp)
-    for jx, wxx in x_parts:
-        for jy, wyy in y_parts:
-            wxy = kern.weight * wxx * wyy
-            for jt, wtt in t_parts:
-                flat = ((jx - ax[k]) * wy + (jy - ay[k])) * mp + jt
-                win += np.bincount(flat, wxy * wtt, minlength=win.size)
-    return win.reshape(wx, wy, mp)
+    jt, vt = kern.head_parts
+    mp, n_q = kern.head_mp, kern.weight.size
+    batch = max(1, _WINDOW_BATCH_BYTES // (16 * 16 * jt.shape[0] * n_q))  # ≤ 4 × 4 × S_t parts
+    fxy = _rotated_cells(kern, thetas, h)
+    out = np.empty((ks.size, wx * wy * mp))
+    for a in range(0, ks.size, batch):
+        k = ks[a : a + batch]
+        jx, vx, jy, vy = _position_parts(kern, k, fxy, thetas, h)
+        jx -= ax[k][:, None, None]
+        jy -= ay[k][:, None, None]
+        if jx.min() < 0 or jy.min() < 0 or jx.max() >= wx or jy.max() >= wy:
+            raise RuntimeError("kernel node outside its window (internal error)")
+        # cell of every (heading, x part, y part, θ part, node) in its window, and its mass
+        cell = (jx[:, :, None, None, :] * wy + jy[:, None, :, None, :]) * mp + jt[None, None, None]
+        mass = ((kern.weight * vx)[:, :, None, None, :] * vy[:, None, :, None, :]) * vt[None, None, None]
+        out[a : a + k.size] = _sum_parts(cell.reshape(k.size, -1, n_q), mass.reshape(k.size, -1, n_q), out.shape[1])
+    return out.reshape(ks.size, wx, wy, mp)
 
 
-def _heading_noise(new: Array, kern: _Kernel, workers: int) -> Array:
-    """Heading-only noise: circular convolution along θ with the CIC-deposited γΔt / δrot2."""
-    nt = new.shape[2]
-    g_circ = np.zeros(nt)
-    np.add.at(g_circ, (kern.head_lo + np.arange(kern.head_kernel.size)) % nt, kern.head_kernel)
-    return np.asarray(sfft.irfft(
-        sfft.rfft(new, axis=2, workers=workers) * sfft.rfft(g_circ), n=nt, axis=2,
-        workers=workers,
-    ))  # fmt: skip
+def _sum_parts(cell: AnyArray, mass: Array, size: int) -> Array:
+    """Deposit the parts of the nodes: ``Σ_p (Σ_q mass[k, p, q] at cell[k, p, q])``, shape (K, size).
+
+    ``cell``, ``mass`` (K, P, Q): the cell (of ``size``) and the mass of node q's part p
+    for heading k. As one deposit per part, added one after the other: each part's
+    sum over the nodes in node order, then the parts in part order (two sequential
+    ``bincount``), without a (K, P, size) array. Every part of a heading is its first part
+    moved by one cell offset (:func:`_axis_parts` shifts whole rows), so the nodes that
+    share a cell share it in every part and are grouped once.
+    """
+    n_k, n_p, n_q = cell.shape
+    first, group = np.unique((cell[:, 0] + size * np.arange(n_k)[:, None]).ravel(), return_inverse=True)
+    group = group.reshape(n_k, 1, n_q)
+    # Σ over the nodes of each (part, group), in node order
+    per_group = np.bincount((np.arange(n_p)[:, None] * first.size + group).ravel(), mass.ravel(),
+                            minlength=n_p * first.size)  # fmt: skip
+    # Σ over the parts of each cell, in part order
+    shift = cell[:, :, 0] - cell[:, :1, 0]  # (K, P) the parts' offsets
+    target = first + shift[first // size].T  # (P, groups)
+    return np.asarray(np.bincount(target.ravel(), per_group, minlength=n_k * size), np.float64).reshape(n_k, size)
+
+
+def _position_parts(
+    kern: _Kernel, ks: AnyArray, fxy: tuple[Array, Array], thetas: Array, h: float
+) -> tuple[AnyArray, Array, AnyArray, Array]:
+    """The nodes' deposits on the x and the y axis for source headings ``ks`` (K,).
+
+    ``fxy``: the nodes' world offsets [cells] for every heading of ``thetas``, (nθ, Q) each
+    (:func:`_rotated_cells`). Returns ``(jx, vx, jy, vy)``, each of shape (K, S, Q)
+    (:func:`_axis_parts`).
+    """
+    fx, fy = fxy[0][ks], fxy[1][ks]
+    c_ = np.array([math.cos(thetas[k]) for k in ks])[:, None]
+    s_ = np.array([math.sin(thetas[k]) for k in ks])[:, None]
+    sa, sb = kern.step_a, kern.step_b
+    # extent of each node's interval on the world axes [cells]
+    wdx = (np.abs(c_ * sa[:, 0] - s_ * sa[:, 1]) + np.abs(c_ * sb[:, 0] - s_ * sb[:, 1])) / h
+    wdy = (np.abs(s_ * sa[:, 0] + c_ * sa[:, 1]) + np.abs(s_ * sb[:, 0] + c_ * sb[:, 1])) / h
+    jx, vx = _axis_parts(fx, np.minimum(wdx, 1.0), kern.weight)
+    jy, vy = _axis_parts(fy, np.minimum(wdy, 1.0), kern.weight)
+    return jx, vx, jy, vy
+
+
+def _heading_noise(
+    planes: Array, headings: AnyArray, kern: _Kernel, new: Array, workers: int
+) -> tuple[Array, float]:
+    """Heading-only noise, then the round-off clipped: (belief, sum of the negatives clipped).
+
+    ``planes`` (T, nx, ny) are the belief's slices at ``headings`` (T,), the other slices
+    empty; the result is written into ``new`` (nx, ny, nθ). Circular convolution along θ
+    with the CIC-deposited γΔt / δrot2 (FFT along θ), on blocks of x rows that stay in
+    cache (each θ line is transformed as a whole, so the blocks do not change a value);
+    negative round-off is set to zero.
+    """
+    nx, ny, nt = new.shape
+    g_circ = np.bincount((kern.head_lo + np.arange(kern.head_kernel.size)) % nt, kern.head_kernel, minlength=nt)
+    g_hat = sfft.rfft(g_circ)
+    rows = max(1, _BLOCK // (ny * nt))
+    block = np.zeros((nt, rows, ny))  # θ first: the slices are copied as planes; empty headings stay 0
+    negatives = []
+    for i0 in range(0, nx, rows):
+        r = min(rows, nx - i0)
+        block[headings, :r] = planes[:, i0 : i0 + r]
+        spectrum = sfft.rfft(np.moveaxis(block[:, :r], 0, 2), axis=2, workers=workers)
+        spectrum *= g_hat
+        out = new[i0 : i0 + r]
+        out[...] = sfft.irfft(spectrum, n=nt, axis=2, workers=workers, overwrite_x=True)
+        flat = out.reshape(-1)
+        neg = np.flatnonzero(flat < 0.0)  # (indices: a boolean mask of ~½ density is slow to apply)
+        negatives.append(flat[neg])
+        flat[neg] = 0.0
+    return new, float(-np.concatenate(negatives).sum())
+
+
+#: Elements of a block of :func:`_heading_noise` (256 kB of float64: its temporaries stay in
+#: cache and are reused by the allocator instead of being mapped afresh at every step).
+_BLOCK = 1 << 15
 
 
 def _convolve_step(
@@ -1004,6 +1115,7 @@ def _convolve_step(
     thetas: Array,
     workers: int,
     cache: dict[int, Array] | None = None,
+    out: Array | None = None,
 ) -> tuple[Array, float, float]:
     """One prediction step on a fixed grid: (new belief, round-off clipped, mass lost off the grid).
 
@@ -1011,56 +1123,98 @@ def _convolve_step(
     window, the kernels of all destination headings accumulated in the Fourier domain.
     ``thetas`` (nθ,) are the source headings of the belief's slices [rad]. ``cache``
     (a transition's own) keeps each heading's window for the next step with the same kernel.
+    ``out``: a C-contiguous array of the belief's shape for the new belief (``belief`` itself
+    may be given: it is read before ``out`` is written); default a new array.
     """
     ax, ay, wx, wy = windows
     nx, ny, nt = g.nx, g.ny, g.ntheta
-    h, m_lo_p, mp = g.resolution, kern.head_m_lo, kern.head_mp
     # FFT sizes: linear convolution of every slice with its shifted window, no wrap-around
     sx0, sy0 = min(int(ax.min()), 0), min(int(ay.min()), 0)
     ex, ey = max(int((ax + wx - 1).max()), 0), max(int((ay + wy - 1).max()), 0)
     Px = sfft.next_fast_len(nx + ex - sx0, real=True)
     Py = sfft.next_fast_len(ny + ey - sy0, real=True)
-    fold = mp > nt
-    M = nt if fold else mp
-    acc = np.zeros((nt, Px, Py // 2 + 1), dtype=np.complex128)
-    hit = np.zeros(nt, dtype=bool)
-    fx_all, fy_all = _rotated_cells(kern, thetas, h)
     mass_before = float(belief.sum())
-    for k in active:
-        win3 = None if cache is None else cache.get(int(k))
-        if win3 is None:
-            win3 = _source_window(kern, int(k), (fx_all[k], fy_all[k]), thetas, h, windows)
-            if cache is not None:
-                cache[int(k)] = win3
-        if fold:  # heading offsets wrap round the circle: fold them onto nθ shifts
-            kernel = np.zeros((wx, wy, nt))
-            for j in range(mp):
-                kernel[:, :, (m_lo_p + j) % nt] += win3[:, :, j]
-            dest = (k + np.arange(nt)) % nt
-        else:
-            kernel, dest = win3, (k + m_lo_p + np.arange(M)) % nt
-        # 2-D FFT of the window placed at its offset, in two passes so that the
-        # rows outside the window are never transformed
-        ox_, oy_ = int(ax[k]) - sx0, int(ay[k]) - sy0
-        rows = np.zeros((M, wx, Py))
-        rows[:, :, oy_ : oy_ + wy] = np.moveaxis(kernel, 2, 0)
-        khat_y = sfft.rfft(rows, axis=2, workers=workers)
-        cols = np.zeros((M, Px, Py // 2 + 1), dtype=np.complex128)
-        cols[:, ox_ : ox_ + wx, :] = khat_y
-        khat = sfft.fft(cols, axis=1, workers=workers, overwrite_x=True)
-        khat *= sfft.rfft2(belief[:, :, k], s=(Px, Py), workers=workers)[None]
-        acc[dest] += khat
-        hit[dest] = True
-    touched = np.flatnonzero(hit)
-    out = sfft.irfft2(acc[touched], s=(Px, Py), workers=workers)
-    new = np.zeros((nx, ny, nt))
-    new[:, :, touched] = np.moveaxis(out[:, -sx0 : -sx0 + nx, -sy0 : -sy0 + ny], 0, 2)
-    new = _heading_noise(new, kern, workers)
-    neg = new < 0.0
-    roundoff = float(-new[neg].sum())
-    new = np.where(neg, 0.0, new)
+    kernels, dest = _heading_kernels(kern, active, thetas, g.resolution, windows, nt, cache)
+    # the spectra of the destination headings that receive mass, accumulated over the sources
+    touched = np.unique(dest)
+    row = np.zeros(nt, dtype=np.int64)
+    row[touched] = np.arange(touched.size)
+    dest = row[dest]
+    acc = np.zeros((touched.size, Px, Py // 2 + 1), dtype=np.complex128)
+    plane, m = Px * (Py // 2 + 1), kernels.shape[1]
+    per_heading = 16 * ((m + 1) * plane + m * wx * Py)  # the spectra and the row transforms
+    batch = max(1, _SPECTRA_BATCH_BYTES // per_heading)
+    for a in range(0, active.size, batch):
+        b = min(active.size, a + batch)
+        # offsets of the windows in the padded plane
+        offsets = (ax[active[a:b]] - sx0, ay[active[a:b]] - sy0)
+        khat = _kernel_spectra(kernels[a:b], offsets, (Px, Py), workers)
+        khat *= sfft.rfftn(np.moveaxis(belief[:, :, active[a:b]], 2, 0), s=(Px, Py), axes=(1, 2),
+                           workers=workers)[:, None]  # fmt: skip
+        for i in range(b - a):  # in the order of the headings: the sums do not depend on the batches
+            d = dest[a + i]
+            if d[-1] - d[0] == m - 1:  # consecutive rows
+                acc[d[0] : d[-1] + 1] += khat[i]
+            else:
+                acc[d] += khat[i]
+    planes = sfft.irfft2(acc, s=(Px, Py), workers=workers, overwrite_x=True)[:, -sx0 : -sx0 + nx, -sy0 : -sy0 + ny]
+    new, roundoff = _heading_noise(planes, touched, kern, np.empty((nx, ny, nt)) if out is None else out, workers)
     lost_step = max(0.0, mass_before - float(new.sum()))
-    return np.ascontiguousarray(new), roundoff, lost_step
+    return new, roundoff, lost_step
+
+
+#: Bytes of the FFT buffers of one batch of source headings in :func:`_convolve_step` (a batch
+#: shares the FFT calls; its size changes no value).
+_SPECTRA_BATCH_BYTES = 1 << 20
+
+
+def _heading_kernels(
+    kern: _Kernel,
+    active: AnyArray,
+    thetas: Array,
+    h: float,
+    windows: tuple[AnyArray, AnyArray, int, int],
+    nt: int,
+    cache: dict[int, Array] | None,
+) -> tuple[Array, AnyArray]:
+    """Kernels of the active source headings by destination: (K, M, wx, wy), and their destinations (K, M).
+
+    ``M`` is the kernel's number of heading offsets, or ``nθ`` when they wrap round the
+    circle (then folded onto the ``nθ`` shifts). Windows missing from ``cache`` are
+    built (:func:`_source_windows`) and stored in it.
+    """
+    m_lo_p, mp = kern.head_m_lo, kern.head_mp
+    cache = {} if cache is None else cache
+    missing = np.array([k for k in active if int(k) not in cache], dtype=np.int64)
+    if missing.size:
+        cache.update(zip(missing.tolist(), _source_windows(kern, missing, thetas, h, windows), strict=True))
+    win = np.stack([cache[int(k)] for k in active])
+    if mp > nt:  # heading offsets wrap round the circle: fold them onto nθ shifts
+        folded = np.zeros((*win.shape[:3], nt))
+        for j in range(mp):
+            folded[..., (m_lo_p + j) % nt] += win[..., j]
+        return np.moveaxis(folded, 3, 1), (active[:, None] + np.arange(nt)) % nt
+    return np.moveaxis(win, 3, 1), (active[:, None] + m_lo_p + np.arange(mp)) % nt
+
+
+def _kernel_spectra(
+    kernels: Array, offsets: tuple[AnyArray, AnyArray], shape: tuple[int, int], workers: int
+) -> Array:
+    """2-D real FFT of each kernel window placed at its offset in a zero plane of ``shape``.
+
+    ``kernels`` (K, M, wx, wy), ``offsets`` (K,) each [cells]; returns (K, M, Px, Py//2+1).
+    Two passes, so that the rows outside the windows are never transformed.
+    """
+    n_k, m, wx, wy = kernels.shape
+    Px, Py = shape
+    rows = np.zeros((n_k, m, wx, Py))
+    for i, oy_ in enumerate(offsets[1]):
+        rows[i, :, :, oy_ : oy_ + wy] = kernels[i]
+    khat_y = sfft.rfft(rows, axis=3, workers=workers)
+    cols = np.zeros((n_k, m, Px, Py // 2 + 1), dtype=np.complex128)
+    for i, ox_ in enumerate(offsets[0]):
+        cols[i, :, ox_ : ox_ + wx] = khat_y[i]
+    return np.asarray(sfft.fft(cols, axis=2, workers=workers, overwrite_x=True))
 
 
 @dataclass(frozen=True, eq=False)
@@ -1133,7 +1287,7 @@ def grid_transition(
 
 
 def predict_on_grid(
-    belief: ArrayLike, transition: GridTransition, workers: int = -1
+    belief: ArrayLike, transition: GridTransition, workers: int = -1, *, overwrite_belief: bool = False
 ) -> tuple[Array, dict[str, float]]:
     """One histogram-filter prediction step on a fixed grid (the step of :func:`multi_step_map`).
 
@@ -1142,6 +1296,9 @@ def predict_on_grid(
     belief : array_like, shape (nx, ny, nθ) — probability mass per cell of ``transition.grid``
     transition : GridTransition
     workers : int — FFT threads
+    overwrite_belief : bool — ``belief`` (a float64 array the caller no longer needs) may be
+        overwritten: its negligible heading slices zeroed in place, and the new belief
+        written into it (then returned) instead of into a new array
 
     Returns
     -------
@@ -1153,13 +1310,14 @@ def predict_on_grid(
     b = check_nonnegative("belief", belief)
     if b.shape != g.shape:
         raise ValueError(f"belief must have the grid's shape {g.shape}, got shape {b.shape}")
-    b = b.copy()
-    dropped, active = _drop_negligible_slices(b)
+    own = overwrite_belief or not b.flags.c_contiguous  # (a C-ordered copy is ours; sums run in C order)
+    b, dropped, active = _drop_negligible_slices(np.ascontiguousarray(b), copy=not own)
     if active.size == 0:
         return np.zeros(g.shape), {"lost_mass": dropped, "roundoff": 0.0, "negligible_slices": dropped}
     new, roundoff, lost = _convolve_step(
-        b, g, transition.kernel, active, transition.windows, g.theta, workers, transition.source_windows
-    )
+        b, g, transition.kernel, active, transition.windows, g.theta, workers, transition.source_windows,
+        b if own else None,
+    )  # fmt: skip
     return new, {"lost_mass": lost + dropped, "roundoff": roundoff, "negligible_slices": dropped}
 
 
@@ -1468,7 +1626,7 @@ def _predict_path(
         mismatch.append(kern.heading_variance_mismatch)
         # heading slices holding less than 1e-14 are not propagated: their mass is
         # counted as lost (reported as ``negligible_slices`` in ``info``)
-        dropped, active = _drop_negligible_slices(belief)
+        belief, dropped, active = _drop_negligible_slices(belief)
         negligible += dropped
         lost_total += dropped
         if grow and active.size:
@@ -1480,7 +1638,7 @@ def _predict_path(
         # ``thetas`` are the headings of the first grid: a grown grid re-normalises theta0,
         # which can relabel the slices by one cell (see core.grids.Grid); the kernels keep the first
         belief, step_roundoff, lost_step = _convolve_step(
-            belief, g, kern, active, windows, thetas, workers
+            belief, g, kern, active, windows, thetas, workers, out=belief
         )
         roundoff += step_roundoff
         lost_per_step.append(lost_step)
