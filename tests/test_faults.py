@@ -27,7 +27,12 @@ from pathlib import Path
 import pytest
 
 from pose_uncertainty.cli import main
-from pose_uncertainty.core.atomic import atomic_write, atomic_write_bytes, atomic_write_text
+from pose_uncertainty.core.atomic import (
+    atomic_directory,
+    atomic_write,
+    atomic_write_bytes,
+    atomic_write_text,
+)
 
 REPO = Path(__file__).resolve().parents[1]
 VENV = Path(sys.executable).parent.parent
@@ -60,6 +65,31 @@ def test_atomic_write_keeps_the_old_file_on_error_and_leaves_nothing(tmp_path: P
     atomic_write_text(dest, "new\n")
     assert dest.read_text(encoding="utf-8") == "new\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["table.csv"]
+
+
+def test_atomic_directory_replaces_the_folder_whole_or_keeps_the_old_one(tmp_path: Path) -> None:
+    dest = tmp_path / "runs"
+    (dest / "old").mkdir(parents=True)
+    (tmp_path / "runs.part" / "left").mkdir(parents=True)  # a killed writer's folder
+    seen: list[list[Path]] = []
+
+    def fail() -> None:
+        with atomic_directory(dest) as part:
+            seen.append([part, *part.iterdir()])
+            (part / "half.png").write_bytes(b"x")
+            raise RuntimeError("drawing failed")
+
+    with pytest.raises(RuntimeError):
+        fail()
+    assert seen == [[tmp_path / "runs.part"]]  # the stale folder was removed, the new one empty
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["runs"]
+    assert [p.name for p in dest.iterdir()] == ["old"]  # the old folder untouched
+    with atomic_directory(dest) as part:
+        (part / "a").mkdir()
+        (part / "a" / "f.png").write_bytes(b"png")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["runs"]
+    assert [p.name for p in dest.iterdir()] == ["a"]
+    assert (dest / "a" / "f.png").read_bytes() == b"png"
 
 
 def test_a_killed_writers_part_file_is_removed_by_the_next_write(tmp_path: Path) -> None:

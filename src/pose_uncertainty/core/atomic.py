@@ -16,6 +16,7 @@ from __future__ import annotations
 import contextlib
 import os
 import re
+import shutil
 import socket
 import tempfile
 from collections.abc import Iterator
@@ -24,6 +25,7 @@ from typing import IO, Any
 
 __all__ = [
     "PART_SUFFIX",
+    "atomic_directory",
     "atomic_write",
     "atomic_write_bytes",
     "atomic_write_text",
@@ -147,3 +149,29 @@ def atomic_write_text(path: str | os.PathLike[str], text: str, encoding: str = "
     with atomic_write(path, "w", encoding=encoding) as fh:
         fh.write(text)
     return Path(path)
+
+
+@contextlib.contextmanager
+def atomic_directory(path: str | os.PathLike[str]) -> Iterator[Path]:
+    """Fill a folder beside ``path`` (``<name>.part``); on a clean exit it replaces ``path``.
+
+    A ``.part`` folder left by an earlier, killed writer is removed first; an exception
+    removes it. The swap is two renames apart (the old folder removed, the new one
+    renamed), so a process killed between them leaves ``path`` absent, never partial.
+
+    Yields
+    ------
+    Path — the folder to write into (created)
+    """
+    dest = Path(path)
+    part = dest.with_name(dest.name + PART_SUFFIX)
+    shutil.rmtree(part, ignore_errors=True)
+    part.mkdir(parents=True)
+    try:
+        yield part
+    except BaseException:
+        shutil.rmtree(part, ignore_errors=True)
+        raise
+    shutil.rmtree(dest, ignore_errors=True)
+    part.rename(dest)
+    _fsync_dir(dest.parent)
