@@ -142,8 +142,9 @@ def landmark_log_likelihood_grid(grid: Grid, z: Array, landmarks: Array, sensor:
     range_sq, a = _range_bearing_terms(grid, z, landmarks)
     out = np.empty(grid.shape)
     e, t = np.empty((2, *_block_shape(grid)))
-    for i0, i1 in _row_blocks(grid):
-        _landmark_sum(a[:, i0:i1], range_sq[i0:i1], grid.theta, sensor, out[i0:i1], e[: i1 - i0], t[: i1 - i0])
+    for b in _row_blocks(grid.nx, grid.ny * grid.ntheta):
+        n = b.stop - b.start
+        _landmark_sum(a[:, b], range_sq[b], grid.theta, sensor, out[b], e[:n], t[:n])
     out += _log_norm(z.shape[0], sensor)
     return out
 
@@ -153,14 +154,19 @@ _BLOCK = 1 << 17
 
 
 def _block_shape(grid: Grid) -> tuple[int, int, int]:
-    """Shape of a block of x rows of :func:`_row_blocks`."""
-    return max(1, _BLOCK // (grid.ny * grid.ntheta)), grid.ny, grid.ntheta
+    """Shape of a block of x rows of ``grid`` (:func:`_row_blocks`)."""
+    return _rows_per_block(grid.ny * grid.ntheta), grid.ny, grid.ntheta
 
 
-def _row_blocks(grid: Grid) -> list[tuple[int, int]]:
-    """``(i0, i1)`` of the blocks of x rows of ``grid`` (about :data:`_BLOCK` cells each)."""
-    rows = _block_shape(grid)[0]
-    return [(i0, min(grid.nx, i0 + rows)) for i0 in range(0, grid.nx, rows)]
+def _rows_per_block(row_size: int) -> int:
+    """Rows of ``row_size`` elements in a block of about :data:`_BLOCK` elements (at least one)."""
+    return max(1, _BLOCK // max(1, row_size))
+
+
+def _row_blocks(n_rows: int, row_size: int) -> list[slice]:
+    """The blocks of rows (:func:`_rows_per_block`) of an array of ``n_rows`` rows."""
+    rows = _rows_per_block(row_size)
+    return [slice(i0, min(n_rows, i0 + rows)) for i0 in range(0, n_rows, rows)]
 
 
 def _log_norm(n: int, sensor: RangeBearingSensor) -> float:
@@ -215,15 +221,15 @@ def landmark_log_likelihood_grid_ml(
     const = _log_norm(1, sensor)
     out = np.zeros(grid.shape)
     ll, best, e, t = np.empty((4, *_block_shape(grid)))
-    for i0, i1 in _row_blocks(grid):
-        n = i1 - i0
+    for b in _row_blocks(grid.nx, grid.ny * grid.ntheta):
+        n = b.stop - b.start
         for per_landmark in terms:
             best[:n] = -np.inf
             for range_sq, a in per_landmark:
-                _landmark_sum(a[:, i0:i1], range_sq[i0:i1], grid.theta, sensor, ll[:n], e[:n], t[:n])
+                _landmark_sum(a[:, b], range_sq[b], grid.theta, sensor, ll[:n], e[:n], t[:n])
                 ll[:n] += const
                 np.maximum(best[:n], ll[:n], out=best[:n])
-            out[i0:i1] += best[:n]
+            out[b] += best[:n]
     return out
 
 
@@ -254,12 +260,10 @@ def _beam_log_likelihood_grid(z: Array, table: Array, sensor: BeamSensor, terms:
     """
     mass, eta = beam_terms(table, sensor) if terms is None else terms
     out = np.empty_like(table[..., 0])
-    rows = max(1, _BLOCK // (table[0].size))
     with np.errstate(divide="ignore"):
-        for i0 in range(0, table.shape[0], rows):
-            i1 = i0 + rows
-            p = beam_probability(z, table[i0:i1], sensor, (mass[i0:i1], eta[i0:i1]))
-            out[i0:i1] = np.log(p).sum(axis=-1)
+        for b in _row_blocks(table.shape[0], table[0].size):
+            p = beam_probability(z, table[b], sensor, (mass[b], eta[b]))
+            out[b] = np.log(p).sum(axis=-1)
     return out
 
 
@@ -270,8 +274,7 @@ def hf_correct(belief: Array, loglik: Array) -> tuple[Array, float]:
     the likelihood (its sum runs in that order). Raises ValueError when no cell with mass
     explains the measurement.
     """
-    rows = max(1, _BLOCK // max(1, belief[0].size))
-    blocks = [slice(i0, i0 + rows) for i0 in range(0, belief.shape[0], rows)]
+    blocks = _row_blocks(belief.shape[0], belief[0].size)
     top = float(np.max([np.max(np.where(belief[b] > 0, loglik[b], -np.inf), initial=-np.inf) for b in blocks]))
     if not math.isfinite(top):
         raise ValueError("measurement has zero likelihood on every cell with mass (allowed: some p(z|x) > 0)")
