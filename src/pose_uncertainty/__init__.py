@@ -13,11 +13,7 @@ Trajectories are built with :mod:`pose_uncertainty.core.trajectories`; the
 kinematics live in :mod:`pose_uncertainty.core.kinematics`.
 """
 
-from importlib.metadata import PackageNotFoundError, version
-
-try:
-    __version__ = version("pose-uncertainty")
-except PackageNotFoundError:  # pragma: no cover - running from a source tree
-    __version__ = "0.0.0+unknown"
+#: The package version: the one place it is written (pyproject.toml reads it from here).
+__version__ = "0.1.0"
 
 __all__ = ["__version__"]

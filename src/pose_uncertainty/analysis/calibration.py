@@ -73,8 +73,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import optimize
-from scipy.special import ndtri
 
 from ..core.kinematics import wrap_angle
 from ..core.stats import chi2_ppf
@@ -176,6 +174,8 @@ Objective = Callable[[NDArray], tuple[float, NDArray]]
 
 def _minimise(nll: Objective, x0: NDArray) -> NDArray:
     """argmin over x ≥ 0 of ``nll`` (returns value and gradient; parameters scaled to order 1)."""
+    from scipy import optimize  # imported where used: scipy.optimize takes 0.3 s to import
+
     best = None
     for start in (x0, np.full_like(x0, 1.0)):
         res = optimize.minimize(
@@ -192,6 +192,8 @@ def _profile_interval(
     nll: Objective, xhat: NDArray, j: int, crit: float, se: float
 ) -> tuple[float, float]:
     """Profile-likelihood interval of parameter j: where 2(nll_p − nll_min) = crit."""
+    from scipy import optimize  # imported where used: scipy.optimize takes 0.3 s to import
+
     nll_min = nll(xhat)[0]
     others = [i for i in range(xhat.size) if i != j]
 
@@ -257,6 +259,8 @@ def _finish(
         se_scaled = np.sqrt(np.maximum(np.diag(cov), 0.0))
     except np.linalg.LinAlgError:
         se_scaled = np.full(xhat.size, np.inf)
+    from scipy.special import ndtri  # imported where used (0.2 s)
+
     z = float(ndtri(0.5 + level / 2.0))
     crit = float(chi2_ppf(level, 1))
     lows, highs = [], []
@@ -417,6 +421,8 @@ def fit_variance_regression(
     -------
     CalibrationResult
     """
+    from scipy import optimize  # imported where used: scipy.optimize takes 0.3 s to import
+
     check_choice("ci_method", ci_method, CI_METHODS)
     lvl = float(check_probability("level", level))
     r = check_finite("residuals", residuals).ravel()

@@ -14,7 +14,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.special import chdtri, gammaln, ndtri
 
 from .validation import (
     check_finite,
@@ -65,6 +64,8 @@ def chi2_ppf(pr: ArrayLike, dof: ArrayLike) -> NDArray[np.float64]:
     ``scipy.special.chdtri`` (the inverse survival function), so that a run need not import
     ``scipy.stats``; equals ``scipy.stats.chi2.ppf(pr, dof)`` (tests/test_grids_stats.py).
     """
+    from scipy.special import chdtri  # imported where used: scipy.special takes 0.2 s to import
+
     p = check_probability("pr", pr)
     return np.asarray(chdtri(check_nonnegative("dof", dof), 1.0 - p), dtype=np.float64)
 
@@ -214,6 +215,8 @@ def hellinger_noise_floor(p: ArrayLike, n: int) -> float:
     big = lam[~small]
     e_sqrt[~small] = np.sqrt(big) * (1 - 1 / (8 * big) - 7 / (128 * big**2))
     if np.any(small):
+        from scipy.special import gammaln  # imported where used (0.2 s)
+
         ls = lam[small][:, None]
         k = np.arange(0, 151)[None, :]
         logpmf = k * np.log(ls) - ls - gammaln(k + 1)
@@ -335,6 +338,8 @@ def wilson_interval(successes: int, n: int, confidence: float = 0.95) -> tuple[f
     check_probability("confidence", confidence)
     if n == 0:
         return math.nan, math.nan
+    from scipy.special import ndtri  # imported where used (0.2 s)
+
     z = float(ndtri(0.5 + confidence / 2.0))
     p = successes / n
     centre = (p + z * z / (2 * n)) / (1 + z * z / n)

@@ -40,7 +40,6 @@ from typing import Any
 import numpy as np
 import yaml
 from numpy.typing import ArrayLike, NDArray
-from PIL import Image
 
 from ..core.grids import Grid
 from ..core.schema import first_error
@@ -306,6 +305,8 @@ def read_image(path: str | Path) -> Array:
     if suffix == ".pgm":
         return _read_pgm(p)
     if suffix == ".png":
+        from PIL import Image  # imported where used: only image maps need it
+
         with Image.open(p) as im:
             if im.mode.startswith("I"):  # 16-bit grey
                 return np.asarray(im, dtype=np.float64) / 65535.0

@@ -1,10 +1,7 @@
 """logs layer.
 
-Importing it registers the localization runs' log kind with
-:func:`pose_uncertainty.logs.runlog.open_run` (:mod:`.localization_log`), so that every
-reader of run logs also reads localization logs.
+Each run kind has its own log module; :func:`pose_uncertainty.logs.runlog.open_run` reads
+every kind, importing the localization runs' reader (:mod:`.localization_log`) the first time it
+meets such a log (:func:`pose_uncertainty.logs.runlog.log_kind`), so a job that writes one
+dead-reckoning run does not pay for importing the localization code.
 """
-
-from . import (
-    localization_log as localization_log,  # registers LOG_KINDS["pose-uncertainty-localization"]
-)

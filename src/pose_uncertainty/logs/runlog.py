@@ -52,6 +52,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import importlib
 import io
 import json
 import math
@@ -103,6 +104,7 @@ __all__ = [
     "compare_results",
     "format_summary",
     "log_bytes",
+    "log_kind",
     "open_run",
     "stream_bytes",
     "verify_run",
@@ -165,6 +167,18 @@ class LogKind(NamedTuple):
 #: Log kinds beside the dead-reckoning run, by the ``format`` of their metadata record
 #: (``pose_uncertainty.logs.localization_log`` registers the localization runs).
 LOG_KINDS: dict[str, LogKind] = {}
+
+#: The module that registers each kind in :data:`LOG_KINDS`, imported the first time a log of
+#: that kind is read (so that a job that only writes dead-reckoning runs never imports it).
+_KIND_MODULES = {"pose-uncertainty-localization": "pose_uncertainty.logs.localization_log"}
+
+
+def log_kind(fmt: object) -> LogKind | None:
+    """The reader of logs whose metadata ``format`` is ``fmt``, or ``None`` for a dead-reckoning run."""
+    key = str(fmt)
+    if key not in LOG_KINDS and key in _KIND_MODULES:
+        importlib.import_module(_KIND_MODULES[key])  # registers LOG_KINDS[key]
+    return LOG_KINDS.get(key)
 
 
 class RunLogError(ValueError):
@@ -819,7 +833,7 @@ def _run_metadata(p: Path, records: list[Any], partial: bool, problem: str | Non
             f"no {METADATA_NAME!r} metadata)"
         )
     meta = dict(meta_rec.metadata)
-    if meta.get("format") in LOG_KINDS:  # another kind of run (e.g. localization): its own reader
+    if log_kind(meta.get("format")) is not None:  # another kind of run (e.g. localization): its own reader
         return header, meta
     if meta.get("format") != FORMAT:
         raise RunLogError(f"{p}: not a pose-uncertainty run log (format {meta.get('format')!r})")
@@ -919,7 +933,7 @@ def _read_map(rec: _Records, name: str) -> ProbabilityMap | None:
 
 def _assemble(p: Path, records: list[Any], *, partial: bool, problem: str | None) -> RunLog:
     header, meta = _run_metadata(p, records, partial, problem)
-    kind = LOG_KINDS.get(str(meta.get("format")))
+    kind = log_kind(meta.get("format"))
     if kind is not None:  # another kind of run (e.g. localization): its own reader
         return kind.assemble(p, records, meta, header.library, partial, problem)  # type: ignore[no-any-return]
     try:
@@ -1085,7 +1099,7 @@ def verify_run(log: RunLog) -> list[str]:
     """
     if log.partial:
         return ["the log is partial; a partial log cannot be verified"]
-    kind = LOG_KINDS.get(str(log.metadata.get("format")))
+    kind = log_kind(log.metadata.get("format"))
     if kind is not None:  # another kind of run: its own recomputation
         return kind.verify(log)
     fresh = execute(log.config)

@@ -64,7 +64,6 @@ import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
-import contourpy
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -932,5 +931,7 @@ def pr_region_xy(
     x = np.linspace(lo[0] - pad[0], hi[0] + pad[0], n_grid)
     y = np.linspace(lo[1] - pad[1], hi[1] + pad[1], n_grid)
     Z = marginal_xy_grid(x, y, mu, S)
+    import contourpy  # imported where used: only these contours need it
+
     gen = contourpy.contour_generator(x, y, Z.T)
     return [np.asarray(line) for line in gen.lines(level)]

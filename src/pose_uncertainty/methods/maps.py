@@ -44,7 +44,6 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
-import scipy.fft as sfft
 from numpy.typing import ArrayLike, NDArray
 
 from ..core.grids import Grid
@@ -1081,6 +1080,8 @@ def _heading_noise(
     cache (each θ line is transformed as a whole, so the blocks do not change a value);
     negative round-off is set to zero.
     """
+    import scipy.fft as sfft  # imported where used: a run without a map never pays its 0.15 s
+
     nx, ny, nt = new.shape
     g_circ = np.bincount((kern.head_lo + np.arange(kern.head_kernel.size)) % nt, kern.head_kernel, minlength=nt)
     g_hat = sfft.rfft(g_circ)
@@ -1126,6 +1127,8 @@ def _convolve_step(
     ``out``: a C-contiguous array of the belief's shape for the new belief (``belief`` itself
     may be given: it is read before ``out`` is written); default a new array.
     """
+    import scipy.fft as sfft  # imported where used: a run without a map never pays its 0.15 s
+
     ax, ay, wx, wy = windows
     nx, ny, nt = g.nx, g.ny, g.ntheta
     # FFT sizes: linear convolution of every slice with its shifted window, no wrap-around
@@ -1205,6 +1208,8 @@ def _kernel_spectra(
     ``kernels`` (K, M, wx, wy), ``offsets`` (K,) each [cells]; returns (K, M, Px, Py//2+1).
     Two passes, so that the rows outside the windows are never transformed.
     """
+    import scipy.fft as sfft  # imported where used: a run without a map never pays its 0.15 s
+
     n_k, m, wx, wy = kernels.shape
     Px, Py = shape
     rows = np.zeros((n_k, m, wx, Py))

@@ -1,0 +1,53 @@
+"""What a pipeline job imports: every job is a fresh interpreter, so its imports are paid ~260 times.
+
+The modules a job script imports at its top must not pull in the heavy libraries that only some
+code paths need (scipy.special and scipy.fft through scipy's array-API layer cost 0.15–0.2 s,
+scipy.optimize 0.3 s, jsonschema 60 ms, matplotlib 0.4 s); those are imported in the functions
+that use them. Checked in a fresh interpreter, by the modules present after the import.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+#: job script → (its top-level import, modules it must not load)
+_RUN_HEAVY = ["scipy.special", "scipy.fft", "scipy.optimize", "jsonschema", "matplotlib", "PIL", "contourpy"]
+JOBS = {
+    "simulate_run": ("from pose_uncertainty.logs.sweep import simulate", _RUN_HEAVY),
+    "simulate_localization": ("from pose_uncertainty.logs.localization_log import simulate_localization", _RUN_HEAVY),
+    "run_study": ("from pose_uncertainty.logs.study import run_study", _RUN_HEAVY),
+    "render_run_figures": ("from pose_uncertainty.present.pipeline_figures import render_run_figures",
+                           ["scipy.optimize", "scipy.special", "jsonschema"]),
+}  # fmt: skip
+
+
+def _loaded_after(statement: str) -> set[str]:
+    code = f"import sys, json; {statement}; print(json.dumps(sorted(sys.modules)))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    return set(json.loads(out))
+
+
+@pytest.mark.parametrize("job", sorted(JOBS))
+def test_a_job_imports_no_heavy_library_at_start(job):
+    statement, heavy = JOBS[job]
+    loaded = _loaded_after(statement)
+    assert "pose_uncertainty" in loaded  # the statement did run
+    assert not [m for m in heavy if m in loaded], f"{job}: imports {[m for m in heavy if m in loaded]} at start"
+
+
+def test_the_check_sees_a_heavy_import():
+    assert "scipy.special" in _loaded_after("import pose_uncertainty, scipy.special")
+
+
+def test_a_localization_log_kind_is_found_without_importing_its_module_first():
+    code = (
+        "from pose_uncertainty.logs import runlog; before = dict(runlog.LOG_KINDS); "
+        "kind = runlog.log_kind('pose-uncertainty-localization'); "
+        "print(len(before), kind is not None, runlog.log_kind(runlog.FORMAT) is None)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["0", "True", "True"]
