@@ -8,7 +8,9 @@ changed, and measures:
 * ``from_scratch_s`` — wall clock of ``snakemake --profile workflow/profiles/default``
   from an empty ``data/`` and ``reports/`` (cores: all);
 * ``no_op_s`` — the second call, which must find nothing to do;
-* ``jobs`` and ``cpu_s`` per rule (Snakemake's ``benchmark:`` files);
+* ``cpu_s`` — user + system CPU seconds of the from-scratch call and every process it started
+  (on 2 cores the wall clock cannot be below half of it; steadier than the wall clock on a shared machine);
+* ``jobs`` and ``job_s`` per rule: the sum of the jobs' wall clocks (Snakemake's ``benchmark:`` files);
 * ``report_mb`` (``reports/comparison.html``), ``data_mb`` (``data/``) and the number of figures.
 
 The measurements before the work on issue 13 (commit 79ddfda, measured the same way in
@@ -23,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import shutil
 import subprocess
 import sys
@@ -59,13 +62,20 @@ def _rule_times(bench: Path) -> dict[str, dict[str, float]]:
         lines = f.read_text(encoding="utf-8").splitlines()
         if len(lines) >= 2:
             s = float(lines[1].split("\t")[0])
-            r = out.setdefault(rule, {"jobs": 0, "cpu_s": 0.0})
+            r = out.setdefault(rule, {"jobs": 0, "job_s": 0.0})
             r["jobs"] += 1
-            r["cpu_s"] += s
-    return dict(sorted(out.items(), key=lambda kv: -kv[1]["cpu_s"]))
+            r["job_s"] += s
+    return {k: {"jobs": v["jobs"], "job_s": round(v["job_s"], 1)} for k, v in sorted(out.items(), key=lambda kv: -kv[1]["job_s"])}
 
 
-def _snakemake(work: Path, extra: list[str]) -> float:
+def _children_cpu() -> float:
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return ru.ru_utime + ru.ru_stime
+
+
+def _snakemake(work: Path, extra: list[str]) -> tuple[float, float]:
+    """(wall clock, CPU seconds of Snakemake and all its jobs) of one call."""
+    cpu0 = _children_cpu()
     cmd = [str(REPO / ".venv/bin/snakemake"), "--profile", "workflow/profiles/default", "--cores", "all", *extra]
     t0 = time.perf_counter()
     proc = subprocess.run(cmd, cwd=work, capture_output=True, text=True, check=False)
@@ -73,7 +83,7 @@ def _snakemake(work: Path, extra: list[str]) -> float:
     if proc.returncode != 0:
         sys.stderr.write(proc.stdout[-3000:] + proc.stderr[-3000:])
         raise SystemExit(f"snakemake failed in {work} (exit {proc.returncode})")
-    return elapsed
+    return elapsed, _children_cpu() - cpu0
 
 
 def measure(extra: list[str], keep: Path | None = None) -> dict[str, Any]:
@@ -88,11 +98,12 @@ def measure(extra: list[str], keep: Path | None = None) -> dict[str, Any]:
 
 def _measure_in(work: Path, extra: list[str]) -> dict[str, Any]:
     subprocess.run(["git", "clone", "--quiet", str(REPO), str(work)], check=True)
-    scratch = _snakemake(work, extra)
-    no_op = _snakemake(work, extra)
+    scratch, cpu = _snakemake(work, extra)
+    no_op, _ = _snakemake(work, extra)
     report = work / "reports/comparison.html"
     return {
         "from_scratch_s": round(scratch, 1),
+        "cpu_s": round(cpu, 1),
         "no_op_s": round(no_op, 2),
         "cores": os.cpu_count(),
         "load_average_1min_at_end": round(os.getloadavg()[0], 2),

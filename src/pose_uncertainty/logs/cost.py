@@ -61,6 +61,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..core import trajectories
+from ..core.threads import default_workers
 from .config import RunConfig, map_kind
 
 __all__ = [
@@ -199,7 +200,7 @@ def _trajectory_text(tp: Mapping[str, Any], n: int) -> str:
 
 
 def _workers() -> int:
-    return max(1, min(8, os.cpu_count() or 1))  # sampling._default_workers
+    return default_workers()  # the Monte Carlo sampler's threads
 
 
 def _monte_carlo_driver(cfg: RunConfig, n_steps: int) -> list[Driver]:

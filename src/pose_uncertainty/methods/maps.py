@@ -50,6 +50,7 @@ from ..core.grids import Grid
 from ..core.kinematics import wrap_angle
 from ..core.noise import cdf, check_noise, check_scaling, noise_reach, prob, prob_cell
 from ..core.stats import hdr_region
+from ..core.threads import default_workers
 from ..core.validation import (
     check_choice,
     check_finite,
@@ -1292,7 +1293,7 @@ def grid_transition(
 
 
 def predict_on_grid(
-    belief: ArrayLike, transition: GridTransition, workers: int = -1, *, overwrite_belief: bool = False
+    belief: ArrayLike, transition: GridTransition, workers: int | None = None, *, overwrite_belief: bool = False
 ) -> tuple[Array, dict[str, float]]:
     """One histogram-filter prediction step on a fixed grid (the step of :func:`multi_step_map`).
 
@@ -1300,7 +1301,8 @@ def predict_on_grid(
     ----------
     belief : array_like, shape (nx, ny, nθ) — probability mass per cell of ``transition.grid``
     transition : GridTransition
-    workers : int — FFT threads
+    workers : int, optional — FFT threads (default: :func:`~pose_uncertainty.core.threads.default_workers`;
+        the result does not depend on it)
     overwrite_belief : bool — ``belief`` (a float64 array the caller no longer needs) may be
         overwritten: its negligible heading slices zeroed in place, and the new belief
         written into it (then returned) instead of into a new array
@@ -1316,6 +1318,7 @@ def predict_on_grid(
     if b.shape != g.shape:
         raise ValueError(f"belief must have the grid's shape {g.shape}, got shape {b.shape}")
     own = overwrite_belief or not b.flags.c_contiguous  # (a C-ordered copy is ours; sums run in C order)
+    workers = default_workers() if workers is None else workers
     b, dropped, active = _drop_negligible_slices(np.ascontiguousarray(b), copy=not own)
     if active.size == 0:
         return np.zeros(g.shape), {"lost_mass": dropped, "roundoff": 0.0, "negligible_slices": dropped}
@@ -1343,7 +1346,7 @@ def multi_step_map(
     max_cells: int = 20_000_000,
     n_nodes_max: int = 1500,
     diffusion_compensation: bool = True,
-    workers: int = -1,
+    workers: int | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> ProbabilityMap:
     """Histogram-filter prediction of the pose distribution along a whole trajectory.
@@ -1411,8 +1414,9 @@ def multi_step_map(
         split mean ``frac(1−frac)·h_θ²``, and they accumulate). Default on; the
         remainder that cannot be matched is ``info["heading_variance_mismatch_total"]``.
         Off: every step's kernel is the cell integral of that step's density.
-    workers : int
-        FFT threads (``scipy.fft``); results do not depend on it.
+    workers : int, optional
+        FFT threads (``scipy.fft``; default :func:`~pose_uncertainty.core.threads.default_workers`);
+        results do not depend on it.
     progress : callable, optional
         ``progress(done, N)`` after each step (default None: nothing).
 
@@ -1442,8 +1446,9 @@ def multi_step_map(
     steps = _path_steps(model, u, dts, a, noise, scaling, od)
     g, grow = _start_grid(grid, x0, resolution, theta_resolution)
     belief, g, lost_total, diagnostics = _predict_path(
-        steps, g, grow, x0, max_cells, n_nodes_max, diffusion_compensation, workers, progress
-    )
+        steps, g, grow, x0, max_cells, n_nodes_max, diffusion_compensation,
+        default_workers() if workers is None else workers, progress,
+    )  # fmt: skip
     info = {
         **diagnostics,
         "n_steps": len(steps),

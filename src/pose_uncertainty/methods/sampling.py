@@ -24,7 +24,6 @@ any number of threads.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 
@@ -32,6 +31,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..core.kinematics import METHODS, _translation
+from ..core.threads import default_workers
 from ..core.trajectories import Trajectory
 from ..core.validation import check_choice, check_finite, check_nonnegative, check_positive_int
 
@@ -156,7 +156,7 @@ def _end_poses_perturbed(
 
 
 def _default_workers() -> int:
-    return max(1, min(8, os.cpu_count() or 1))
+    return default_workers()
 
 
 def start_factor(cov0: ArrayLike | None) -> NDArray[np.float64] | None:
