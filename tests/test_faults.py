@@ -177,14 +177,24 @@ def test_a_run_holding_the_lock_stops_a_second_one_in_one_line(tmp_path: Path) -
     assert line.startswith(f"run-locked: another pipeline run is active in {tmp_path};")
 
 
-def test_a_job_that_outlived_its_snakemake_stops_the_rerun(tmp_path: Path) -> None:
-    """kill -9 of snakemake alone leaves its job scripts running: wait for them, do not rerun."""
+@pytest.mark.parametrize("job", ["script", "command"])
+def test_a_job_that_outlived_its_snakemake_stops_the_rerun(tmp_path: Path, job: str) -> None:
+    """kill -9 of snakemake alone leaves its jobs running: wait for them, do not rerun.
+
+    A job is a script job (``python .snakemake/scripts/tmp….py``) or a job command
+    (``python -m pose_uncertainty.cli.job …``: here a stand-in with that argument that sleeps).
+    """
     scripts = tmp_path / ".snakemake/scripts"
     scripts.mkdir(parents=True)
     (scripts / "tmpabc.simulate_run.py").write_text("import time\ntime.sleep(60)\n", encoding="utf-8")
     (tmp_path / ".snakemake/locks").mkdir()
     (tmp_path / ".snakemake/locks/0.output.lock").write_text("x\n", encoding="utf-8")
-    orphan = subprocess.Popen([sys.executable, ".snakemake/scripts/tmpabc.simulate_run.py"], cwd=tmp_path)
+    argv = (
+        [sys.executable, ".snakemake/scripts/tmpabc.simulate_run.py"]
+        if job == "script"
+        else [sys.executable, "-c", "import time; time.sleep(60)", "pose_uncertainty.cli.job"]
+    )
+    orphan = subprocess.Popen(argv, cwd=tmp_path)
     try:
         res = _locked(tmp_path, "sh", "-c", "echo ran")
     finally:

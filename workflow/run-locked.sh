@@ -29,8 +29,9 @@ if ! flock --nonblock 9; then
 fi
 echo "$$" >"$state/run.pid"  # exec keeps this pid for snakemake
 
-# Another snakemake started by hand (without this wrapper) in this directory, or a job script
-# that outlived its killed snakemake (kill -9 of snakemake alone)?
+# Another snakemake started by hand (without this wrapper) in this directory, or a job (a script
+# job, or a `python -m pose_uncertainty.cli.job` command) that outlived its killed snakemake
+# (kill -9 of snakemake alone)?
 others=""
 for proc in /proc/[0-9]*; do
   pid=${proc#/proc/}
@@ -38,9 +39,9 @@ for proc in /proc/[0-9]*; do
   [ "$(readlink "$proc/cwd" 2>/dev/null)" = "$PWD" ] || continue
   argv=()
   mapfile -d '' -t argv <"$proc/cmdline" 2>/dev/null || continue
-  for a in "${argv[@]:0:3}"; do
-    # the snakemake entry point, `python -m snakemake`, or a job's script
-    if [ "${a##*/}" = snakemake ] || [[ "$a" == *.snakemake/scripts/* ]]; then
+  for a in "${argv[@]:0:4}"; do
+    # the snakemake entry point, `python -m snakemake`, a job's script or a job command
+    if [ "${a##*/}" = snakemake ] || [[ "$a" == *.snakemake/scripts/* ]] || [ "$a" = pose_uncertainty.cli.job ]; then
       others="$others $pid"
       break
     fi

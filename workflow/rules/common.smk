@@ -1,4 +1,7 @@
 # Config validation (JSON Schema 2020-12, before any rule reads the config) and input functions.
+import json as _json
+import shlex as _shlex
+import sys as _sys
 from pathlib import Path
 from importlib import resources as _resources
 
@@ -58,6 +61,16 @@ wildcard_constraints:
     run="[A-Za-z0-9_.-]+",
     study="[A-Za-z0-9_.-]+",
     map="[A-Za-z0-9_.-]+",
+
+
+# The computing jobs (runs, localization runs, studies) are shell commands of this module, which
+# imports only what the job needs (a script: job imports Snakemake first, 0.1 s each).
+JOB = f"{_shlex.quote(_sys.executable)} -m pose_uncertainty.cli.job"
+
+
+def as_json(param):
+    """A rule param: the value of ``param(wildcards)`` as one JSON argument of a :data:`JOB` command."""
+    return lambda wildcards: _json.dumps(param(wildcards), allow_nan=False)
 
 
 def run_config(wildcards):

@@ -8,14 +8,14 @@ rule simulate_localization:
         log="data/localization/{set}/{run}.mcap",
         timings="data/localization/{set}/{run}.timings.json",
     params:
-        config=localization_config,
+        config=as_json(localization_config),
         source=SOURCE_RUNS,
     log:
         "logs/simulate_localization/{set}/{run}.log",
     benchmark:
         "data/benchmarks/simulate_localization/{set}/{run}.tsv"
-    script:
-        "../scripts/simulate_localization.py"
+    shell:
+        "{JOB} simulate-localization {params.config:q} {output.log:q} {output.timings:q} 2> {log:q}"
 
 
 rule render_localization_figures:

@@ -1,4 +1,4 @@
-# One run → one MCAP log (byte-reproducible) + its wall-clock timings.
+# One run → one MCAP log (byte-reproducible) + its wall-clock timings (pose_uncertainty.cli.job).
 from pose_uncertainty.logs import cost as _cost
 
 
@@ -7,7 +7,7 @@ rule simulate_run:
         log="data/runs/{set}/{run}.mcap",
         timings="data/runs/{set}/{run}.timings.json",
     params:
-        config=run_config,
+        config=as_json(run_config),
         # the code that computes a run: a change to it reruns every simulation (the logs record it)
         source=SOURCE_RUNS,
     resources:
@@ -18,5 +18,5 @@ rule simulate_run:
         "logs/simulate_run/{set}/{run}.log",
     benchmark:
         "data/benchmarks/simulate_run/{set}/{run}.tsv"
-    script:
-        "../scripts/simulate_run.py"
+    shell:
+        "{JOB} simulate-run {params.config:q} {output.log:q} {output.timings:q} 2> {log:q}"

@@ -6,14 +6,14 @@ rule run_study:
     output:
         "data/studies/{study}.json",
     params:
-        spec=study_config,
+        spec=as_json(study_config),
         source=SOURCE_RUNS,
     log:
         "logs/run_study/{study}.log",
     benchmark:
         "data/benchmarks/run_study/{study}.tsv"
-    script:
-        "../scripts/run_study.py"
+    shell:
+        "{JOB} run-study {wildcards.study:q} {params.spec:q} {output:q} 2> {log:q}"
 
 
 rule collect_studies:

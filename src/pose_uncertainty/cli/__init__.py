@@ -12,21 +12,22 @@ Exit status: 0 success; 1 ``--verify`` found a mismatch; 2 bad input (usage,
 unreadable/invalid config or log). Errors are one line on stderr, never a
 traceback.
 
-New commands register themselves in :data:`COMMANDS` with a function that adds
-their sub-parser (each command is a module of this package with ``add_parser``).
+New commands register themselves in :data:`COMMANDS` by the name of their module
+(a module of this package with ``add_parser``), imported when the parser is built, so that
+importing this package (e.g. :mod:`.job`, the pipeline's jobs) does not import every command's
+dependencies (matplotlib for ``--figures``).
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import sys
-from collections.abc import Callable, Sequence
-from typing import Any
+from collections.abc import Sequence
 
 from .. import __version__
 from ..logs.runlog import RunLogError
-from . import calibrate, replay, run
 from ._common import EXIT_INPUT, EXIT_OK, CommandError, load_config_file
 
 __all__ = ["COMMANDS", "CommandError", "build_parser", "load_config_file", "main"]
@@ -34,11 +35,12 @@ __all__ = ["COMMANDS", "CommandError", "build_parser", "load_config_file", "main
 
 # --- wiring ---------------------------------------------------------------------------------
 
-#: Sub-command name → function adding its parser (which sets ``func``).
-COMMANDS: dict[str, Callable[[Any], None]] = {
-    "run": run.add_parser,
-    "replay": replay.add_parser,
-    "calibrate": calibrate.add_parser,
+#: Sub-command name → the module of this package whose ``add_parser(sub)`` adds its parser
+#: (which sets ``func``).
+COMMANDS: dict[str, str] = {
+    "run": "run",
+    "replay": "replay",
+    "calibrate": "calibrate",
 }
 
 
@@ -50,8 +52,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for add in COMMANDS.values():
-        add(sub)
+    for module in COMMANDS.values():
+        importlib.import_module(f"{__name__}.{module}").add_parser(sub)
     return parser
 
 

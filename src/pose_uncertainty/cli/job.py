@@ -1,0 +1,78 @@
+"""The pipeline's computing jobs as commands: ``python -m pose_uncertainty.cli.job KIND ...``.
+
+Snakemake runs each dead-reckoning run, localization run and study as a shell command of
+this module rather than as a ``script:``: a script job first imports Snakemake itself to read
+its parameters (0.1 s of CPU), which the pipeline's ~200 such jobs would each pay. The
+configuration comes as one JSON argument (what the rule's ``params`` hold); the outputs are
+written atomically by the functions called; progress goes to stderr (the rule's log).
+
+Commands
+--------
+``simulate-run CONFIG_JSON LOG.mcap TIMINGS.json``
+    :func:`pose_uncertainty.logs.sweep.simulate`.
+``simulate-localization CONFIG_JSON LOG.mcap TIMINGS.json``
+    :func:`pose_uncertainty.logs.localization_log.simulate_localization`.
+``run-study NAME SPEC_JSON OUT.json``
+    :func:`pose_uncertainty.logs.study.run_study`.
+
+Exit status: 0 success; 2 bad usage or a configuration that is not a JSON object (one line
+on stderr); an error of the computation ends with its traceback on stderr (status 1), as a
+script job does.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from typing import Any
+
+__all__ = ["main"]
+
+
+def _object(text: str) -> dict[str, Any]:
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise argparse.ArgumentTypeError(f"not valid JSON ({exc.msg} at character {exc.pos})") from None
+    if not isinstance(value, dict):
+        raise argparse.ArgumentTypeError(f"must be a JSON object, got {type(value).__name__}")
+    return value
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="python -m pose_uncertainty.cli.job", description=__doc__.split("\n")[0])
+    sub = parser.add_subparsers(dest="kind", required=True, metavar="KIND")
+    for kind, what in (("simulate-run", "a dead-reckoning run"), ("simulate-localization", "a localization run")):
+        p = sub.add_parser(kind, help=f"execute {what} and write its log and timings")
+        p.add_argument("config", type=_object, help="the run configuration as a JSON object")
+        p.add_argument("log", help="output log, *.mcap")
+        p.add_argument("timings", help="output timings, *.json")
+    p = sub.add_parser("run-study", help="run one study and write its results")
+    p.add_argument("name", help="the study's name")
+    p.add_argument("spec", type=_object, help='its configuration as a JSON object ({"study": kind, ...})')
+    p.add_argument("out", help="output, *.json")
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run one job; returns the exit status (see the module docstring)."""
+    args = _parser().parse_args(argv)
+    if args.kind == "simulate-run":
+        from ..logs.sweep import simulate
+
+        simulate(args.config, args.log, args.timings)
+    elif args.kind == "simulate-localization":
+        from ..logs.localization_log import simulate_localization
+
+        simulate_localization(args.config, args.log, args.timings)
+    else:
+        from ..logs.study import run_study
+
+        run_study(args.name, args.spec, args.out)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,48 @@
+"""The pipeline's job commands (python -m pose_uncertainty.cli.job) write what the library functions write."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from default_runs import CONFIGS
+
+from pose_uncertainty.cli.job import main
+from pose_uncertainty.logs.study import run_study
+from pose_uncertainty.logs.sweep import simulate
+
+
+def test_simulate_run_writes_the_log_of_the_library_call(tmp_path: Path) -> None:
+    config = CONFIGS["right_angles"]
+    assert main(["simulate-run", json.dumps(config), str(tmp_path / "a.mcap"), str(tmp_path / "a.json")]) == 0
+    simulate(config, tmp_path / "b.mcap", tmp_path / "b.json")
+    assert (tmp_path / "a.mcap").read_bytes() == (tmp_path / "b.mcap").read_bytes()
+    assert set(json.loads((tmp_path / "a.json").read_text(encoding="utf-8"))) >= {"total_s"}
+
+
+def test_run_study_writes_the_results_of_the_library_call(tmp_path: Path) -> None:
+    spec = {"study": "integration_vs_step"}
+    assert main(["run-study", "ivs", json.dumps(spec), str(tmp_path / "a.json")]) == 0
+    run_study("ivs", spec, tmp_path / "b.json")
+    a, b = (json.loads((tmp_path / f"{x}.json").read_text(encoding="utf-8")) for x in "ab")
+    a.pop("provenance"), b.pop("provenance")  # (holds the time of the run)
+    assert a == b
+
+
+@pytest.mark.parametrize(
+    ("argv", "says"),
+    [
+        (["simulate-run", "{not json", "a.mcap", "b.json"], "not valid JSON"),
+        (["simulate-run", "[1, 2]", "a.mcap", "b.json"], "must be a JSON object, got list"),
+        (["simulate-orbit", "{}", "a", "b"], "invalid choice: 'simulate-orbit'"),
+    ],
+)
+def test_bad_usage_exits_2_and_says_why(tmp_path: Path, argv: list[str], says: str) -> None:
+    res = subprocess.run([sys.executable, "-m", "pose_uncertainty.cli.job", *argv], cwd=tmp_path,
+                         capture_output=True, text=True, check=False)  # fmt: skip
+    assert res.returncode == 2
+    assert says in res.stderr.strip().splitlines()[-1]
+    assert not list(tmp_path.iterdir())  # nothing written
