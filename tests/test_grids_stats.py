@@ -111,3 +111,22 @@ def test_fit_growth_recovers_each_law():
     assert fit["exp_rms_log_residual"] < 1e-12 < fit["power_rms_log_residual"]
     with pytest.raises(ValueError, match="at least 3 positive points"):
         stats.fit_growth([1.0, 2.0], [1.0, 2.0])
+
+
+def test_chi2_ppf_table_holds_scipys_values_bit_for_bit():
+    from scipy.special import chdtri
+
+    from pose_uncertainty.core.stats import _CHI2_PPF
+
+    for (pr, dof), value in _CHI2_PPF.items():
+        assert float(chdtri(dof, 1.0 - pr)) == value, (pr, dof)
+
+
+@pytest.mark.parametrize("dof", [1, 2, 3, 7.5])
+@pytest.mark.parametrize("pr", [0.5, 0.9, 0.95, stats.PR_3SIGMA, 0.7])
+def test_chi2_ppf_equals_scipy_stats(pr, dof):
+    from scipy.stats import chi2
+
+    assert stats.chi2_ppf(pr, dof) == pytest.approx(chi2.ppf(pr, dof), rel=1e-12)
+    many = stats.chi2_ppf(np.array([pr, 0.25]), dof)  # arrays: computed, not looked up
+    assert many == pytest.approx(chi2.ppf([pr, 0.25], dof), rel=1e-12)
