@@ -13,13 +13,16 @@ import subprocess
 import sys
 
 import pytest
+from default_runs import CONFIGS
 
 #: job script → (its top-level import, modules it must not load)
 _RUN_HEAVY = ["scipy.special", "scipy.fft", "scipy.optimize", "jsonschema", "matplotlib", "PIL", "contourpy"]
+_JOB = "from pose_uncertainty.cli.job import main; "  # the runs' and studies' job command
 JOBS = {
-    "simulate_run": ("from pose_uncertainty.logs.sweep import simulate", _RUN_HEAVY),
-    "simulate_localization": ("from pose_uncertainty.logs.localization_log import simulate_localization", _RUN_HEAVY),
-    "run_study": ("from pose_uncertainty.logs.study import run_study", _RUN_HEAVY),
+    "simulate_run": (_JOB + "from pose_uncertainty.logs.sweep import simulate", _RUN_HEAVY),
+    "simulate_localization": (_JOB + "from pose_uncertainty.logs.localization_log import simulate_localization",
+                              _RUN_HEAVY),
+    "run_study": (_JOB + "from pose_uncertainty.logs.study import run_study", _RUN_HEAVY),
     "render_run_figures": ("from pose_uncertainty.present.pipeline_figures import render_run_figures",
                            ["scipy.optimize", "scipy.special", "jsonschema"]),
 }  # fmt: skip
@@ -51,3 +54,15 @@ def test_a_localization_log_kind_is_found_without_importing_its_module_first():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
     assert out == ["0", "True", "True"]
+
+
+def test_a_monte_carlo_run_without_maps_runs_without_scipy_special(tmp_path):
+    """Its χ² levels come from core.stats' table of scipy's values (most runs of the default config)."""
+    code = (
+        "import json, sys; from pose_uncertainty.cli.job import main; "
+        f"main(['simulate-run', json.dumps({CONFIGS['straight']!r}), {str(tmp_path / 'a.mcap')!r}, "
+        f"{str(tmp_path / 'a.json')!r}]); print('scipy.special' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["False"]
+    assert (tmp_path / "a.mcap").stat().st_size > 0
