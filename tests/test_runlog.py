@@ -555,5 +555,37 @@ def test_figure_axes_have_units_and_equal_aspect(result: RunResult) -> None:
     assert hi - lo == pytest.approx(1.0)  # the 1 m × 1 m window
 
 
+def test_fixed_margins_place_the_axes_at_their_inches() -> None:
+    """Margins in inches → subplot fractions → axes boxes back in inches: the same geometry (3 × 2 grid)."""
+    m = figures.Margins(left=0.85, bottom=0.5, right=0.15, top=0.55, wspace=0.85, hspace=0.35)
+    fig = figures.new_figure((7.8, 6.4), margins=m, grid=(3, 2))
+    boxes = [fig.add_subplot(3, 2, k).get_position() for k in range(1, 7)]  # fractions of the figure
+    ax_w = (7.8 - 0.85 - 0.15 - 0.85) / 2
+    ax_h = (6.4 - 0.5 - 0.55 - 2 * 0.35) / 3
+    for k, b in enumerate(boxes):
+        row, col = divmod(k, 2)
+        x0 = 0.85 + col * (ax_w + 0.85)
+        y1 = 6.4 - 0.55 - row * (ax_h + 0.35)
+        inches = [7.8 * b.x0, 7.8 * b.x1, 6.4 * b.y0, 6.4 * b.y1]
+        np.testing.assert_allclose(inches, [x0, x0 + ax_w, y1 - ax_h, y1], atol=1e-9)
+    assert fig.get_layout_engine() is None
+    with pytest.raises(ValueError, match="margins"):
+        figures.new_figure((1.0, 1.0), margins=m)
+
+
+def test_fixed_margin_figures_keep_their_labels_inside(result: RunResult) -> None:
+    """Tick labels, axis labels and legends of every per-run figure lie inside the figure after a draw."""
+    for name, fig in figures.figure_set(result).items():
+        fig.canvas.draw()
+        renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]
+        texts = [a.get_tightbbox(renderer) for ax in fig.axes for a in (ax.xaxis, ax.yaxis, ax.get_legend())
+                 if a is not None]  # fmt: skip
+        assert len(texts) >= 3, name  # x and y axis, legend of the main axes
+        for box in texts:
+            if box is not None:  # an axis without ticks or label (the colour bar's x axis) has no box
+                assert fig.bbox.contains(box.x0, box.y0), name
+                assert fig.bbox.contains(box.x1, box.y1), name
+
+
 def test_log_file_mode_is_readable(logfile: Path) -> None:
     assert os.stat(logfile).st_mode & 0o444 == 0o444

@@ -21,6 +21,7 @@ from __future__ import annotations
 import io
 import os
 from collections.abc import Iterable
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +39,7 @@ from ..methods.maps import ProbabilityMap
 
 __all__ = [
     "FORMATS",
+    "Margins",
     "cloud_figure",
     "figure_set",
     "map_figure",
@@ -68,20 +70,72 @@ _BLUE, _RED, _BLACK = "blue", "red", "black"
 _MAP_WINDOW = 1.0  # [m], side of the map window (the thesis's 1 m × 1 m)
 
 
-def new_figure(size: tuple[float, float] = (6.0, 6.0), dpi: int = _DPI) -> Figure:
-    """An empty figure on the Agg canvas with constrained layout, saved at its own dpi.
+@dataclass(frozen=True)
+class Margins:
+    """Fixed geometry of a figure's grid of axes, in inches (a cheap replacement of constrained layout).
+
+    Constrained layout measures every tick label at every draw (2 passes), 10-20 % of a per-run
+    figure's time; the per-run figures have a known set of texts, so their margins are fixed
+    instead, wide enough for the widest tick labels the pipeline's runs draw.
+
+    Attributes
+    ----------
+    left, bottom, right, top : float [inch] — from the figure's edges to the grid of axes
+    wspace, hspace : float [inch] — between columns and between rows of the grid
+    """
+
+    left: float
+    bottom: float
+    right: float
+    top: float
+    wspace: float = 0.0
+    hspace: float = 0.0
+
+
+def new_figure(
+    size: tuple[float, float] = (6.0, 6.0),
+    dpi: int = _DPI,
+    margins: Margins | None = None,
+    grid: tuple[int, int] = (1, 1),
+) -> Figure:
+    """An empty figure on the Agg canvas, saved at its own dpi: fixed margins, or constrained layout.
 
     Parameters
     ----------
     size : (width, height) [inch]
     dpi : dots per inch — 72 (per-run figures, the default) or :data:`WIDE_DPI` (set and study figures)
+    margins : Margins or None — fixed subplot geometry for ``fig.add_subplot(nrows, ncols, k)``;
+        None: constrained layout (sized at every draw)
+    grid : (nrows, ncols) — the grid ``margins.wspace`` / ``margins.hspace`` separate
     """
-    fig = Figure(figsize=size, dpi=dpi, layout="constrained")
+    if margins is None:
+        fig = Figure(figsize=size, dpi=dpi, layout="constrained")
+    else:
+        fig = Figure(figsize=size, dpi=dpi, layout=None)
+        fig.subplots_adjust(**_subplot_params(size, margins, grid))
     FigureCanvasAgg(fig)
     return fig
 
 
+def _subplot_params(size: tuple[float, float], m: Margins, grid: tuple[int, int]) -> dict[str, float]:
+    """``Figure.subplots_adjust`` arguments (fractions of the figure; gaps as fractions of an axes) of ``m``."""
+    (width, height), (nrows, ncols) = size, grid
+    ax_w = (width - m.left - m.right - (ncols - 1) * m.wspace) / ncols  # [inch]
+    ax_h = (height - m.bottom - m.top - (nrows - 1) * m.hspace) / nrows  # [inch]
+    if ax_w <= 0 or ax_h <= 0:
+        raise ValueError(f"margins {m} leave no room for a {nrows}x{ncols} grid in a {width}x{height} in figure")
+    return {"left": m.left / width, "right": 1.0 - m.right / width, "bottom": m.bottom / height,
+            "top": 1.0 - m.top / height, "wspace": m.wspace / ax_w, "hspace": m.hspace / ax_h}  # fmt: skip
+
+
 _new_figure = new_figure  # kept for callers of the earlier private name
+
+#: Margins [inch] of the trajectory and cloud figures (6 × 6 in): left for y tick labels up to
+#: "−0.010" and the y label, right for the last x tick label's overhang, top for a one-line title
+_PLANE_MARGINS = Margins(left=0.85, bottom=0.5, right=0.15, top=0.3)
+#: The map figure (6.4 × 5.6 in): square axes, then a gap, the colour bar and its tick labels and label
+_MAP_MARGINS = Margins(left=0.75, bottom=0.55, right=0.2 + 0.2 + 0.9, top=0.35)
+_CBAR_GAP, _CBAR_WIDTH = 0.2, 0.2  # [inch]
 
 
 def _pct(pr: float) -> str:
@@ -100,7 +154,9 @@ def trajectory_figure(run: RunResult) -> Figure:
     run : RunResult (or a RunLog read back from a file)
     """
     cfg = run.config
-    fig = _new_figure()
+    # a run with a drive has a two-line title (10 pt): 0.15 in more at the top
+    margins = _PLANE_MARGINS if cfg.drive is None else replace(_PLANE_MARGINS, top=_PLANE_MARGINS.top + 0.15)
+    fig = _new_figure(margins=margins)
     ax = fig.add_subplot()
     ax.plot(run.poses[:, 0], run.poses[:, 1], color=_BLACK, lw=1.2, label="nominal path")
     steps = run.ellipse_steps()
@@ -151,7 +207,7 @@ def cloud_figure(run: RunResult) -> Figure | None:
     n = run.n_steps
     end, cov = run.poses[n], run.covs[n]
     cloud = run.end_poses
-    fig = _new_figure()
+    fig = _new_figure(margins=_PLANE_MARGINS)
     ax = fig.add_subplot()
     ax.scatter(
         cloud[:, 0],
@@ -258,8 +314,8 @@ def map_figure(run: RunResult, mp: ProbabilityMap) -> Figure:
     else:
         mid = ((mp.x[0] + mp.x[-1]) / 2.0, (mp.y[0] + mp.y[-1]) / 2.0)
     side = map_window(mp, mid)
-    fig = _new_figure((6.4, 5.6))
-    ax = fig.add_subplot()
+    fig = _new_figure((6.4, 5.6), margins=_MAP_MARGINS)
+    ax, cax = _map_axes(fig)
     img = ax.imshow(
         marg.T,
         origin="lower",
@@ -280,8 +336,20 @@ def map_figure(run: RunResult, mp: ProbabilityMap) -> Figure:
     )
     ax.legend(loc="upper right", fontsize="small")
     cm = f"{100 * dx:.3g} cm"
-    fig.colorbar(img, ax=ax, label=f"probability per {cm} × {cm} cell (θ summed)", shrink=0.85)
+    fig.colorbar(img, cax=cax, label=f"probability per {cm} × {cm} cell (θ summed)")
     return fig
+
+
+def _map_axes(fig: Figure) -> tuple[Any, Any]:
+    """The map figure's square axes (centred in the height :data:`_MAP_MARGINS` leave) and colour-bar axes."""
+    (width, height), m = fig.get_size_inches(), _MAP_MARGINS
+    free_h = height - m.bottom - m.top
+    side = min(width - m.left - m.right, free_h)  # [inch]
+    y0 = m.bottom + (free_h - side) / 2.0
+    ax = fig.add_axes((m.left / width, y0 / height, side / width, side / height))
+    x_bar = m.left + side + _CBAR_GAP
+    cax = fig.add_axes((x_bar / width, y0 / height, _CBAR_WIDTH / width, side / height))
+    return ax, cax
 
 
 def figure_set(run: RunResult) -> dict[str, Figure]:

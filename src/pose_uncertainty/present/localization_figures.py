@@ -58,6 +58,12 @@ RUN_FIGURES: tuple[str, ...] = ("paths", "errors", "nees")
 SET_FIGURES: tuple[str, ...] = ("accuracy_time", "success")
 COLORS: dict[str, str] = {"ekf": "tab:blue", "histogram": "tab:green", "particle": "tab:orange"}
 LABELS: dict[str, str] = {"ekf": "EKF", "histogram": "histogram filter", "particle": "particle filter"}
+#: Fixed margins [inch] of the per-run figures (no layout engine at draw): room for the widest tick
+#: labels the pipeline's runs draw (NEES: "6 × 10⁻¹"; errors: "−0.050"), the axis labels and the titles;
+#: the errors figure's columns are as far apart as its left margin (each has its own y labels)
+_PATHS_MARGINS = figures.Margins(left=0.6, bottom=0.5, right=0.15, top=0.3)
+_ERRORS_MARGINS = figures.Margins(left=0.85, bottom=0.5, right=0.15, top=0.55, wspace=0.85, hspace=0.35)
+_NEES_MARGINS = figures.Margins(left=0.95, bottom=0.5, right=0.1, top=0.3)
 
 
 def _title(res: LocalizationResult) -> str:
@@ -67,7 +73,7 @@ def _title(res: LocalizationResult) -> str:
 
 def paths_figure(res: LocalizationResult) -> Figure:
     """The world with the true path, dead reckoning, every filter's path and final 98.89 % ellipse."""
-    fig = figures.new_figure((7.0, 6.0))
+    fig = figures.new_figure((7.0, 6.0), margins=_PATHS_MARGINS)
     ax = fig.add_subplot()
     w = res.world
     for x1, y1, x2, y2 in w.segments:
@@ -99,7 +105,8 @@ def paths_figure(res: LocalizationResult) -> Figure:
 def errors_figure(res: LocalizationResult) -> Figure:
     """Rows x, y, θ; one column per filter: the error (estimate − truth) inside ±3σ of the filter's covariance."""
     names = list(res.filters)
-    fig = figures.new_figure((3.6 * max(len(names), 1) + 0.6, 6.4))
+    fig = figures.new_figure((3.6 * max(len(names), 1) + 0.6, 6.4), margins=_ERRORS_MARGINS,
+                             grid=(3, max(len(names), 1)))  # fmt: skip
     t = res.times
     rows = (("x", "m"), ("y", "m"), ("theta", "rad"))
     for j, name in enumerate(names):
@@ -129,7 +136,7 @@ def errors_figure(res: LocalizationResult) -> Figure:
 
 def nees_figure(res: LocalizationResult) -> Figure:
     """NEES averaged over the R runs per step and filter, with the 95 % χ² band of R runs (log scale)."""
-    fig = figures.new_figure((7.0, 4.4))
+    fig = figures.new_figure((7.0, 4.4), margins=_NEES_MARGINS)
     ax = fig.add_subplot()
     m = res.metrics
     lo, hi = m["loc_nees_band_low"], m["loc_nees_band_high"]

@@ -49,6 +49,10 @@ __all__ = [
     "umbmark_figure",
 ]
 
+#: Margins [inch] of the map-vs-sampler figure (6 × 6 in, equal aspect): y tick labels up to "−0.010"
+_MAP_CLOUD_MARGINS = figures.Margins(left=0.8, bottom=0.55, right=0.2, top=0.35)
+
+
 def render_run_figure(log: str | os.PathLike[str], kind: str, out: str | os.PathLike[str]) -> Path:
     """Draw one figure of a run log and save it.
 
@@ -113,7 +117,7 @@ def map_cloud_figure(run: Any, mp: Any) -> Figure:
     """
     marg = mp.marginal_xy()
     end = run.poses[-1]
-    fig = figures.new_figure((6.0, 6.0))
+    fig = figures.new_figure((6.0, 6.0), margins=_MAP_CLOUD_MARGINS)
     ax = fig.add_subplot()
     cloud = run.map_samplers.get(mp.name, np.zeros((0, 3)))
     if cloud.shape[0]:
