@@ -5,7 +5,12 @@ import math
 import numpy as np
 import pytest
 
-from pose_uncertainty.core.stats import COVERAGE_LEVELS, fraction_inside_ellipse, hdr_region
+from pose_uncertainty.core.stats import (
+    COVERAGE_LEVELS,
+    fraction_inside_ellipse,
+    hdr_levels,
+    hdr_region,
+)
 from pose_uncertainty.localization import measures as MS
 
 PRS = np.array(list(COVERAGE_LEVELS.values()))
@@ -50,6 +55,32 @@ def test_grid_regions_cover_their_nominal_probability(rng):
     for c, pr in enumerate(PRS):
         assert abs(flags[:, c].mean() - pr) <= 5 * math.sqrt(pr * (1 - pr) / n) + 0.005
     assert not MS.mass_region_flags(m, (-1, 3)).any()
+
+
+def test_unchecked_region_flags_equal_the_checked_ones(rng):
+    # the filters' per-step route (hdr_levels, region_flags_of_mass: no validation) against
+    # hdr_region and mass_region_flags, on masses with ties and empty cells, for every cell
+    m = np.round(rng.random((7, 9)) ** 3, 2)
+    m[rng.random(m.shape) < 0.3] = 0.0
+    np.testing.assert_array_equal(hdr_levels(m, PRS), hdr_region(m, PRS)[0])
+    for i in range(-1, m.shape[0] + 1):
+        for j in range(-1, m.shape[1] + 1):
+            inside = 0 <= i < m.shape[0] and 0 <= j < m.shape[1]
+            np.testing.assert_array_equal(MS.region_flags_of_mass(float(m[i, j]) if inside else 0.0, m[m > 0]),
+                                          MS.mass_region_flags(m, (i, j)))  # fmt: skip
+
+
+def test_gaussian_region_flags_of_all_steps_equal_those_of_each(rng):
+    # the EKF flags its steps after the loop, all at once: the same as one call per step
+    n = 200
+    mean = rng.normal(size=(n, 3))
+    A = rng.normal(size=(n, 3, 3)) * 0.3
+    cov = A @ np.swapaxes(A, 1, 2)
+    truth = mean + rng.normal(size=(n, 3)) * 0.3
+    every = MS.gaussian_region_flags(mean, cov, truth)
+    assert 0 < every.sum() < every.size  # both inside and outside
+    for k in range(n):
+        np.testing.assert_array_equal(every[k], MS.gaussian_region_flags(mean[k], cov[k], truth[k]))
 
 
 def test_nees_band_and_convergence():

@@ -32,6 +32,7 @@ __all__ = [
     "chi2_ppf",
     "fit_growth",
     "fraction_inside_ellipse",
+    "hdr_levels",
     "hdr_region",
     "hellinger",
     "hellinger_noise_floor",
@@ -193,13 +194,7 @@ def hdr_region(
     level : float, or ndarray of the shape of ``pr`` — mass-per-cell threshold (``nan`` if unreachable)
     n_cells : the same — the region's size in cells, fractional (times the cell area: m²)
     """
-    m = np.sort(check_nonnegative("mass", mass).ravel())[::-1]
-    p = check_probability("pr", pr)
-    cum = np.cumsum(m)
-    if cum.size == 0 or cum[-1] <= 0:
-        raise ValueError("mass must have a positive total (allowed: a distribution), got total 0")
-    need = p * (cum[-1] if total is None else float(total))
-    k = np.minimum(np.searchsorted(cum, need), m.size - 1)
+    m, cum, need, k = _hdr_cut(check_nonnegative("mass", mass), check_probability("pr", pr), total)
     before = np.where(k > 0, cum[k - 1], 0.0)
     frac = np.where(m[k] > 0, np.minimum(1.0, (need - before) / np.where(m[k] > 0, m[k], 1.0)), 1.0)
     reach = need <= cum[-1] * (1 + 1e-12)
@@ -208,6 +203,37 @@ def hdr_region(
     if level.ndim == 0:
         return float(level), float(n_cells)
     return level, n_cells
+
+
+def hdr_levels(mass: NDArray[np.float64], pr: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The ``level`` of :func:`hdr_region` (relative: ``total`` the mass on the cells), inputs not validated.
+
+    For the masses a filter makes at every step (finite, ≥ 0, positive total: the caller's
+    guarantee) and levels ``pr`` it holds (in (0, 1)): the same numbers as :func:`hdr_region`
+    without its checks (a relative region is always reached).
+
+    Parameters
+    ----------
+    mass : ndarray of float64, any shape; pr : ndarray of float64, shape (P,)
+
+    Returns
+    -------
+    level : ndarray, shape (P,) — mass-per-cell threshold of each level
+    """
+    m, _, _, k = _hdr_cut(mass, pr, None)
+    return m[k]
+
+
+def _hdr_cut(
+    mass: NDArray[np.float64], p: NDArray[np.float64], total: float | None
+) -> tuple[NDArray[np.float64], NDArray[np.float64], Any, Any]:
+    """The masses sorted down, their running sum, the mass each level needs and the index of its last cell."""
+    m = np.sort(mass.ravel())[::-1]
+    cum = np.cumsum(m)
+    if cum.size == 0 or cum[-1] <= 0:
+        raise ValueError("mass must have a positive total (allowed: a distribution), got total 0")
+    need = p * (cum[-1] if total is None else float(total))
+    return m, cum, need, np.minimum(np.searchsorted(cum, need), m.size - 1)
 
 
 def hellinger(p: ArrayLike, q: ArrayLike) -> float:

@@ -331,9 +331,8 @@ def run_ekf(
             nis = float(nis_)
         rec.toc(k)
         shown = np.array([mean[0], mean[1], wrap_angle(mean[2])])
-        flags = gaussian_region_flags(shown, cov, run.true_poses[k])
-        rec.record(k, shown, cov, flags, {}, nis=nis, n_measurements=z.shape[0], wrong_associations=wrong)
-    return rec.result()
+        rec.record(k, shown, cov, None, {}, nis=nis, n_measurements=z.shape[0], wrong_associations=wrong)
+    return rec.result(gaussian_region_flags(rec.mean, rec.cov, run.true_poses))  # every step at once
 
 
 def run_ekf_batch(

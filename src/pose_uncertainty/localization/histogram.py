@@ -31,7 +31,7 @@ from ..core.grids import Grid
 from ..core.kinematics import wrap_angle
 from ..core.validation import check_choice, check_positive, check_positive_int
 from ..methods.maps import GridTransition, ProbabilityMap, grid_transition, predict_on_grid
-from .measures import mass_region_flags
+from .measures import region_flags_of_mass
 from .motion import Motion
 from .result import (
     ASSOCIATIONS,
@@ -393,8 +393,9 @@ def run_histogram(
         mean, cov = hf_estimate(belief, grid)
         xy = belief.sum(axis=2)
         t = run.true_poses[k]
-        cell = (round(float(t[0] - grid.x0) / grid.resolution), round(float(t[1] - grid.y0) / grid.resolution))
-        rec.record(k, mean, cov, mass_region_flags(xy, cell), {"belief": belief, "grid": grid, "belief_xy": xy},
+        i, j = round(float(t[0] - grid.x0) / grid.resolution), round(float(t[1] - grid.y0) / grid.resolution)
+        flags = region_flags_of_mass(float(xy[i, j]) if 0 <= i < grid.nx and 0 <= j < grid.ny else 0.0, xy)
+        rec.record(k, mean, cov, flags, {"belief": belief, "grid": grid, "belief_xy": xy},
                    ("belief_xy",), lost_mass=lost, masked_mass=masked, log_evidence=logev, n_measurements=m,
                    wrong_associations=wrong)  # fmt: skip
     return rec.result()

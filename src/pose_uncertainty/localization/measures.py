@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..core.kinematics import wrap_angle
-from ..core.stats import COVERAGE_LEVELS, chi2_ppf, hdr_region, pr_to_k
+from ..core.stats import COVERAGE_LEVELS, chi2_ppf, hdr_levels, hdr_region, pr_to_k
 from ..core.validation import check_finite, check_last_axis, check_positive, check_positive_int
 
 __all__ = [
@@ -34,12 +34,15 @@ __all__ = [
     "nees",
     "nees_band",
     "pose_errors",
+    "region_flags_of_mass",
     "weighted_mean_cov",
 ]
 
 Array = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 _PRS = tuple(COVERAGE_LEVELS.values())
+_PR_ARRAY = np.array(_PRS)
+_K_ARRAY = pr_to_k(_PR_ARRAY)  # the levels' squared Mahalanobis radii, computed once
 
 
 def pose_errors(mean: ArrayLike, truth: ArrayLike) -> tuple[Array, Array]:
@@ -88,8 +91,7 @@ def gaussian_region_flags(mean: ArrayLike, cov: ArrayLike, truth: ArrayLike) -> 
     safe = np.where(ok, det, 1.0)
     d2 = (S[..., 1, 1] * d[..., 0] ** 2 - 2 * S[..., 0, 1] * d[..., 0] * d[..., 1]
           + S[..., 0, 0] * d[..., 1] ** 2) / safe  # fmt: skip
-    k = pr_to_k(np.array(_PRS))
-    return ok[..., None] & (d2[..., None] <= k)
+    return ok[..., None] & (d2[..., None] <= _K_ARRAY)
 
 
 def mass_region_flags(masses: ArrayLike, cell: tuple[int, int]) -> BoolArray:
@@ -101,7 +103,19 @@ def mass_region_flags(masses: ArrayLike, cell: tuple[int, int]) -> BoolArray:
     i, j = cell
     if not (0 <= i < v.shape[0] and 0 <= j < v.shape[1]):
         return np.zeros(len(_PRS), dtype=bool)
-    return (v[i, j] >= hdr_region(v, np.array(_PRS))[0]) & (v[i, j] > 0)
+    return (v[i, j] >= hdr_region(v, _PR_ARRAY)[0]) & (v[i, j] > 0)
+
+
+def region_flags_of_mass(mass: float, masses: Array) -> BoolArray:
+    """Whether a cell of mass ``mass`` lies in the highest-density regions of the cells ``masses``, shape (3,).
+
+    The flags of :func:`mass_region_flags` for the masses a filter makes at every step
+    (finite, ≥ 0, positive total: not validated, :func:`~pose_uncertainty.core.stats.hdr_levels`);
+    ``mass`` is one of them, or 0 for a cell off the grid (a cell without mass is outside).
+    """
+    if not mass > 0:
+        return np.zeros(len(_PRS), dtype=bool)
+    return mass >= hdr_levels(masses, _PR_ARRAY)
 
 
 def weighted_mean_cov(particles: ArrayLike, w: ArrayLike) -> tuple[Array, Array]:

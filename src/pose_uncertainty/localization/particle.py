@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 
 from ..core.kinematics import wrap_angle
 from ..core.validation import check_choice, check_positive, check_positive_int
-from .measures import mass_region_flags, weighted_mean_cov
+from .measures import region_flags_of_mass, weighted_mean_cov
 from .motion import Motion, sample_motion, wheel_draws
 from .resampling import (
     SCHEMES,
@@ -367,25 +367,24 @@ def _particle_region_flags(particles: Array, w: Array, world: World, truth: Arra
     """
     x0, x1, y0, y1 = world.bounds  # type: ignore[misc]
     nx, ny = max(1, math.ceil((x1 - x0) / h)), max(1, math.ceil((y1 - y0) / h))
-    i = np.floor((particles[:, 0] - x0) / h).astype(np.int64)
-    j = np.floor((particles[:, 1] - y0) / h).astype(np.int64)
-    ok = (i >= 0) & (i < nx) & (j >= 0) & (j < ny)
     ti, tj = math.floor((truth[0] - x0) / h), math.floor((truth[1] - y0) / h)
-    none = np.zeros(3, dtype=bool)
-    if not ok.any() or not (0 <= ti < nx and 0 <= tj < ny):
-        return none
-    i, j = i[ok], j[ok]
-    i0, j0 = int(i.min()), int(j.min())
-    span = int(j.max()) - j0 + 1
-    hist = np.bincount((i - i0) * span + (j - j0), w[ok])
+    if not (0 <= ti < nx and 0 <= tj < ny):
+        return np.zeros(3, dtype=bool)
+    i = np.floor((particles[:, 0] - x0) / h)  # cell of each particle, as floats
+    j = np.floor((particles[:, 1] - y0) / h)
+    box = i.min(), i.max(), j.min(), j.max()
+    if not (box[0] >= 0 and box[1] < nx and box[2] >= 0 and box[3] < ny):  # some off the grid (or NaN)
+        on_grid = (i >= 0) & (i < nx) & (j >= 0) & (j < ny)
+        if not on_grid.any():
+            return np.zeros(3, dtype=bool)
+        i, j, w = i[on_grid], j[on_grid], w[on_grid]
+        box = i.min(), i.max(), j.min(), j.max()
+    i0, j0 = int(box[0]), int(box[2])
+    span = int(box[3]) - j0 + 1
+    hist = np.asarray(np.bincount(((i - i0) * span + (j - j0)).astype(np.intp), w), dtype=np.float64)
     key = (ti - i0) * span + (tj - j0)
-    if not hist.sum() > 0 or not (0 <= tj - j0 < span and 0 <= key < hist.size):
-        return none
-    occupied = np.flatnonzero(hist)
-    cell = int(np.searchsorted(occupied, key))
-    if cell == occupied.size or occupied[cell] != key:
-        return none
-    return mass_region_flags(hist[occupied][:, None], (cell, 0))
+    inside = 0 <= tj - j0 < span and 0 <= key < hist.size
+    return region_flags_of_mass(float(hist[key]) if inside else 0.0, hist[hist > 0])
 
 
 def run_particle(

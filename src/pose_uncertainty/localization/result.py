@@ -142,21 +142,32 @@ class StepRecorder:
         self.seconds[k] += time.perf_counter() - self._t0
 
     def record(
-        self, k: int, mean: Array, cov: Array, in_region: NDArray[np.bool_], state: dict[str, Any],
+        self, k: int, mean: Array, cov: Array, in_region: NDArray[np.bool_] | None, state: dict[str, Any],
         snapshot: Sequence[str] | None = None, **diag: float,
     ) -> None:  # fmt: skip
-        """Store step ``k``; keep a copy of ``state`` (its keys ``snapshot``, default all) if asked; call ``on_step``."""
-        self.mean[k], self.cov[k], self.in_region[k] = mean, cov, in_region
+        """Store step ``k``; keep a copy of ``state`` (its keys ``snapshot``, default all) if asked; call ``on_step``.
+
+        ``in_region`` None: the flags of every step are given to :meth:`result` instead (computed
+        after the loop, over all steps at once).
+        """
+        self.mean[k], self.cov[k] = mean, cov
+        if in_region is not None:
+            self.in_region[k] = in_region
         for key, value in diag.items():
-            self.diag.setdefault(key, np.zeros(self.mean.shape[0]))[k] = value
+            column = self.diag.get(key)
+            if column is None:
+                column = self.diag[key] = np.zeros(self.mean.shape[0])
+            column[k] = value
         if k in self.keep:
             keys = state.keys() if snapshot is None else snapshot
             self.snapshots[k] = {key: np.array(state[key]) for key in keys}
         if self.on_step is not None:
             self.on_step(k, {"mean": mean, "cov": cov, **state})
 
-    def result(self) -> FilterResult:
-        """The finished :class:`FilterResult`."""
+    def result(self, in_region: NDArray[np.bool_] | None = None) -> FilterResult:
+        """The finished :class:`FilterResult`; ``in_region`` (K, 3): the flags of every step, if not recorded per step."""
+        if in_region is not None:
+            self.in_region[...] = in_region
         return FilterResult(self.name, self.run.times, self.mean, self.cov, self.in_region,
                             self.seconds, self.diag, self.snapshots)  # fmt: skip
 
