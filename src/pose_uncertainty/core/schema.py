@@ -84,12 +84,31 @@ def format_schema_error(error: Any, what: str = "config") -> str:
     return f"{what} key {_dotted(path, root)!r} has bad value {shown}; allowed: {_allowed(error)}"
 
 
+#: The validator of each schema checked so far, by ``id``, with the schema itself (kept alive, so
+#: that its ``id`` is not reused): checking a schema against the meta-schema costs ~10 ms, and the
+#: world schema validates every localization run of a sweep.
+_VALIDATORS: dict[int, tuple[Mapping[str, Any], Any]] = {}
+
+
+def _validator(schema: Mapping[str, Any]) -> Any:
+    hit = _VALIDATORS.get(id(schema))
+    if hit is None or hit[0] is not schema:
+        # imported where used: jsonschema takes 60 ms to import, and a run job never validates
+        from jsonschema import Draft202012Validator
+
+        Draft202012Validator.check_schema(schema)
+        hit = (schema, Draft202012Validator(schema))
+        _VALIDATORS[id(schema)] = hit
+    return hit[1]
+
+
 def first_error(schema: Mapping[str, Any], instance: Any, what: str = "config") -> str | None:
-    """The most specific violation of ``schema`` by ``instance`` as one line, or None if valid."""
-    # imported where used: jsonschema takes 60 ms to import, and a run job never validates
-    from jsonschema import Draft202012Validator
+    """The most specific violation of ``schema`` by ``instance`` as one line, or None if valid.
+
+    ``schema`` is checked against its meta-schema the first time it is used (a schema is not
+    changed after that: the validator is kept for the same object).
+    """
     from jsonschema.exceptions import best_match, relevance
 
-    Draft202012Validator.check_schema(schema)
-    err = best_match(Draft202012Validator(schema).iter_errors(instance), key=relevance)
+    err = best_match(_validator(schema).iter_errors(instance), key=relevance)
     return None if err is None else format_schema_error(err, what)

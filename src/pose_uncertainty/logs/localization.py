@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import functools
 import hashlib
 import math
 import time
@@ -214,12 +215,18 @@ def _read_world_file(path: str) -> tuple[dict[str, Any], Path]:
     except OSError as exc:
         raise _fail("world.file", "a readable world file (YAML or JSON)", f"{path} ({exc.strerror or exc})") from None
     try:
-        data = yaml.safe_load(text)
+        data = copy.deepcopy(_parse_yaml(text))  # (a copy: the caller may change it)
     except yaml.YAMLError as exc:
         raise ValueError(f"config key 'world.file' {path!r}: not valid YAML/JSON ({str(exc).splitlines()[0]})") from None
     if not isinstance(data, Mapping):
         raise _fail("world.file", "a file holding a mapping", path)
     return dict(data), p.parent
+
+
+@functools.lru_cache(maxsize=16)
+def _parse_yaml(text: str) -> Any:
+    """``yaml.safe_load(text)``, once per text: every run of a sweep reads the same world file."""
+    return yaml.safe_load(text)
 
 
 def _random_landmarks(data: Any) -> dict[str, Any]:
