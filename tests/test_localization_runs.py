@@ -340,6 +340,27 @@ def test_figures_drawn_from_the_log_are_identical(result: LL.LocalizationResult,
         assert p1.read_bytes() == p2.read_bytes()
 
 
+def test_run_figures_keep_long_titles_inside() -> None:
+    """A single-filter run (the errors figure is 4.2 in wide) with a long name, as LOC_resampling's
+    "linear_time_always": every title and the errors suptitle are wrapped onto lines inside the figure,
+    above the axes (the suptitle above the column titles)."""
+    name = "multinomial_with_the_longest_name_always"
+    res = execute_localization(LocalizationConfig.from_dict({**CONFIG, "name": name, "filters": {"ekf": {}}}))
+    for kind, fig in LF.localization_figure_set(res).items():
+        fig.canvas.draw()
+        renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]
+        if kind == "errors":
+            assert fig._suptitle is not None
+            text, below = fig._suptitle, [ax.title.get_window_extent(renderer) for ax in fig.axes if ax.get_title()]
+        else:
+            text, below = fig.axes[0].title, [fig.axes[0].get_window_extent(renderer)]
+        assert text.get_text().replace("\n", " ").startswith(name), kind  # the information is kept
+        box = text.get_window_extent(renderer)
+        assert fig.bbox.contains(box.x0, box.y0), kind
+        assert fig.bbox.contains(box.x1, box.y1), kind
+        assert box.y0 >= max(b.y1 for b in below), kind
+
+
 # --- the pieces it is made of --------------------------------------------------------------------
 
 

@@ -587,5 +587,23 @@ def test_fixed_margin_figures_keep_their_labels_inside(result: RunResult) -> Non
                 assert fig.bbox.contains(box.x1, box.y1), name
 
 
+def test_fixed_margin_figures_keep_long_titles_inside(result: RunResult) -> None:
+    """A run whose name makes the longest titles (S001's "straight_b0.1_per_run_euler_end" needs 7.4 in
+    on one line, on a 6 in figure): every title is wrapped onto lines that lie inside the figure, and
+    the axes are lowered below it (the top margin grows with the lines)."""
+    name = "S001_seed001_straight_b0.1_per_run_euler_end"
+    run = dataclasses.replace(result, config=dataclasses.replace(result.config, name=name))
+    for kind, fig in figures.figure_set(run).items():
+        fig.canvas.draw()
+        renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]
+        ax = fig.axes[0]
+        assert ax.title.get_text().replace("\n", " ").startswith(name), kind  # the information is kept
+        box = ax.title.get_window_extent(renderer)
+        assert fig.bbox.contains(box.x0, box.y0), kind
+        assert fig.bbox.contains(box.x1, box.y1), kind
+        assert box.y0 >= ax.get_window_extent(renderer).y1, kind  # above its axes, not over them
+        assert ax.title.get_text().count("\n") >= 1, kind  # too long for one line at this name
+
+
 def test_log_file_mode_is_readable(logfile: Path) -> None:
     assert os.stat(logfile).st_mode & 0o444 == 0o444

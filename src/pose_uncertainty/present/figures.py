@@ -18,6 +18,7 @@ metadata and SVG hash salt, so PNG and SVG bytes are deterministic.
 
 from __future__ import annotations
 
+import functools
 import io
 import os
 from collections.abc import Iterable
@@ -29,6 +30,7 @@ import matplotlib as mpl
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.text import Text
 from PIL import Image, PngImagePlugin
 
 from .. import __version__
@@ -42,12 +44,14 @@ __all__ = [
     "Margins",
     "cloud_figure",
     "figure_set",
+    "fit_title",
     "map_figure",
     "map_window",
     "new_figure",
     "render_figures",
     "save_figure",
     "trajectory_figure",
+    "wrap_title",
 ]
 
 FORMATS: tuple[str, ...] = ("png", "svg", "pdf")
@@ -130,8 +134,119 @@ def _subplot_params(size: tuple[float, float], m: Margins, grid: tuple[int, int]
 
 _new_figure = new_figure  # kept for callers of the earlier private name
 
+_TITLE_PAD = 0.05  # [inch] kept free between a title's ends and the figure's edges
+#: A line preferably ends after one of these or before a dash, else after a colon (not between "inside:"
+#: and its value when a comma or semicolon break fits)
+_BREAK_AFTER, _BREAK_AFTER_COLON = (",", ";"), (",", ";", ":")
+
+
+def wrap_title(
+    text: str,
+    fig_width: float,
+    span: tuple[float, float] | None = None,
+    fontsize: float | str = "large",
+    dpi: int = _DPI,
+) -> tuple[str, float]:
+    """``text`` broken into lines that fit the figure's width when centred on ``span``, and their extra height.
+
+    A line ends at the last punctuation break (after ``,`` or ``;``, before ``—``; else after ``:``) that
+    fits and fills at least half the width, else at the last space that fits; a single word wider than the
+    width stays whole. Explicit line breaks are kept. Widths and heights are measured with a
+    :class:`~matplotlib.text.Text` of the given size on the Agg canvas at ``dpi``, as the title is drawn.
+
+    Parameters
+    ----------
+    text : str — the title (may contain ``\\n``)
+    fig_width : float [inch] — the figure's width
+    span : (x0, x1) [inch] or None — the axes the title is centred over, from the figure's left edge;
+        None: the whole width (a suptitle)
+    fontsize : float [pt] or str — the title's font size (matplotlib's ``axes.titlesize`` is "large")
+    dpi : int — the figure's dots per inch
+
+    Returns
+    -------
+    wrapped : str
+    extra : float [inch] — the wrapped title's height minus one line's: what a top margin sized for a
+        one-line title needs in addition
+    """
+    x0, x1 = (0.0, fig_width) if span is None else span
+    centre = (x0 + x1) / 2.0
+    width = 2.0 * min(centre, fig_width - centre) - 2.0 * _TITLE_PAD  # [inch]
+    lines: list[str] = []
+    for line in text.split("\n"):
+        lines.extend(_wrap_line(line, width, fontsize, dpi))
+    wrapped = "\n".join(lines)
+    extra = _text_size(wrapped, fontsize, dpi)[1] - _text_size(lines[0], fontsize, dpi)[1]
+    return wrapped, extra
+
+
+def _wrap_line(line: str, width: float, fontsize: float | str, dpi: int) -> list[str]:
+    """One line of a title broken greedily into lines no wider than ``width`` [inch] (see :func:`wrap_title`)."""
+    words = line.split(" ")
+    out: list[str] = []
+    while words:
+        fits = [k for k in range(1, len(words) + 1)
+                if k == 1 or _text_size(" ".join(words[:k]), fontsize, dpi)[0] <= width]  # fmt: skip
+        k = fits[-1]
+        if k < len(words):  # prefer a punctuation break that fills half the line
+            half = [j for j in fits if _text_size(" ".join(words[:j]), fontsize, dpi)[0] >= width / 2.0]
+            for marks in (_BREAK_AFTER, _BREAK_AFTER_COLON):
+                nice = [j for j in half if words[j - 1].endswith(marks) or words[j] == "—"]
+                if nice:
+                    k = nice[-1]
+                    break
+        out.append(" ".join(words[:k]))
+        words = words[k:]
+    return out
+
+
+def fit_title(
+    title: str,
+    size: tuple[float, float],
+    margins: Margins,
+    fontsize: float | str = "large",
+    span: tuple[float, float] | None = None,
+) -> tuple[str, Margins]:
+    """A title wrapped to the figure's width (:func:`wrap_title`) and ``margins`` with room for its lines.
+
+    Parameters
+    ----------
+    title : str
+    size : (width, height) [inch] — the figure's size
+    margins : Margins — with a top margin for a one-line title
+    fontsize : float [pt] or str
+    span : (x0, x1) [inch] or None — the axes the title is centred over; None: the grid ``margins`` leave
+
+    Returns
+    -------
+    wrapped : str
+    margins : Margins — ``margins`` with the top margin grown by the lines beyond the first
+    """
+    span = (margins.left, size[0] - margins.right) if span is None else span
+    wrapped, extra = wrap_title(title, size[0], span, fontsize)
+    return wrapped, replace(margins, top=margins.top + extra)
+
+
+@functools.lru_cache(maxsize=4096)
+def _text_size(s: str, fontsize: float | str, dpi: int) -> tuple[float, float]:
+    """(width, height) [inch] of the text ``s`` (lines separated by ``\\n``) as drawn at ``dpi``."""
+    probe = _probe(fontsize, dpi)
+    probe.set_text(s)
+    box = probe.get_window_extent()
+    return float(box.width) / dpi, float(box.height) / dpi
+
+
+@functools.lru_cache(maxsize=8)
+def _probe(fontsize: float | str, dpi: int) -> Text:
+    """A text of the given size on a figure drawn on the Agg canvas at ``dpi``, for measuring."""
+    fig = Figure(dpi=dpi)
+    FigureCanvasAgg(fig)
+    text: Text = fig.text(0.0, 0.0, "", fontsize=fontsize)
+    return text
+
 #: Margins [inch] of the trajectory and cloud figures (6 × 6 in): left for y tick labels up to
 #: "−0.010" and the y label, right for the last x tick label's overhang, top for a one-line title
+#: (:func:`fit_title` adds the height of the further lines of a long title)
 _PLANE_MARGINS = Margins(left=0.85, bottom=0.5, right=0.15, top=0.3)
 #: The map figure (6.4 × 5.6 in): square axes, then a gap, the colour bar and its tick labels and label
 _MAP_MARGINS = Margins(left=0.75, bottom=0.55, right=0.2 + 0.2 + 0.9, top=0.35)
@@ -154,8 +269,14 @@ def trajectory_figure(run: RunResult) -> Figure:
     run : RunResult (or a RunLog read back from a file)
     """
     cfg = run.config
-    # a run with a drive has a two-line title (10 pt): 0.15 in more at the top
-    margins = _PLANE_MARGINS if cfg.drive is None else replace(_PLANE_MARGINS, top=_PLANE_MARGINS.top + 0.15)
+    if cfg.drive is None:
+        title = f"{cfg.name}: {cfg.trajectory['name']}, Pr = {_pct(cfg.pr)}, k_r = {cfg.k_r:g} m, k_l = {cfg.k_l:g} m"
+        fontsize = "large"
+    else:  # name the drive (its geometry in a second line), in 10 pt
+        title = (f"{cfg.name}: {cfg.drive.type} drive on {cfg.trajectory['name']}, Pr = {_pct(cfg.pr)}\n"
+                 f"{cfg.drive.describe()}")  # fmt: skip
+        fontsize = "medium"
+    title, margins = fit_title(title, (6.0, 6.0), _PLANE_MARGINS, fontsize)
     fig = _new_figure(margins=margins)
     ax = fig.add_subplot()
     ax.plot(run.poses[:, 0], run.poses[:, 1], color=_BLACK, lw=1.2, label="nominal path")
@@ -179,16 +300,7 @@ def trajectory_figure(run: RunResult) -> Figure:
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
-    if cfg.drive is None:
-        ax.set_title(
-            f"{cfg.name}: {cfg.trajectory['name']}, Pr = {_pct(cfg.pr)}, k_r = {cfg.k_r:g} m, k_l = {cfg.k_l:g} m"
-        )
-    else:  # name the drive (its geometry in a second line)
-        ax.set_title(
-            f"{cfg.name}: {cfg.drive.type} drive on {cfg.trajectory['name']}, Pr = {_pct(cfg.pr)}\n"
-            f"{cfg.drive.describe()}",
-            fontsize="medium",
-        )
+    ax.set_title(title, fontsize=fontsize)
     ax.grid(True, lw=0.3, alpha=0.5)
     ax.legend(loc="best", fontsize="small")
     return fig
@@ -207,7 +319,13 @@ def cloud_figure(run: RunResult) -> Figure | None:
     n = run.n_steps
     end, cov = run.poses[n], run.covs[n]
     cloud = run.end_poses
-    fig = _new_figure(margins=_PLANE_MARGINS)
+    cov_note = ""
+    if "MC_coverage_pr" in run.metrics:
+        cov_note = f"; inside: {100.0 * run.metrics['MC_coverage_pr']:.2f} %"
+    drive = "" if cfg.drive is None else f" ({cfg.drive.type} drive)"
+    title, margins = fit_title(f"{cfg.name}{drive}: end poses, {cfg.monte_carlo.regime}{cov_note}", (6.0, 6.0),
+                               _PLANE_MARGINS)  # fmt: skip
+    fig = _new_figure(margins=margins)
     ax = fig.add_subplot()
     ax.scatter(
         cloud[:, 0],
@@ -241,11 +359,7 @@ def cloud_figure(run: RunResult) -> Figure | None:
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
-    cov_note = ""
-    if "MC_coverage_pr" in run.metrics:
-        cov_note = f"; inside: {100.0 * run.metrics['MC_coverage_pr']:.2f} %"
-    drive = "" if cfg.drive is None else f" ({cfg.drive.type} drive)"
-    ax.set_title(f"{cfg.name}{drive}: end poses, {cfg.monte_carlo.regime}{cov_note}")
+    ax.set_title(title)
     ax.grid(True, lw=0.3, alpha=0.5)
     ax.legend(loc="best", fontsize="small")
     return fig
@@ -314,8 +428,11 @@ def map_figure(run: RunResult, mp: ProbabilityMap) -> Figure:
     else:
         mid = ((mp.x[0] + mp.x[-1]) / 2.0, (mp.y[0] + mp.y[-1]) / 2.0)
     side = map_window(mp, mid)
-    fig = _new_figure((6.4, 5.6), margins=_MAP_MARGINS)
-    ax, cax = _map_axes(fig)
+    m = _MAP_MARGINS
+    title, margins = fit_title(f"{run.config.name}: map {mp.name!r} ({mp.model} model), lost mass {mp.lost_mass:.2g}",
+                               (6.4, 5.6), m, span=(m.left, m.left + _map_side((6.4, 5.6), m)))  # fmt: skip
+    fig = _new_figure((6.4, 5.6), margins=margins)
+    ax, cax = _map_axes(fig, margins)
     img = ax.imshow(
         marg.T,
         origin="lower",
@@ -331,20 +448,23 @@ def map_figure(run: RunResult, mp: ProbabilityMap) -> Figure:
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
-    ax.set_title(
-        f"{run.config.name}: map {mp.name!r} ({mp.model} model), lost mass {mp.lost_mass:.2g}"
-    )
+    ax.set_title(title)
     ax.legend(loc="upper right", fontsize="small")
     cm = f"{100 * dx:.3g} cm"
     fig.colorbar(img, cax=cax, label=f"probability per {cm} × {cm} cell (θ summed)")
     return fig
 
 
-def _map_axes(fig: Figure) -> tuple[Any, Any]:
-    """The map figure's square axes (centred in the height :data:`_MAP_MARGINS` leave) and colour-bar axes."""
-    (width, height), m = fig.get_size_inches(), _MAP_MARGINS
+def _map_side(size: tuple[float, float], m: Margins) -> float:
+    """Side [inch] of the map figure's square axes: the largest square the margins ``m`` leave."""
+    return min(size[0] - m.left - m.right, size[1] - m.bottom - m.top)
+
+
+def _map_axes(fig: Figure, m: Margins) -> tuple[Any, Any]:
+    """The map figure's square axes (centred in the height the margins ``m`` leave) and colour-bar axes."""
+    width, height = fig.get_size_inches()
     free_h = height - m.bottom - m.top
-    side = min(width - m.left - m.right, free_h)  # [inch]
+    side = _map_side((width, height), m)  # [inch]
     y0 = m.bottom + (free_h - side) / 2.0
     ax = fig.add_axes((m.left / width, y0 / height, side / width, side / height))
     x_bar = m.left + side + _CBAR_GAP

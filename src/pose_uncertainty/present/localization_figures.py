@@ -73,7 +73,9 @@ def _title(res: LocalizationResult) -> str:
 
 def paths_figure(res: LocalizationResult) -> Figure:
     """The world with the true path, dead reckoning, every filter's path and final 98.89 % ellipse."""
-    fig = figures.new_figure((7.0, 6.0), margins=_PATHS_MARGINS)
+    title, margins = figures.fit_title(f"{_title(res)} — paths, final 98.89 % ellipses", (7.0, 6.0),
+                                       _PATHS_MARGINS, "medium")  # fmt: skip
+    fig = figures.new_figure((7.0, 6.0), margins=margins)
     ax = fig.add_subplot()
     w = res.world
     for x1, y1, x2, y2 in w.segments:
@@ -96,7 +98,7 @@ def paths_figure(res: LocalizationResult) -> Figure:
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
-    ax.set_title(f"{_title(res)} — paths, final 98.89 % ellipses", fontsize="medium")
+    ax.set_title(title, fontsize="medium")
     ax.grid(True, lw=0.3, alpha=0.5)
     ax.legend(loc="best", fontsize="x-small")
     return fig
@@ -105,8 +107,10 @@ def paths_figure(res: LocalizationResult) -> Figure:
 def errors_figure(res: LocalizationResult) -> Figure:
     """Rows x, y, θ; one column per filter: the error (estimate − truth) inside ±3σ of the filter's covariance."""
     names = list(res.filters)
-    fig = figures.new_figure((3.6 * max(len(names), 1) + 0.6, 6.4), margins=_ERRORS_MARGINS,
-                             grid=(3, max(len(names), 1)))  # fmt: skip
+    size = (3.6 * max(len(names), 1) + 0.6, 6.4)
+    title, margins = figures.fit_title(f"{_title(res)} — errors of the first run with ±3σ of each filter", size,
+                                       _ERRORS_MARGINS, "medium", span=(0.0, size[0]))  # fmt: skip
+    fig = figures.new_figure(size, margins=margins, grid=(3, max(len(names), 1)))
     t = res.times
     rows = (("x", "m"), ("y", "m"), ("theta", "rad"))
     for j, name in enumerate(names):
@@ -130,13 +134,14 @@ def errors_figure(res: LocalizationResult) -> Figure:
             ax.grid(True, lw=0.3, alpha=0.5)
             if i == 0 and j == 0:
                 ax.legend(fontsize="x-small", loc="upper left")
-    fig.suptitle(f"{_title(res)} — errors of the first run with ±3σ of each filter", fontsize="medium")
+    fig.suptitle(title, fontsize="medium")
     return fig
 
 
 def nees_figure(res: LocalizationResult) -> Figure:
     """NEES averaged over the R runs per step and filter, with the 95 % χ² band of R runs (log scale)."""
-    fig = figures.new_figure((7.0, 4.4), margins=_NEES_MARGINS)
+    title, margins = figures.fit_title(f"{_title(res)} — consistency", (7.0, 4.4), _NEES_MARGINS, "medium")
+    fig = figures.new_figure((7.0, 4.4), margins=margins)
     ax = fig.add_subplot()
     m = res.metrics
     lo, hi = m["loc_nees_band_low"], m["loc_nees_band_high"]
@@ -151,7 +156,7 @@ def nees_figure(res: LocalizationResult) -> Figure:
     ax.set_yscale("log")
     ax.set_xlabel("t [s]")
     ax.set_ylabel("NEES averaged over the runs")
-    ax.set_title(f"{_title(res)} — consistency", fontsize="medium")
+    ax.set_title(title, fontsize="medium")
     ax.grid(True, which="both", lw=0.3, alpha=0.5)
     ax.legend(fontsize="x-small", loc="upper right")
     return fig

@@ -117,7 +117,9 @@ def map_cloud_figure(run: Any, mp: Any) -> Figure:
     """
     marg = mp.marginal_xy()
     end = run.poses[-1]
-    fig = figures.new_figure((6.0, 6.0), margins=_MAP_CLOUD_MARGINS)
+    title, margins = figures.fit_title(f"{run.config.name}: {mp.model} model, map contours vs its sampler",
+                                       (6.0, 6.0), _MAP_CLOUD_MARGINS, "medium")  # fmt: skip
+    fig = figures.new_figure((6.0, 6.0), margins=margins)
     ax = fig.add_subplot()
     cloud = run.map_samplers.get(mp.name, np.zeros((0, 3)))
     if cloud.shape[0]:
@@ -137,7 +139,7 @@ def map_cloud_figure(run: Any, mp: Any) -> Figure:
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
-    ax.set_title(f"{run.config.name}: {mp.model} model, map contours vs its sampler", fontsize="medium")
+    ax.set_title(title, fontsize="medium")
     ax.grid(True, lw=0.3, alpha=0.5)
     ax.legend(loc="upper right", fontsize="x-small")
     return fig
