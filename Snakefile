@@ -23,6 +23,14 @@ import pose_uncertainty as _package
 
 _compileall.compile_dir(os.path.dirname(_package.__file__), quiet=1)
 
+# Snakemake's scheduling loop woke once a second per finished job (workflow/scheduler.py): fixed.
+import importlib.util as _importlib_util
+
+_spec = _importlib_util.spec_from_file_location("pose_uncertainty_scheduler", os.path.join(workflow.basedir, "workflow", "scheduler.py"))
+_scheduler = _importlib_util.module_from_spec(_spec)
+_spec.loader.exec_module(_scheduler)
+_scheduler.install()
+
 
 configfile: "config/config.yaml"
 
