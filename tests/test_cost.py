@@ -247,7 +247,7 @@ REPRESENTATIVE = {
     "monte_carlo": {"trajectory": {"name": "straight", "dt": 0.01}, "monte_carlo": {"n_particles": 300_000}},
     "checkpoints": {
         "trajectory": {"name": "straight", "dt": 0.01},
-        "monte_carlo": {"n_particles": 100_000, "checkpoints": [10, 30, 50, 70, 90]},
+        "monte_carlo": {"n_particles": 150_000, "checkpoints": [10, 30, 50, 70, 90]},
     },
     "single_step_map": {
         "trajectory": {"name": "arc", "angle": 1.0, "dt": 1.0},

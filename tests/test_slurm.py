@@ -201,7 +201,7 @@ def test_quick_pipeline_through_slurm(slurm_cluster: object, tmp_path_factory: p
     cancelled = canceller.cancelled
     assert cancelled is not None, f"no simulate_run job could be cancelled while running (tried {canceller.tried})"
     assert f"SLURM-job '{cancelled['id']}' failed, SLURM status is: 'CANCELLED'" in out, out[-6000:]
-    job = re.search(rf"jobid: (\d+)\n(?:.*\n){{0,3}}?\s*external_jobid: {cancelled['id']}\n", out)
+    job = re.search(rf"jobid: (\d+)\n(?:.*\n){{0,6}}?\s*external_jobid: {cancelled['id']}\n", out)
     assert job, out[-6000:]
     jid = job.group(1)
     after = out[job.end():]
