@@ -60,6 +60,8 @@ rule build_report:
         studies_figures=studies_figures(),
         loc_sets=LOC_SETS,
         source=SOURCE_PRESENT,
+    # the last job, alone: it encodes the figures on every core (OMP_NUM_THREADS = its threads)
+    threads: workflow.cores
     log:
         "logs/build_report.log",
     script:
