@@ -60,8 +60,9 @@ rule build_report:
         studies_figures=studies_figures(),
         loc_sets=LOC_SETS,
         source=SOURCE_PRESENT,
-    # the last job, alone: it encodes the figures on every core (OMP_NUM_THREADS = its threads)
-    threads: workflow.cores
+    # the last job, alone: it encodes the figures on the machine's cores (OMP_NUM_THREADS = its
+    # threads; Snakemake scales them down to --cores; a cluster run has no --cores: a local rule)
+    threads: min(8, os.cpu_count() or 1)
     log:
         "logs/build_report.log",
     script:
