@@ -199,16 +199,12 @@ def _trajectory_text(tp: Mapping[str, Any], n: int) -> str:
     return f"N = {n:,} steps from trajectory {tp['name']} with {shown}"
 
 
-def _workers() -> int:
-    return default_workers()  # the Monte Carlo sampler's threads
-
-
 def _monte_carlo_driver(cfg: RunConfig, n_steps: int) -> list[Driver]:
     mc = cfg.monte_carlo
     n, c = mc.n_particles, len(mc.checkpoints)
     if n == 0:
         return []
-    chunk_elements = max(_CHUNK_ELEMENTS, n_steps) * min(_workers(), max(1, n))
+    chunk_elements = max(_CHUNK_ELEMENTS, n_steps) * min(default_workers(), max(1, n))  # the Monte Carlo sampler's threads
     mem = _PARTICLE_BYTES * n + _CHECKPOINT_BYTES * n * c + _CHUNK_BYTES * chunk_elements
     rate = _MC_S["checkpoints"] if c else _MC_S[mc.regime]
     params = f"monte_carlo.n_particles = {n:,} × N = {n_steps:,} steps" + (

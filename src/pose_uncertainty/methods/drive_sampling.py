@@ -20,9 +20,10 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..core.drives import DrivePath, SkidSteer
 from ..core.kinematics import METHODS, integrate_twist
+from ..core.threads import default_workers
 from ..core.validation import check_choice, check_positive_int
 from . import drive_noise as dn
-from .sampling import REGIMES, _default_workers, chunk_streams, start_factor
+from .sampling import REGIMES, chunk_streams, start_factor
 
 __all__ = ["sample_poses"]
 
@@ -94,7 +95,7 @@ def sample_poses(
     if not isinstance(rng, np.random.Generator):
         raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
     dn.channels(path.drive, model)  # validate the model against the drive before drawing
-    n_workers = _default_workers() if workers is None else check_positive_int("workers", workers)
+    n_workers = default_workers() if workers is None else check_positive_int("workers", workers)
     N = path.n_steps
     cps = _check_checkpoints(checkpoints, N)
     start_sqrt = start_factor(cov0)

@@ -155,10 +155,6 @@ def _end_poses_perturbed(
     return np.stack([x0 + x, y0 + y, th_end], axis=-1)
 
 
-def _default_workers() -> int:
-    return default_workers()
-
-
 def start_factor(cov0: ArrayLike | None) -> NDArray[np.float64] | None:
     """``A`` with ``A Aᵀ = Σ_0`` for a start-pose covariance (3, 3), singular allowed; None for None.
 
@@ -249,7 +245,7 @@ def sample_end_poses(
     check_choice("method", method, METHODS)
     if not isinstance(rng, np.random.Generator):
         raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
-    n_workers = _default_workers() if workers is None else check_positive_int("workers", workers)
+    n_workers = default_workers() if workers is None else check_positive_int("workers", workers)
     N = trajectory.n_steps
     if checkpoints is not None:
         cps = [int(c) for c in checkpoints]
