@@ -107,7 +107,7 @@ def test_verify_passes_on_fresh_and_fails_on_tampered(
     logged: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     assert main(["replay", str(logged), "--verify"]) == 0
-    assert "verify: OK" in capsys.readouterr().out
+    assert "verify: identical" in capsys.readouterr().out
 
     res = execute(RunConfig.from_dict(CONFIG))
     end = res.end_poses.copy()
@@ -115,8 +115,8 @@ def test_verify_passes_on_fresh_and_fails_on_tampered(
     bad = write_run(tmp_path / "tampered.mcap", dataclasses.replace(res, end_poses=end))
     assert main(["replay", str(bad), "--verify"]) == 1
     out = capsys.readouterr().out
-    assert "MISMATCH end_poses: 1 of 4500 values differ" in out
-    assert "verify: FAILED" in out
+    assert "MISMATCH /monte_carlo/end_poses[0].y: 1 of 1500 values differ by up to 1.000e-09" in out
+    assert "verify: MISMATCH" in out
 
 
 def test_verify_catches_a_changed_display_topic(logged: Path, tmp_path: Path) -> None:

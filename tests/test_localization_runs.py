@@ -37,6 +37,7 @@ from pose_uncertainty.logs.localization import (
     expand_localization,
     numbers_from_text,
 )
+from pose_uncertainty.logs.reproducibility import MISMATCH
 from pose_uncertainty.logs.runlog import PartialLogWarning, RunLogError, open_run, verify_run
 from pose_uncertainty.logs.tables import collect_table
 from pose_uncertainty.methods import maps as M
@@ -266,7 +267,7 @@ def test_foxglove_topics(result: LL.LocalizationResult, logged: Path) -> None:
 def test_replay_verify_ok_and_tampered(logged: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["replay", str(logged), "--verify", "--at", "3.0"]) == 0
     out = capsys.readouterr().out
-    assert "verify: OK" in out
+    assert "verify: identical" in out
     assert "localization log" in out
     assert "state at step 15" in out
     assert "particle: mean" in out
@@ -278,8 +279,9 @@ def test_replay_verify_ok_and_tampered(logged: Path, tmp_path: Path, capsys: pyt
                                 dataclasses.replace(res, filters={**res.filters, "ekf": dataclasses.replace(tr_, mean=mean)}))  # fmt: skip
     assert main(["replay", str(bad), "--verify"]) == 1
     out = capsys.readouterr().out
-    assert "MISMATCH ekf.mean: 1 of" in out
-    assert "verify: FAILED" in out
+    assert "MISMATCH /filters/ekf/" in out
+    assert "[5]" in out
+    assert "verify: MISMATCH" in out
     # the same data with another drawing of the ellipses: only the bytes tell
     original = LL._ELLIPSE_POINTS
     LL._ELLIPSE_POINTS = original + 2
@@ -287,7 +289,10 @@ def test_replay_verify_ok_and_tampered(logged: Path, tmp_path: Path, capsys: pyt
         drawn = LL.write_localization(tmp_path / "display.mcap", res)
     finally:
         LL._ELLIPSE_POINTS = original
-    assert verify_run(open_run(drawn)) == ["file bytes differ from a fresh log of the same data (a display topic was altered)"]
+    drawn_cmp = verify_run(open_run(drawn))
+    assert drawn_cmp.status == MISMATCH
+    assert drawn_cmp.mismatches, drawn_cmp.mismatches
+    assert all("/ellipse" in line for line in drawn_cmp.mismatches), drawn_cmp.mismatches
 
 
 def test_truncated_log_is_refused_and_recovered(logged: Path, tmp_path: Path) -> None:
@@ -303,7 +308,7 @@ def test_truncated_log_is_refused_and_recovered(logged: Path, tmp_path: Path) ->
     assert log.partial
     assert 0 < log.filters["ekf"].mean.shape[0] < log.times.size
     np.testing.assert_array_equal(log.filters["ekf"].mean, open_run(logged).filters["ekf"].mean[: log.filters["ekf"].mean.shape[0]])
-    assert verify_run(log) == ["the log is partial; a partial log cannot be verified"]
+    assert verify_run(log).mismatches == ["the log is partial; a partial log cannot be verified"]
 
 
 def test_table_columns_equal_the_logged_metrics(logged: Path, tmp_path: Path) -> None:

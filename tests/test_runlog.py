@@ -368,13 +368,17 @@ def test_partial_log_is_recovered_with_a_warning(
 def test_tampered_log_fails_verification(result: RunResult, tmp_path: Path) -> None:
     clean = execute(result.config)
     path = write_run(tmp_path / "fresh.mcap", clean)
-    assert [d for d in runlog.verify_run(open_run(path)) if not d.startswith("note:")] == []
+    assert runlog.verify_run(open_run(path)).status == "identical"
 
     covs = clean.covs.copy()
-    covs[17, 0, 0] *= 1.0 + 1e-12
+    covs[17, 0, 0] *= 1.0 + 1e-12  # within the contract's tolerance: never "identical"
     tampered = write_run(tmp_path / "tampered.mcap", dataclasses.replace(clean, covs=covs))
-    diffs = runlog.verify_run(open_run(tampered))
-    assert any(d.startswith("covs: 1 of") for d in diffs), diffs
+    assert runlog.verify_run(open_run(tampered)).status == "equal within tolerance"
+    covs[17, 0, 0] *= 1.0 + 1e-8  # beyond it
+    tampered = write_run(tmp_path / "tampered.mcap", dataclasses.replace(clean, covs=covs))
+    found = runlog.verify_run(open_run(tampered))
+    assert found.status == "mismatch"
+    assert any(d.startswith("/covariance[17].covariance: 1 of 9 values differ") for d in found.mismatches), found
 
 
 # --- state at a time -------------------------------------------------------------------------

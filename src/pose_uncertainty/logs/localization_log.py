@@ -68,10 +68,10 @@ from .localization import (
     execute_localization,
 )
 from .provenance import PROVENANCE_KEYS
+from .reproducibility import MISMATCH, Comparison
 from .runlog import (
     _F64,
     BASE,
-    LIBRARY,
     METADATA_NAME,
     WORLD,
     Float64Array,
@@ -634,27 +634,20 @@ def _compare_dicts(what: str, a: dict[Any, Array], b: dict[Any, Array]) -> list[
     return [d for k in sorted(a) if (d := _diff(f"{what}[{k}]", a[k], b[k]))]
 
 
-def verify_localization(log: LocalizationLog) -> list[str]:
+def verify_localization(log: LocalizationLog) -> Comparison:
     """Recompute a logged localization run from its config and seed and compare (as ``verify_run``).
 
-    When every datum agrees and the log has no timings, the bytes of a fresh log are compared
-    too, which covers the display topics (ellipses, rays, scene).
+    The fresh log is written with the logged provenance and timings; every record of the two
+    logs is compared within the reproducibility contract
+    (:func:`~pose_uncertainty.logs.runlog.verify_log`).
     """
     if log.partial:
-        return ["the log is partial; a partial log cannot be verified"]
+        return Comparison(status=MISMATCH, mismatches=["the log is partial; a partial log cannot be verified"])
     fresh = execute_localization(log.config)
-    out = compare_localization(log, fresh)
-    mismatches = [d for d in out if not d.startswith("note: ")]
-    if log.timings:
-        out.append("note: the log holds timings, so its bytes were not compared (data only)")
-    elif log.library != LIBRARY:
-        out.append(f"note: written by {log.library}, this is {LIBRARY}: bytes not compared (data only)")
-    elif not mismatches:
-        same = LocalizationResult(**{f: getattr(fresh, f) for f in LocalizationResult.__dataclass_fields__
-                                     if f != "provenance"}, provenance=dict(log.provenance))  # fmt: skip
-        if localization_log_bytes(same) != log.path.read_bytes():
-            out.append("file bytes differ from a fresh log of the same data (a display topic was altered)")
-    return out
+    same = LocalizationResult(**{f: getattr(fresh, f) for f in LocalizationResult.__dataclass_fields__
+                                 if f not in ("provenance", "timings")},
+                              provenance=dict(log.provenance), timings=dict(log.timings))  # fmt: skip
+    return runlog.verify_log(log, localization_log_bytes(same, include_timings=bool(log.timings)))
 
 
 runlog.LOG_KINDS[FORMAT] = LogKind(assemble, verify_localization)

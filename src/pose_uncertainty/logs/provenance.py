@@ -1,4 +1,4 @@
-"""Where a result comes from: package version, source hash, environment.lock, git commit.
+"""Where a result comes from: package version, source hash, environment.lock, git commit, machine.
 
 Every run and study log records :func:`provenance`; the pipeline passes
 :func:`source_sha256` of the layers a rule runs as a rule parameter, so that
@@ -7,7 +7,9 @@ Snakemake reruns the rule when that code changes and no log can be left stale.
 
 from __future__ import annotations
 
+import ctypes
 import functools
+import glob
 import hashlib
 import os
 import platform
@@ -21,9 +23,11 @@ from .. import __version__
 
 __all__ = [
     "LAYERS",
+    "MACHINE_KEYS",
     "PROVENANCE_KEYS",
     "environment_lock_sha256",
     "git_commit",
+    "machine",
     "provenance",
     "source_sha256",
 ]
@@ -101,11 +105,68 @@ PROVENANCE_KEYS: tuple[str, ...] = (
     "python_version",
     "numpy_version",
     "scipy_version",
+    "machine",
+    "numpy_cpu_baseline",
+    "numpy_cpu_dispatch",
+    "libc",
+    "blas",
 )
+
+#: The keys of :func:`machine`: what decides the last bits of the arithmetic.
+MACHINE_KEYS: tuple[str, ...] = PROVENANCE_KEYS[-5:]
+
+
+@functools.cache
+def _blas() -> str:
+    """OpenBLAS of numpy's wheel: version, build and the kernel core it chose for this CPU."""
+    libs = os.path.join(os.path.dirname(np.__file__), os.pardir, "numpy.libs")
+    for path in sorted(glob.glob(os.path.join(libs, "libscipy_openblas*.so*"))):
+        try:
+            lib = ctypes.CDLL(path)
+            parts = []
+            for fn in ("scipy_openblas_get_config64_", "scipy_openblas_get_corename64_"):
+                f = getattr(lib, fn)
+                f.restype = ctypes.c_char_p
+                parts.append(f().decode().strip())
+        except (OSError, AttributeError):
+            continue
+        config, core = parts
+        version = " ".join(config.split()[:2])
+        return f"{version} ({core} kernels)"
+    return "unknown"
+
+
+@functools.cache
+def machine() -> dict[str, str]:
+    """What decides the last bits of this machine's arithmetic (logged in every provenance).
+
+    Returns
+    -------
+    dict with :data:`MACHINE_KEYS`:
+        ``machine`` (e.g. ``x86_64``); ``numpy_cpu_baseline``, the SIMD extensions numpy was
+        built for; ``numpy_cpu_dispatch``, those of numpy's dispatch targets this CPU has and
+        that are not disabled (``NPY_DISABLE_CPU_FEATURES``), or ``none``; ``libc`` (``glibc
+        2.36``); ``blas`` (OpenBLAS version and the kernels it chose).
+    """
+    from numpy._core._multiarray_umath import (  # the dispatch numpy reports (np.show_runtime)
+        __cpu_baseline__,
+        __cpu_dispatch__,
+        __cpu_features__,
+    )
+
+    found = [t for t in __cpu_dispatch__ if __cpu_features__.get(t)]
+    libc, libc_version = platform.libc_ver()
+    return {
+        "machine": platform.machine() or "unknown",
+        "numpy_cpu_baseline": " ".join(__cpu_baseline__) or "none",
+        "numpy_cpu_dispatch": " ".join(found) or "none",
+        "libc": f"{libc} {libc_version}".strip() or "unknown",
+        "blas": _blas(),
+    }
 
 
 def provenance() -> dict[str, str]:
-    """What produced a result: package version, source hash, environment.lock, git, versions.
+    """What produced a result: package version, source hash, environment.lock, git, versions, machine.
 
     Keys :data:`PROVENANCE_KEYS`; values are strings, an unknown value is ``"unknown"``.
     """
@@ -119,6 +180,7 @@ def provenance() -> dict[str, str]:
         "python_version": platform.python_version(),
         "numpy_version": np.__version__,
         "scipy_version": scipy.__version__,
+        **machine(),
     }
 
 

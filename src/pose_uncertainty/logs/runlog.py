@@ -36,7 +36,9 @@ from the simulation, deterministic protobuf serialisation, single-threaded zstd.
 Timings are the only non-deterministic quantity; they are written (to
 ``/timings``) only when asked (``include_timings=True``, ``run --timings``). A
 log written without timings is byte-identical for the same config, seed,
-package version, environment and commit.
+package version, environment, commit and machine. On another machine it agrees
+within the reproducibility contract (:mod:`pose_uncertainty.logs.reproducibility`),
+which :func:`verify_run` checks record by record.
 
 Reading
 -------
@@ -89,7 +91,8 @@ from ..core.atomic import atomic_write
 from ..methods import covariance
 from ..methods.maps import ProbabilityMap
 from .config import RunConfig
-from .provenance import PROVENANCE_KEYS
+from .provenance import PROVENANCE_KEYS, provenance
+from .reproducibility import MISMATCH, Comparison, compare_log_bytes, environment_notes
 from .run import RunResult, execute
 
 __all__ = [
@@ -106,7 +109,9 @@ __all__ = [
     "log_bytes",
     "log_kind",
     "open_run",
+    "recomputable",
     "stream_bytes",
+    "verify_log",
     "verify_run",
     "write_run",
 ]
@@ -157,11 +162,11 @@ class LogKind(NamedTuple):
 
     ``assemble(path, records, meta, library, partial, problem)`` builds the log object from the
     CRC-checked records and the metadata record; ``verify(log)`` recomputes it and returns the
-    differences as :func:`verify_run` does.
+    :class:`~pose_uncertainty.logs.reproducibility.Comparison` as :func:`verify_run` does.
     """
 
     assemble: Callable[..., Any]
-    verify: Callable[[Any], list[str]]
+    verify: Callable[[Any], Comparison]
 
 
 #: Log kinds beside the dead-reckoning run, by the ``format`` of their metadata record
@@ -1089,35 +1094,64 @@ def compare_results(logged: RunResult, fresh: RunResult) -> list[str]:
     return out
 
 
-def verify_run(log: RunLog) -> list[str]:
-    """Recompute a logged run from its config and seed and compare.
+def recomputable(log: RunLog) -> None:
+    """Raise :class:`RunLogError` (one line) if this machine cannot recompute ``log`` to compare.
 
-    Returns one line per mismatch; lines starting with ``"note: "`` (provenance
-    differences such as another git commit) are informational. When all data
-    agree and the log has no timings, the bytes of a fresh log are compared
-    too, which also covers the display-only topics (ellipse polylines, grids).
+    A log made with another *major* version of numpy is refused: a major version may change
+    numpy's semantics (type promotion, the random distributions' algorithms), so a
+    recomputation here would differ for reasons the reproducibility contract does not cover.
+    """
+    logged = log.provenance.get("numpy_version", "")
+    if logged and logged.split(".")[0] != np.__version__.split(".")[0]:
+        lock = log.provenance.get("environment_lock_sha256", "unknown")
+        raise RunLogError(
+            f"{log.path}: written with numpy {logged}, this machine has numpy {np.__version__}; a "
+            f"different major version changes numpy's semantics, so the run is not recomputed here "
+            f"(verify it in the environment of its lock, sha256 {lock[:12]})"
+        )
+
+
+def verify_log(log: RunLog | Any, fresh_bytes: bytes) -> Comparison:
+    """Compare ``log``'s file with ``fresh_bytes``, a fresh log of its recomputation.
+
+    The three outcomes of the reproducibility contract
+    (:mod:`pose_uncertainty.logs.reproducibility`): identical bytes; every record equal
+    within tolerance; a mismatch. Notes say what differs in the machine and libraries
+    (the log's provenance against this machine's) and what is not compared (timings).
+    """
+    comparison = compare_log_bytes(log.path.read_bytes(), fresh_bytes, n_steps=log.n_steps)
+    if log.timings:
+        comparison.notes.append("the wall-clock timings (/timings) are not reproducible: not compared")
+    comparison.notes.extend(environment_notes(log.provenance, provenance()))
+    return comparison
+
+
+def verify_run(log: RunLog) -> Comparison:
+    """Recompute a logged run from its config and seed and compare every record of its log.
+
+    The fresh log is written with the logged provenance and timings, so that on the machine
+    that made the log the bytes are identical; on another machine every message of every
+    topic is decoded and compared field by field within the contract's tolerance
+    (:func:`~pose_uncertainty.logs.reproducibility.compare_log_bytes`).
+
+    Returns
+    -------
+    Comparison — ``status`` identical, equal within tolerance, or mismatch
+
+    Raises
+    ------
+    RunLogError
+        The log cannot be recomputed here (another numpy major version).
     """
     if log.partial:
-        return ["the log is partial; a partial log cannot be verified"]
+        return Comparison(status=MISMATCH, mismatches=["the log is partial; a partial log cannot be verified"])
+    recomputable(log)
     kind = log_kind(log.metadata.get("format"))
     if kind is not None:  # another kind of run: its own recomputation
         return kind.verify(log)
     fresh = execute(log.config)
-    out = compare_results(log, fresh)
-    mismatches = [d for d in out if not d.startswith("note: ")]
-    if log.timings:
-        out.append("note: the log holds timings, so its bytes were not compared (data only)")
-    elif log.library != LIBRARY:
-        out.append(
-            f"note: written by {log.library}, this is {LIBRARY}: bytes not compared (data only)"
-        )
-    elif not mismatches:
-        fresh_prov = RunResult(**{**_fields_of(fresh), "provenance": dict(log.provenance)})
-        if log_bytes(fresh_prov) != log.path.read_bytes():
-            out.append(
-                "file bytes differ from a fresh log of the same data (a display topic was altered)"
-            )
-    return out
+    same = RunResult(**{**_fields_of(fresh), "provenance": dict(log.provenance), "timings": dict(log.timings)})
+    return verify_log(log, log_bytes(same, include_timings=bool(log.timings)))
 
 
 def _fields_of(result: RunResult) -> dict[str, Any]:

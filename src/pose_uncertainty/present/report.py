@@ -41,6 +41,7 @@ from ..core.atomic import atomic_write_text
 from ..core.drives import DRIVES
 from ..core.stats import COVERAGE_LEVELS
 from ..core.tables import read_table
+from ..logs.provenance import MACHINE_KEYS
 
 __all__ = ["build_report", "read_speed_results"]
 
@@ -266,6 +267,7 @@ def build_report(
         guide=claims["guide"],
         unscented=claims.get("unscented"),  # Method C (issue 11): analysis.claims.unscented_summary
         provenance=prov,
+        machine_keys=MACHINE_KEYS,
         package=prov.get("package_version", {}).get("value", "unknown"),
         git_commit=prov.get("git_commit", {}).get("value", "unknown"),
         bench=pipeline["rule_times"]["rules"],
