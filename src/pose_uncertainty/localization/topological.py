@@ -43,6 +43,8 @@ __all__ = [
     "exits_from_ranges",
     "place_graph",
     "run_topological",
+    "sample_features",
+    "sample_step",
     "sample_topological",
     "topological_correct",
     "topological_predict",
@@ -243,6 +245,32 @@ def run_topological(graph: PlaceGraph, model: PlaceModel, actions: ArrayLike, ob
     return out
 
 
+def sample_step(transitions: ArrayLike, likelihood: ArrayLike, nodes: ArrayLike, actions: ArrayLike,
+                rng: np.random.Generator) -> tuple[IntArray, IntArray]:  # fmt: skip
+    """One true step of many runs: the next nodes drawn from ``T[a, l]`` and their feature observations.
+
+    Parameters
+    ----------
+    transitions : array_like, shape (A, n, n); likelihood : array_like, shape (K, n)
+    nodes, actions : array_like of int, shape (R,) — every run's node and action
+
+    Returns
+    -------
+    nodes : ndarray of int, shape (R,); observations : ndarray of int, shape (R,)
+    """
+    T, L = np.asarray(transitions), np.asarray(likelihood)
+    l, a = np.asarray(nodes, dtype=np.int64), np.asarray(actions, dtype=np.int64)
+    nxt = np.minimum((np.cumsum(T[a, l], axis=-1) < rng.random((l.size, 1))).sum(axis=-1), T.shape[-1] - 1)
+    return np.asarray(nxt, dtype=np.int64), sample_features(L, nxt, rng)
+
+
+def sample_features(likelihood: ArrayLike, nodes: ArrayLike, rng: np.random.Generator) -> IntArray:
+    """Feature observations at ``nodes`` (int, any shape) by the inverse CDF of each column of ``likelihood`` (K, n)."""
+    L, nodes = np.asarray(likelihood, dtype=np.float64), np.asarray(nodes, dtype=np.int64)
+    cdf = np.cumsum(L[:, nodes], axis=0)
+    return np.asarray(np.minimum((cdf < rng.random(nodes.shape)).sum(axis=0), L.shape[0] - 1), dtype=np.int64)
+
+
 def sample_topological(graph: PlaceGraph, model: PlaceModel, start: ArrayLike, actions: ArrayLike,
                        rng: np.random.Generator) -> tuple[IntArray, IntArray]:  # fmt: skip
     """Draw true node paths and feature observations for runs from ``start`` (R,) under ``actions`` (R, T).
@@ -255,11 +283,8 @@ def sample_topological(graph: PlaceGraph, model: PlaceModel, start: ArrayLike, a
     a = np.asarray(actions, dtype=np.int64).reshape(s.size, -1)
     T, L = model.transitions(graph), model.likelihood(graph)
     nodes = np.empty((s.size, a.shape[1] + 1), dtype=np.int64)
-    nodes[:, 0] = s
-    for k in range(a.shape[1]):  # over time, every run at once: inverse CDF of each row of T
-        cdf = np.cumsum(T[a[:, k], nodes[:, k]], axis=-1)
-        nodes[:, k + 1] = np.minimum((cdf < rng.random((s.size, 1))).sum(axis=-1), graph.n_nodes - 1)
-    cdf_z = np.cumsum(L[:, nodes], axis=0)  # (K, R, T+1)
-    obs = np.minimum((cdf_z < rng.random(nodes.shape)).sum(axis=0), graph.n_features - 1)
-    return nodes, np.asarray(obs, dtype=np.int64)
-
+    obs = np.empty_like(nodes)
+    nodes[:, 0], obs[:, 0] = s, sample_features(L, s, rng)
+    for k in range(a.shape[1]):  # over time, every run at once
+        nodes[:, k + 1], obs[:, k + 1] = sample_step(T, L, nodes[:, k], a[:, k], rng)
+    return nodes, obs
