@@ -10,22 +10,22 @@ from numpy.testing import assert_allclose
 from pose_uncertainty.core import trajectories as tr
 from pose_uncertainty.core.stats import fit_growth
 from pose_uncertainty.methods import covariance
+from pose_uncertainty.methods.gyro_odometry import (
+    odometry_gyro_jacobians,
+    odometry_gyro_path,
+    odometry_gyro_step,
+    propagate_odometry_gyro,
+    sample_odometry_gyro,
+)
 from pose_uncertainty.methods.inertial import (
-    AccelErrors,
-    GyroErrors,
     InertialPath,
     ins_integrate,
     ins_jacobians,
     ins_step,
-    odometry_gyro_jacobians,
-    odometry_gyro_path,
-    odometry_gyro_step,
-    position_growth,
     propagate_ins,
-    propagate_odometry_gyro,
     sample_ins,
-    sample_odometry_gyro,
 )
+from pose_uncertainty.methods.inertial_sensors import AccelErrors, GyroErrors, position_growth
 
 
 def _fd(fun, x0, eps=1e-6):
