@@ -118,7 +118,7 @@ def test_exact_on_a_straight_line_with_the_heading_known():
         exact = (0.01 * k - k * w, 0.01 * k + k * w)
         assert_allclose([box.lo[c, 0], box.hi[c, 0]], exact, rtol=1e-13)
         assert_allclose([zs[c].center[0] - zs[c].radius[0], zs[c].center[0] + zs[c].radius[0]], exact, rtol=1e-13)
-        # y = 0 exactly, up to the rounding guard (64 ulps of the path length)
+        # y = 0 exactly, up to the rounding guard ((n + 8) ulps of the path length)
         assert abs(box.hi[c, 1] - box.lo[c, 1]) < 1e-12
         assert zs[c].radius[1] < 1e-12
         assert zonotope_area(zs[c]) < 1e-12

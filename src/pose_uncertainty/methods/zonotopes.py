@@ -103,6 +103,7 @@ def zonotope_dead_reckoning(
     # |ρ_k| ≤ |e_s|·|δφ| + |Δs|·δφ²/2, summed over the steps before each checkpoint
     rho = np.concatenate([[0.0], np.cumsum(r_s * R_phi + 0.5 * np.abs(d) * R_phi**2)])
     mag = np.concatenate([[0.0], np.cumsum(np.abs(d) + r_s)])
+    turned = np.concatenate([[0.0], np.cumsum(np.abs(dth) + r_th)])
     out = []
     for n in idx:  # a few checkpoints; every step's generators at once
         turn = np.stack([-(nom[n, 1] - nom[1 : n + 1, 1]) - 0.5 * dy[:n],
@@ -114,10 +115,10 @@ def zonotope_dead_reckoning(
         G_start = np.diag(r0)
         G_start[0, 2] = -(nom[n, 1] - nom[0, 1]) * r0[2]
         G_start[1, 2] = (nom[n, 0] - nom[0, 0]) * r0[2]
-        g = rounding_guard(np.abs(p0).sum() + r0.sum() + mag[n])
+        g = rounding_guard(np.abs(p0).sum() + r0.sum() + mag[n], n)
         G_rem = np.diag([rho[n] + g, rho[n] + g])
         G = np.concatenate([G_start, G_steps.reshape(3, -1), np.vstack([G_rem, np.zeros((1, 2))])], axis=1)
-        G[2, 2] += float(rounding_guard(np.abs(nom[n, 2]) + R[n]))  # the heading's own guard
+        G[2, 2] += float(rounding_guard(abs(p0[2]) + r0[2] + turned[n], n))  # the heading's own guard
         out.append(Zonotope(nom[n].copy(), G))
     return out
 
