@@ -97,6 +97,20 @@ def test_ins_integrate_equals_the_step_recursion(rng):
         assert_allclose(s[:5], nav[k + 1], atol=1e-12)
 
 
+def test_ins_path_from_a_trajectory_follows_it():
+    errors = []
+    for dt in (0.01, 0.005):
+        traj = tr.s_curve(radius=1.0, speed=0.5, dt=dt, track=0.2)
+        path = InertialPath.from_trajectory(traj)
+        nav = ins_integrate(path.omega, path.accel, path.dt, path.start, path.v0)
+        assert_allclose(nav[:, 4], traj.poses[:, 2], atol=1e-12)  # the headings exactly
+        assert_allclose(np.hypot(nav[-1, 2], nav[-1, 3]), traj.ds[-1] / traj.dt, rtol=1e-12)
+        errors.append(np.max(np.hypot(*(nav[:, :2] - traj.poses[:, :2]).T)))
+    # the positions to O(Δt²): 5.9·10⁻⁶ m at Δt = 10 ms, four times less at half the step
+    assert errors[0] < 0.1 * 0.01**2
+    assert errors[0] / errors[1] == pytest.approx(4.0, rel=0.1)
+
+
 def test_ins_method_a_matches_monte_carlo(rng):
     path = _turning_path()
     states, covs = propagate_ins(path, GYRO, ACCEL)
