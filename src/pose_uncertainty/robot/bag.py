@@ -239,7 +239,7 @@ class _Counter:
 
     def __init__(self, total: int, progress: Progress | None) -> None:
         self.total, self.done, self.progress = total, 0, progress
-        self.every = max(1, total // 20)
+        self.every = max(1, total // 10)
 
     def tick(self) -> None:
         self.done += 1
@@ -379,7 +379,7 @@ def read_bag(path: str | Path, robot: RobotConfig | None = None, progress: Progr
     ----------
     path : a rosbag2 folder, ``.mcap``, ``.db3`` or ROS 1 ``.bag``
     robot : RobotConfig, optional — topic and joint names (default: found by type)
-    progress : callable, optional — ``progress(done, total)`` messages read (about 20 calls)
+    progress : callable, optional — ``progress(done, total)`` messages read (about 10 calls)
 
     Returns
     -------
