@@ -13,6 +13,7 @@ from ..logs.localization_log import LocalizationLog
 from ..logs.runlog import PartialLogWarning, open_run, verify_run
 from ..present.figures import render_figures
 from ..present.localization_figures import render_localization_figures
+from ..robot.run_bag import write_run_bag
 from ._common import EXIT_MISMATCH, EXIT_OK, CommandError
 
 __all__ = ["add_parser", "cmd_replay"]
@@ -48,6 +49,7 @@ def add_parser(sub: Any) -> None:
         action="store_true",
         help="read what an incomplete or damaged log holds (with a warning) instead of failing",
     )
+    p.add_argument("--to-rosbag", metavar="DIR", help="export the run as a ROS 2 bag folder DIR")
     p.set_defaults(func=cmd_replay)
 
 
@@ -111,6 +113,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
             paths = render_figures(log, args.figures, formats)
         for path in paths:
             print(f"wrote {path}")
+    if args.to_rosbag:
+        print(f"wrote {write_run_bag(log, args.to_rosbag)}")
     if args.verify:
         diffs = verify_run(log)
         mismatches = [d for d in diffs if not d.startswith("note: ")]

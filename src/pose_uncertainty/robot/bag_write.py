@@ -142,13 +142,13 @@ def write_recording(
             odom_msgs = [
                 (int(t), kit.odometry(int(t), p, cov)) for t, p in zip(rec.odometry.t_ns, rec.odometry.poses, strict=True)
             ]
-        # the bag's receive time is each message's stamp (a recorder would add its latency)
-        for t, msg, _ in wheel_msgs:
-            sink.write(names["wheels"], t, msg)
-        for t, msg in truth_msgs or []:
-            sink.write(names["truth"], t, msg)
-        for t, msg in odom_msgs or []:
-            sink.write(names["odometry"], t, msg)
+        # messages are received in the order recorded: the receive time is the latest stamp
+        # so far (a stamp earlier than an earlier message's stays out of order in the bag)
+        for topic, msgs in (("wheels", wheel_msgs), ("truth", truth_msgs), ("odometry", odom_msgs)):
+            latest = 0
+            for t, msg, *_ in msgs or []:
+                latest = max(latest, t)
+                sink.write(names[topic], latest, msg)
     return Path(dest)
 
 
