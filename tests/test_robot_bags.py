@@ -31,7 +31,8 @@ def test_every_format_reads_back_the_recorded_streams(rec: Recording, tmp_path: 
     assert got.topics == {"wheels": "/joint_states", "truth": "/ground_truth", "odometry": "/odom"}
     np.testing.assert_array_equal(got.wheels.t_ns, rec.wheels.t_ns)
     np.testing.assert_array_equal(got.wheels.left, rec.wheels.left)
-    assert rec.truth is not None and got.truth is not None
+    assert rec.truth is not None
+    assert got.truth is not None
     np.testing.assert_array_equal(got.truth.t_ns, rec.truth.t_ns)
     # the heading goes through a quaternion: equal to rounding
     np.testing.assert_allclose(got.truth.poses, rec.truth.poses, atol=1e-12)
@@ -40,8 +41,10 @@ def test_every_format_reads_back_the_recorded_streams(rec: Recording, tmp_path: 
 @pytest.mark.parametrize("truth_type", [ODOMETRY, TF_MESSAGE])
 def test_truth_as_odometry_or_tf_is_found(rec: Recording, tmp_path: Path, truth_type: str) -> None:
     got = read_bag(write_recording(rec, tmp_path / "b", truth_type=truth_type))
-    assert got.topics["truth"] == "/ground_truth" and got.topics["odometry"] == "/odom"
-    assert got.truth is not None and rec.truth is not None
+    assert got.topics["truth"] == "/ground_truth"
+    assert got.topics["odometry"] == "/odom"
+    assert got.truth is not None
+    assert rec.truth is not None
     np.testing.assert_allclose(got.truth.poses, rec.truth.poses, atol=1e-12)
 
 
@@ -106,7 +109,8 @@ def test_se2_interpolation_follows_an_arc_and_the_short_way_round() -> None:
 
 def test_missing_truth_wrong_type_empty_and_truncated_bags(rec: Recording, tmp_path: Path) -> None:
     no_truth = read_bag(write_recording(dataclasses.replace(rec, truth=None), tmp_path / "nt"))
-    assert no_truth.truth is None and "truth" not in no_truth.topics
+    assert no_truth.truth is None
+    assert "truth" not in no_truth.topics
     bag = write_recording(rec, tmp_path / "ok")
     wrong = robot_from_mapping({"topics": {"wheels": "/odom"}})
     with pytest.raises(BagError, match=r"topic /odom for wheels has type nav_msgs/msg/Odometry \(allowed: "):
@@ -137,4 +141,5 @@ def test_robot_file_errors_name_the_key() -> None:
 def test_odometry_truth_and_poses_streams_keep_their_order(rec: Recording) -> None:
     assert isinstance(rec.odometry, PoseStream)
     al = align(rec)
-    assert al.truth_t is not None and np.all(np.diff(al.truth_t) > 0)
+    assert al.truth_t is not None
+    assert np.all(np.diff(al.truth_t) > 0)

@@ -17,8 +17,10 @@ from scipy.stats import binom
 
 from pose_uncertainty.robot.align import align
 from pose_uncertainty.robot.bag import read_bag
-from pose_uncertainty.robot.fit import CALIBRATION_KEYS, calibrate_aligned
+from pose_uncertainty.robot.fit import CALIBRATION_KEYS, calibrate_segments
 from pose_uncertainty.robot.geometry_fit import nominal_from_odometry
+from pose_uncertainty.robot.noise_fit import held_out_check
+from pose_uncertainty.robot.segments import cut_segments
 from pose_uncertainty.robot.simulate import SimulatedRobot, simulate_recording, write_simulated_bag
 
 ROBOT = SimulatedRobot()
@@ -39,7 +41,9 @@ def _covered(seeds: range) -> np.ndarray:
     """(R, 7) booleans: interval holds the truth."""
     rows = []
     for s in seeds:
-        q = calibrate_aligned(align(simulate_recording(ROBOT, np.random.default_rng(1000 + s))), NOMINAL).quantities()
+        seg = cut_segments(align(simulate_recording(ROBOT, np.random.default_rng(1000 + s))), ROBOT.nominal_radius)
+        geo, noise, _, _ = calibrate_segments(seg, NOMINAL)
+        q = {**geo.quantities(), **noise.as_dict()}
         rows.append([q[k]["ci95"][0] <= TRUE[k] <= q[k]["ci95"][1] for k in CALIBRATION_KEYS])
     return np.array(rows)
 
@@ -64,16 +68,36 @@ def test_intervals_cover_the_truth_in_95_percent_of_100_repeats() -> None:
     _check(_covered(range(100)))
 
 
-def test_a_bag_gives_the_arrays_calibration(tmp_path) -> None:
+def test_a_bag_gives_the_arrays_streams(tmp_path) -> None:
     """Two routes: bag written and read back with rosbags, and the simulated arrays directly."""
-    rng_seed = 5
-    bag = write_simulated_bag(tmp_path / "b", ROBOT, np.random.default_rng(rng_seed))
+    bag = write_simulated_bag(tmp_path / "b", ROBOT, np.random.default_rng(5))
     from_bag = align(read_bag(bag))
-    direct = align(simulate_recording(ROBOT, np.random.default_rng(rng_seed)))
+    direct = align(simulate_recording(ROBOT, np.random.default_rng(5)))
+    for name in ("t", "phi_l", "phi_r", "truth_t", "odom_t"):
+        np.testing.assert_array_equal(getattr(from_bag, name), getattr(direct, name))
+    np.testing.assert_allclose(from_bag.truth_poses, direct.truth_poses, atol=1e-12)  # via quaternions
     nominal = nominal_from_odometry(from_bag)
     assert nominal is not None
     np.testing.assert_allclose(nominal, NOMINAL, rtol=1e-9)
-    a = calibrate_aligned(from_bag, nominal).quantities()
-    b = calibrate_aligned(direct, NOMINAL).quantities()
-    for k in CALIBRATION_KEYS:
-        np.testing.assert_allclose(a[k]["value"], b[k]["value"], rtol=1e-6)
+
+
+def test_held_out_check_of_residuals_drawn_from_their_model() -> None:
+    """NEES and ellipse coverage of Gaussian residuals drawn with known covariances.
+
+    J = 4000 draws: the mean NEES lies in its χ²(3J)/J band and the coverage in its
+    Wilson interval, each with probability 0.95 — the seeds are fixed, so the test
+    checks the two formulas against the distribution they describe.
+    """
+    rng = np.random.default_rng(21)
+    J = 4000
+    A = rng.standard_normal((J, 3, 3)) * np.array([0.01, 0.01, 0.03])[:, None]
+    Sigma = A @ np.swapaxes(A, -1, -2) + 1e-6 * np.eye(3)
+    r = np.einsum("jab,jb->ja", np.linalg.cholesky(Sigma), rng.standard_normal((J, 3)))
+    check = held_out_check(r, Sigma)
+    assert check["nees_band95"][0] <= check["nees_mean"] <= check["nees_band95"][1]
+    lo, hi = check["ellipse_coverage_ci95"]
+    assert lo <= 0.95 <= hi
+    # a covariance too small by half is caught by both
+    bad = held_out_check(r, 0.5 * Sigma)
+    assert not bad["nees_ok"]
+    assert not bad["ellipse_ok"]

@@ -36,7 +36,8 @@ def bags(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 def _one_line_error(argv: list[str], capsys: pytest.CaptureFixture[str], match: str) -> None:
     assert main(argv) == 2
     err = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("error:")]
-    assert len(err) == 1 and match in err[0], err
+    assert len(err) == 1, err
+    assert match in err[0], err
 
 
 def test_calibrate_writes_every_file(bags: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -46,7 +47,8 @@ def test_calibrate_writes_every_file(bags: dict[str, Path], tmp_path: Path, caps
     cal = json.loads((out / "calibration.json").read_text())
     for key in ("E_d", "E_b", "wheel_radius_left", "wheel_radius_right", "track", "k_r", "k_l"):
         lo, hi = cal[key]["ci95"]
-        assert lo <= cal[key]["value"] <= hi and cal[key]["unit"] in ("1", "m")
+        assert lo <= cal[key]["value"] <= hi
+        assert cal[key]["unit"] in ("1", "m")
     assert cal["nominal"]["source"] == "the robot's odometry topic"
     assert math.isclose(cal["nominal"]["track"], 0.30, rel_tol=1e-9)
     amcl = yaml.safe_load((out / "nav2_amcl.yaml").read_text())["amcl"]["ros__parameters"]
@@ -54,7 +56,8 @@ def test_calibrate_writes_every_file(bags: dict[str, Path], tmp_path: Path, caps
     assert all(amcl[f"alpha{i}"] > 0 for i in range(1, 5))
     ctrl = yaml.safe_load((out / "ros2_control.yaml").read_text())["diff_drive_controller"]["ros__parameters"]
     assert math.isclose(ctrl["wheel_separation_multiplier"], cal["E_b"]["value"], rel_tol=1e-5)
-    assert len(ctrl["twist_covariance_diagonal"]) == 6 and len(ctrl["pose_covariance_diagonal"]) == 6
+    assert len(ctrl["twist_covariance_diagonal"]) == 6
+    assert len(ctrl["pose_covariance_diagonal"]) == 6
     assert "ekf_filter_node" in yaml.safe_load((out / "robot_localization.yaml").read_text())
     assert "data:image/png;base64," in (out / "report.html").read_text()
     assert "%" in capsys.readouterr().err  # progress on stderr
@@ -106,7 +109,8 @@ def test_a_run_exported_as_a_bag_reads_back_the_same(tmp_path: Path, capsys: pyt
     for mp in log.maps:
         (_, g), = grids[f"/maps/{mp.name}"]
         nx, ny = mp.marginal_xy().shape
-        assert (g.info.width, g.info.height) == (nx, ny) and int(g.data.max()) == 100
+        assert (g.info.width, g.info.height) == (nx, ny)
+        assert int(g.data.max()) == 100
         # row-major over y then x, 100 at the peak of the θ-marginal
         expect = np.round(100.0 * mp.marginal_xy() / mp.marginal_xy().max()).T.ravel()
         np.testing.assert_array_equal(g.data, expect.astype(np.int8))

@@ -58,10 +58,12 @@ def test_the_library_sampler_is_navigation2s() -> None:
 
 def test_in_place_rotation_uses_navigation2s_small_translation_rule() -> None:
     parts = nav2.nav2_deltas(np.array([[0.003, 0.004, 0.5]]), np.array([1.0]))
-    assert parts["rot1"][0] == 0.0 and math.isclose(parts["rot2"][0], 0.5)
+    assert parts["rot1"][0] == 0.0
+    assert math.isclose(parts["rot2"][0], 0.5)
     back = nav2.nav2_deltas(np.array([[-0.3, 0.0, 0.0]]), np.array([0.0]))
     # backward motion: δrot1 = π, folded to 0 for the noise
-    assert math.isclose(abs(back["rot1"][0]), math.pi) and back["n1"][0] < 1e-12
+    assert math.isclose(abs(back["rot1"][0]), math.pi)
+    assert back["n1"][0] < 1e-12
 
 
 @pytest.fixture(scope="module")

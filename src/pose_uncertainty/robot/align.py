@@ -161,7 +161,7 @@ def align(rec: Recording, robot: RobotConfig | None = None) -> AlignedRecording:
     if idx.size < 2:
         raise BagError(f"{rec.source}: fewer than 2 wheel readings with distinct stamps")
     t0 = int(w.t_ns[idx[0]])
-    t = (w.t_ns[idx] - t0) * 1e-9
+    t = ((w.t_ns[idx] - t0) * 1e-9).astype(np.float64)
     sorted_w = WheelStream(w.t_ns[idx], w.left[idx], w.right[idx], w.kind, w.bits, w.names)
     phi_l, phi_r, wraps = _wheel_angles(sorted_w, t, cfg, rec.source)
     gap, n_gaps, dropped = _gaps(t)

@@ -126,6 +126,11 @@ def bag_paths(path: str | Path) -> list[Path]:
     return [p]
 
 
+def _decode(reader: AnyReader, raw: bytes, msgtype: str) -> Any:
+    """A deserialised message (rosbags types it as ``object``)."""
+    return reader.deserialize(raw, msgtype)
+
+
 def _first_line(exc: BaseException) -> str:
     text = str(exc).strip()
     return text.splitlines()[0] if text else type(exc).__name__
@@ -157,7 +162,7 @@ def _odometry_frames(reader: AnyReader, topic: str) -> str:
     """The parent frame of the first message of an Odometry topic."""
     conns = [c for c in reader.connections if c.topic == topic]
     for conn, _, raw in reader.messages(connections=conns):
-        return str(reader.deserialize(raw, conn.msgtype).header.frame_id).lstrip("/")
+        return str(_decode(reader, raw, conn.msgtype).header.frame_id).lstrip("/")
     return ""
 
 
@@ -252,7 +257,7 @@ def _read_joint_states(reader: AnyReader, topic: str, robot: RobotConfig, src: s
     t, a, b = [], [], []
     kind, names = None, ("", "")
     for conn, _, raw in reader.messages(connections=conns):
-        msg = reader.deserialize(raw, conn.msgtype)
+        msg = _decode(reader, raw, conn.msgtype)
         count.tick()
         msg_names = [str(n) for n in msg.name]
         i, j = _wheel_indices(msg_names, robot, src)
@@ -280,7 +285,7 @@ def _read_tick_array(reader: AnyReader, topic: str, robot: RobotConfig, count: _
     t, a, b = [], [], []
     bits = 64
     for conn, t_bag, raw in reader.messages(connections=conns):
-        msg = reader.deserialize(raw, conn.msgtype)
+        msg = _decode(reader, raw, conn.msgtype)
         count.tick()
         bits = INT_ARRAY_BITS[conn.msgtype]
         if len(msg.data) <= max(il, ir):
@@ -302,7 +307,7 @@ def _read_tick_pair(reader: AnyReader, topics: dict[str, str], count: _Counter, 
             count.tick()
             bits = INT_SCALAR_BITS[conn.msgtype]
             t.append(t_bag)
-            v.append(float(reader.deserialize(raw, conn.msgtype).data))
+            v.append(float(_decode(reader, raw, conn.msgtype).data))
         series[side] = (np.asarray(t, np.int64), np.asarray(v))
     (tl, vl), (tr, vr) = series["left"], series["right"]
     if tl.size == 0 or tr.size == 0:
@@ -320,7 +325,7 @@ def _read_poses(
     t, p = [], []
     for conn, _, raw in reader.messages(connections=conns):
         count.tick()
-        got = _truth_pose(reader.deserialize(raw, conn.msgtype), conn.msgtype, robot.truth_frame, src)
+        got = _truth_pose(_decode(reader, raw, conn.msgtype), conn.msgtype, robot.truth_frame, src)
         if got is not None:
             t.append(got[0])
             p.append(got[1])
@@ -335,14 +340,14 @@ def _check_tf_frames(reader: AnyReader, topic: str, robot: RobotConfig, src: str
     conns = [c for c in reader.connections if c.topic == topic]
     children: set[str] = set()
     for n, (conn, _, raw) in enumerate(reader.messages(connections=conns)):
-        children |= {str(tf.child_frame_id) for tf in reader.deserialize(raw, conn.msgtype).transforms}
+        children |= {str(tf.child_frame_id) for tf in _decode(reader, raw, conn.msgtype).transforms}
         if n > 50:
             break
     if len(children) > 1:
         raise BagError(f"{src}: {topic} holds transforms of several frames {sorted(children)}; name one as truth_frame")
 
 
-def _read(reader: AnyReader, robot: RobotConfig, src: str, progress: Progress | None) -> Recording:
+def _read_recording(reader: AnyReader, robot: RobotConfig, src: str, progress: Progress | None) -> Recording:
     if reader.message_count == 0 and not reader.connections:
         raise BagError(f"{src}: the bag is empty (no topics, no messages)")
     chosen = _choose_topics(reader, robot, src)
@@ -394,7 +399,7 @@ def read_bag(path: str | Path, robot: RobotConfig | None = None, progress: Progr
     paths = bag_paths(path)
     try:
         with AnyReader(paths) as reader:
-            return _read(reader, cfg, src, progress)
+            return _read_recording(reader, cfg, src, progress)
     except BagError:
         raise
     except Exception as exc:  # noqa: BLE001 - rosbags raises many kinds on a damaged file

@@ -64,7 +64,9 @@ def stream_warnings(rec: AlignedRecording) -> list[str]:
 def nominal_geometry(rec: AlignedRecording, robot: RobotConfig, src: str) -> tuple[tuple[float, float, float], str]:
     """The nominal (r_l, r_r, b) and where it came from (robot file, else the robot's odometry)."""
     if robot.has_geometry:
-        assert robot.radius_left is not None and robot.radius_right is not None and robot.track is not None
+        assert robot.radius_left is not None
+        assert robot.radius_right is not None
+        assert robot.track is not None
         return (robot.radius_left, robot.radius_right, robot.track), "robot file"
     got = nominal_from_odometry(rec)
     if got is None:

@@ -103,7 +103,8 @@ def _positive(where: str, value: Any) -> float:
 
 def _mapping(where: str, value: Any, allowed: tuple[str, ...]) -> dict[str, Any]:
     if not isinstance(value, Mapping):
-        raise ValueError(f"{where} must be a mapping with keys {list(allowed)}, got {value!r}")
+        # a bad robot file is a ValueError like every other bad value (one line, exit status 2)
+        raise ValueError(f"{where} must be a mapping with keys {list(allowed)}, got {value!r}")  # noqa: TRY004
     unknown = [k for k in value if k not in allowed]
     if unknown:
         raise ValueError(f"{where}: unknown key {unknown[0]!r} (allowed: {', '.join(allowed)})")
@@ -145,7 +146,7 @@ def _joints(value: Any) -> dict[str, str | int]:
 def robot_from_mapping(data: Mapping[str, Any], where: str = "robot file") -> RobotConfig:
     """A :class:`RobotConfig` from a mapping; ValueError naming the key at fault."""
     if not isinstance(data, Mapping):
-        raise ValueError(f"{where} must be a mapping, got {type(data).__name__}")
+        raise ValueError(f"{where} must be a mapping, got {type(data).__name__}")  # noqa: TRY004
     unknown = [k for k in data if k not in ROBOT_KEYS]
     if unknown:
         raise ValueError(f"{where}: unknown key {unknown[0]!r} (allowed: {', '.join(ROBOT_KEYS)})")

@@ -91,8 +91,8 @@ def nav2_amcl_yaml(nav2: dict[str, Any]) -> str:
         "# nav2 AMCL motion model fitted by maximum likelihood to the calibrated wheel model",
         "# (pose-uncertainty robot calibration; nav2_amcl differential_motion_model.cpp's sampler).",
         f"# Holds for: {nav2['holds_for']}.",
-        f"# Coverage of the wheel model's Monte Carlo draws by the fitted model's 95 % region: "
-        f"{cov['overall']:.3f} overall ({nav2['n_increments']} increments x {nav2['n_samples']} draws).",
+        (f"# Coverage of the wheel model's Monte Carlo draws by the fitted model's 95 % region: "
+        f"{cov['overall']:.3f} overall ({nav2['n_increments']} increments x {nav2['n_samples']} draws)."),
         "amcl:",
         "  ros__parameters:",
         '    robot_model_type: "nav2_amcl::DifferentialMotionModel"',

@@ -30,7 +30,7 @@ from .geometry_fit import GeometryFit, fit_geometry, geometry_jacobian
 from .noise_fit import NoiseFit, fit_noise, held_out_check, model_covariances, noise_matrices
 from .segments import Segments, cut_segments, predict, residuals
 
-__all__ = ["CALIBRATION_KEYS", "CalibrationFit", "calibrate_segments", "calibrate_aligned"]
+__all__ = ["CALIBRATION_KEYS", "CalibrationFit", "calibrate_aligned", "calibrate_segments"]
 
 #: The quantities of ``calibration.json``, in order.
 CALIBRATION_KEYS: tuple[str, ...] = ("E_d", "E_b", "wheel_radius_left", "wheel_radius_right", "track", "k_r", "k_l")
@@ -82,7 +82,8 @@ def calibrate_segments(
         M = noise_matrices(seg, *theta)
         noise = fit_noise(r, M, truth_std, level, intervals and i == _ROUNDS - 1)
         psi = noise.psi
-    assert geo is not None and noise is not None
+    assert geo is not None
+    assert noise is not None
     return geo, noise, r, model_covariances(psi, M)
 
 

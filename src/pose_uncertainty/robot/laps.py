@@ -59,8 +59,8 @@ def find_laps(rec: AlignedRecording, nominal: tuple[float, float, float]) -> lis
             lengths = np.array([p[3] for p in lines])
             angles = np.array([p[4] for p in turns])
             sign = np.sign(angles[0])
-            ok = (lengths.min() > 0 and np.ptp(lengths) < 0.05 * lengths.mean()
-                  and np.all(np.sign(angles) == sign) and np.all(np.abs(np.abs(angles) - math.pi / 2) < 0.2))  # fmt: skip
+            ok = bool(lengths.min() > 0 and np.ptp(lengths) < 0.05 * lengths.mean()
+                      and np.all(np.sign(angles) == sign) and np.all(np.abs(np.abs(angles) - math.pi / 2) < 0.2))  # fmt: skip
         if ok:
             laps.append({"direction": "ccw" if sign > 0 else "cw", "start": w[0][1], "end": w[-1][2],
                          "side": float(lengths.mean())})  # fmt: skip

@@ -22,12 +22,12 @@ __all__ = [
     "INT_ARRAY_BITS",
     "INT_SCALAR_BITS",
     "JOINT_STATE",
-    "ODOMETRY",
     "OCCUPANCY_GRID",
+    "ODOMETRY",
+    "PLANAR_INDEX",
     "POSE_ARRAY",
     "POSE_STAMPED",
     "TF_MESSAGE",
-    "PLANAR_INDEX",
     "MessageKit",
     "cov3_from_6",
     "cov6_from_3",
@@ -98,7 +98,8 @@ class MessageKit:
         self.ros = ros
         self.typestore = get_typestore(Stores.ROS2_HUMBLE if ros == "ros2" else Stores.ROS1_NOETIC)
         self._t = self.typestore.types
-        self._header_has_seq = "seq" in {f.name for f in dataclasses.fields(self._t["std_msgs/msg/Header"])}
+        header_type: Any = self._t["std_msgs/msg/Header"]
+        self._header_has_seq = "seq" in {f.name for f in dataclasses.fields(header_type)}
 
     def serialize(self, msg: Any, msgtype: str) -> bytes:
         """The message's bytes: CDR (ROS 2) or ROS 1 serialisation."""

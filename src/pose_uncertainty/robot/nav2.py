@@ -266,7 +266,10 @@ def fit_nav2_alphas(
     dls, drs, deltas, th0 = [], [], [], []
     for a, c in pairs:
         dl_, dr_, de, t0 = _increments(phi_l, phi_r, rl, rr, b, np.array([a, c]))
-        dls.append(dl_[0]), drs.append(dr_[0]), deltas.append(de[0]), th0.append(t0[0])
+        dls.append(dl_[0])
+        drs.append(dr_[0])
+        deltas.append(de[0])
+        th0.append(t0[0])
     K = max(x.size for x in dls)
     dl = np.stack([np.pad(x, (0, K - x.size)) for x in dls])
     dr = np.stack([np.pad(x, (0, K - x.size)) for x in drs])

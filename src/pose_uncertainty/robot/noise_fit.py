@@ -56,7 +56,7 @@ from ..core.stats import chi2_ppf, wilson_interval
 from ..methods import covariance as cv
 from .segments import Segments
 
-__all__ = ["NOISE_NAMES", "NoiseFit", "held_out_check", "model_covariances", "noise_matrices", "fit_noise"]
+__all__ = ["NOISE_NAMES", "NoiseFit", "fit_noise", "held_out_check", "model_covariances", "noise_matrices"]
 
 #: Parameters of the noise model and their units.
 NOISE_NAMES: dict[str, str] = {"k_r": "m", "k_l": "m", "truth_var_position": "m^2", "truth_var_heading": "rad^2"}
@@ -176,7 +176,7 @@ def _scoring(x0: NDArray, free: NDArray[np.bool_], args: tuple[Any, ...], max_it
     return x, f
 
 
-def _profile_interval(
+def _profile_bounds(
     xhat: NDArray, k: int, args: tuple[Any, ...], nll_min: float, crit: float, se: float
 ) -> tuple[float, float]:
     """Profile-likelihood interval of scaled parameter ``k`` (module docstring)."""
@@ -255,7 +255,7 @@ def fit_noise(
             k = idx.index(a)
             se[name] = float(se_fit[k])
             if intervals:
-                lo, hi = _profile_interval(xhat, k, args, best_fun, crit, float(se_fit[k] / scale[a]))
+                lo, hi = _profile_bounds(xhat, k, args, best_fun, crit, float(se_fit[k] / scale[a]))
                 ci[name] = (lo * float(scale[a]), hi * float(scale[a]))
             else:
                 ci[name] = (math.nan, math.nan)

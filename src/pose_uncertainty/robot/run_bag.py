@@ -30,8 +30,8 @@ from .messages import OCCUPANCY_GRID, ODOMETRY, POSE_ARRAY
 __all__ = ["write_run_bag"]
 
 
-def _ns(t: float) -> int:
-    return int(round(float(t) * 1e9))
+def _stamp_ns_of(t: float) -> int:
+    return round(float(t) * 1e9)
 
 
 def _grid_cells(marg: np.ndarray) -> np.ndarray:
@@ -69,13 +69,13 @@ def write_run_bag(run: Any, dest: str | Path) -> Path:
             else:
                 d = poses[i] - poses[i - 1]
                 twist = (float(np.hypot(d[0], d[1]) / dt[i - 1]), float(d[2] / dt[i - 1]))
-            sink.write("/odometry", _ns(times[i]), kit.odometry(_ns(times[i]), poses[i], covs[i], twist))
+            sink.write("/odometry", _stamp_ns_of(times[i]), kit.odometry(_stamp_ns_of(times[i]), poses[i], covs[i], twist))
         for i in sorted(clouds):
-            sink.write("/monte_carlo/particles", _ns(times[i]), kit.pose_array(_ns(times[i]), clouds[i]))
+            sink.write("/monte_carlo/particles", _stamp_ns_of(times[i]), kit.pose_array(_stamp_ns_of(times[i]), clouds[i]))
         for name, mp in zip(names, maps, strict=True):
             marg = mp.marginal_xy()
             dx = float(mp.x[1] - mp.x[0]) if len(mp.x) > 1 else 0.01
             cells = _grid_cells(marg)
             origin = (float(mp.x[0]) - dx / 2.0, float(mp.y[0]) - dx / 2.0)
-            sink.write(name, _ns(times[-1]), kit.occupancy_grid(_ns(times[-1]), cells, origin, dx))
+            sink.write(name, _stamp_ns_of(times[-1]), kit.occupancy_grid(_stamp_ns_of(times[-1]), cells, origin, dx))
     return Path(dest)

@@ -115,12 +115,13 @@ def cut_segments(
     radius : float [m] — nominal wheel radius (only to measure travel)
     lengths : segment lengths in wheel travel [m], cycled
     """
-    assert rec.truth_t is not None and rec.truth_poses is not None
+    assert rec.truth_t is not None
+    assert rec.truth_poses is not None
     truth, ok, bracket, u = interpolate_poses(rec.truth_t, rec.truth_poses, rec.t)
     tau = _travel(rec, radius)
     pairs = _boundaries(rec, tau, ok, bracket, lengths)
     if not pairs:
-        return Segments(*(np.zeros((0,) + s) for s in ((), (), (0,), (0,), (3,), (), (), ())))  # type: ignore[arg-type]
+        return Segments(*(np.zeros((0, *s)) for s in ((), (), (0,), (0,), (3,), (), (), ())))  # type: ignore[arg-type]
     a = np.array([p[0] for p in pairs], dtype=np.intp)
     c = np.array([p[1] for p in pairs], dtype=np.intp)
     K = int((c - a).max())
