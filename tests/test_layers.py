@@ -3,7 +3,7 @@
 Layers, lowest first: ``core`` (validation, kinematics, trajectories, noise, statistics)
 ← ``methods`` (covariance, exponential coordinates, motion models, maps, Monte Carlo)
 ← ``localization`` (worlds, sensors, Bayes filters) ← ``analysis`` (accuracy, calibration,
-claims, studies) ← ``logs`` (run configuration, execution, MCAP logs, sweeps, tables)
+claims, studies) ← ``robot`` (a real robot's bags: calibration, nav2 parameters) ← ``logs`` (run configuration, execution, MCAP logs, sweeps, tables)
 ← ``present`` (figures, report) ← ``cli``. Every import is checked, at module top or not.
 """
 
@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 PKG = Path(__file__).resolve().parents[1] / "src" / "pose_uncertainty"
-LAYERS = ("core", "methods", "localization", "analysis", "logs", "present", "cli")
+LAYERS = ("core", "methods", "localization", "analysis", "robot", "logs", "present", "cli")
 
 
 def _layer_of(parts: tuple[str, ...]) -> str | None:

@@ -4,9 +4,11 @@ Commands
 --------
 ``run CONFIG.(yaml|json) -o OUT.mcap [--timings] [--figures DIR]``
     Execute one run and write its log atomically.
-``replay RUN.mcap [--figures DIR] [--verify] [--at TIME] [--recover]``
+``replay RUN.mcap [--figures DIR] [--verify] [--at TIME] [--recover] [--to-rosbag DIR]``
     Summarise a log; re-render its figures from the log alone; recompute and
-    compare; print the state at a simulated time.
+    compare; print the state at a simulated time; export it as a ROS 2 bag.
+``robot calibrate BAG [--robot ROBOT.yaml] -o OUTDIR``
+    Calibrate a robot from a ROS bag: constants, nav2 and ros2_control parameters.
 
 Exit status: 0 success; 1 ``--verify`` found a mismatch; 2 bad input (usage,
 unreadable/invalid config or log). Errors are one line on stderr, never a
@@ -41,6 +43,7 @@ COMMANDS: dict[str, str] = {
     "run": "run",
     "replay": "replay",
     "calibrate": "calibrate",
+    "robot": "robot",
 }
 
 

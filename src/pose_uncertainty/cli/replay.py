@@ -15,6 +15,7 @@ from ..logs.reproducibility import IDENTICAL, MISMATCH, Comparison
 from ..logs.runlog import PartialLogWarning, open_run, verify_run
 from ..present.figures import render_figures
 from ..present.localization_figures import render_localization_figures
+from ..robot.run_bag import write_run_bag
 from ._common import EXIT_MISMATCH, EXIT_OK, CommandError
 
 __all__ = ["add_parser", "cmd_replay"]
@@ -51,6 +52,7 @@ def add_parser(sub: Any) -> None:
         action="store_true",
         help="read what an incomplete or damaged log holds (with a warning) instead of failing",
     )
+    p.add_argument("--to-rosbag", metavar="DIR", help="export the run as a ROS 2 bag folder DIR")
     p.set_defaults(func=cmd_replay)
 
 
@@ -138,6 +140,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
             paths = render_figures(log, args.figures, formats)
         for path in paths:
             print(f"wrote {path}")
+    if args.to_rosbag:
+        print(f"wrote {write_run_bag(log, args.to_rosbag)}")
     if args.verify:
         return _report_verification(log, verify_run(log))
     return EXIT_OK
