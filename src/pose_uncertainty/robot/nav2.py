@@ -223,7 +223,7 @@ def _increments(
     return dl, dr, delta, odom[a, 2]
 
 
-def _classify(dl: dict[str, NDArray], update_min_d: float) -> NDArray:
+def _increment_kinds(dl: dict[str, NDArray], update_min_d: float) -> NDArray:
     small = dl["trans"] < 0.2 * update_min_d
     straight = (dl["n1"] + dl["n2"]) < 0.05
     return np.where(small, "rotation", np.where(straight, "translation", "mixed"))
@@ -289,7 +289,7 @@ def fit_nav2_alphas(
     x0 = np.log([ks / (2 * b * a), ks / (2 * b * b * d), ks / (4 * d), ks * b / (8 * a)])
     res = optimize.minimize(nll, x0, method="Nelder-Mead", options={"xatol": 1e-3, "fatol": 1e-7, "maxiter": 600})
     alphas = tuple(float(a) for a in np.exp(res.x))
-    coverage = _coverage(draws, parts, alphas, rng, _classify(parts, update_min_d))
+    coverage = _coverage(draws, parts, alphas, rng, _increment_kinds(parts, update_min_d))
     return Nav2Fit(alphas, update_min_d, update_min_a, int(pairs.shape[0]), n_samples, coverage)  # type: ignore[arg-type]
 
 
