@@ -47,7 +47,7 @@ from pose_uncertainty.localization import particle as PF
 from pose_uncertainty.localization import sensors as S
 from pose_uncertainty.localization import simulate as SIM
 from pose_uncertainty.localization import world as W
-from pose_uncertainty.localization.measures import weighted_mean_cov
+from pose_uncertainty.localization.evaluation import weighted_mean_cov
 from pose_uncertainty.localization.motion import Motion, sample_motion
 from pose_uncertainty.localization.resampling import normalize_log_weights
 from pose_uncertainty.methods import maps as M

@@ -24,8 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks._common import best_of, write_results
-from pose_uncertainty.logs.run import MapRecord, RunConfig, RunResult, execute
-from pose_uncertainty.logs.runlog import format_summary, open_run, write_run
+from pose_uncertainty.experiments.run import MapRecord, RunConfig, RunResult, execute
+from pose_uncertainty.records.run import format_summary, open_run, write_run
 
 CONFIG = {
     "name": "bench_runlog",

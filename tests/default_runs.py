@@ -6,7 +6,7 @@ drives existed. :data:`CONFIGS` are small existing configurations (from
 ``tests/data/default_runs/<name>.mcap`` holds each one's log (provenance replaced by a
 fixed value, so that the git commit and the machine do not enter), written by the code
 of commit ae20f79 (before the drives existed). The test compares the decoded records
-within the reproducibility contract (:mod:`pose_uncertainty.logs.reproducibility`), so
+within the reproducibility contract (:mod:`pose_uncertainty.records.reproducibility`), so
 that it holds on any CPU: bit for bit on a CPU like the one that wrote them (AVX2, no
 AVX-512), within tolerance on another. ``python tests/default_runs.py`` rewrites them;
 do so only for a change that is *meant* to alter what a default run logs, and say so in
@@ -21,8 +21,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from pose_uncertainty.logs.run import RunConfig, execute
-from pose_uncertainty.logs.runlog import log_bytes
+from pose_uncertainty.experiments.run import RunConfig, execute
+from pose_uncertainty.records.run import log_bytes
 
 REFERENCES = Path(__file__).with_name("data") / "default_runs"
 

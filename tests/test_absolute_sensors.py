@@ -18,8 +18,8 @@ from pose_uncertainty.localization.absolute_sensors import (
     ekf_update_absolute,
     grid_log_likelihood,
 )
+from pose_uncertainty.localization.evaluation import weighted_mean_cov
 from pose_uncertainty.localization.histogram import hf_correct, hf_estimate, initial_belief
-from pose_uncertainty.localization.measures import weighted_mean_cov
 from pose_uncertainty.localization.particle import pf_correct
 from pose_uncertainty.localization.resampling import effective_sample_size
 from pose_uncertainty.localization.result import Start

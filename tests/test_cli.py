@@ -12,9 +12,9 @@ import pytest
 import yaml
 
 from pose_uncertainty.cli import main
-from pose_uncertainty.logs.run import RunConfig, execute
-from pose_uncertainty.logs.runlog import open_run, write_run
+from pose_uncertainty.experiments.run import RunConfig, execute
 from pose_uncertainty.present import figures
+from pose_uncertainty.records.run import open_run, write_run
 
 CONFIG = {
     "name": "cli_circle",
@@ -122,7 +122,7 @@ def test_verify_passes_on_fresh_and_fails_on_tampered(
 def test_verify_catches_a_changed_display_topic(logged: Path, tmp_path: Path) -> None:
     """Same data but a different Pr-ellipse drawing: only the byte comparison can see it."""
     res = execute(RunConfig.from_dict(CONFIG))
-    from pose_uncertainty.logs import runlog
+    from pose_uncertainty.records import run as runlog
 
     original = runlog._ELLIPSE_POINTS
     runlog._ELLIPSE_POINTS = original + 2

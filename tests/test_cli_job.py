@@ -11,14 +11,14 @@ import pytest
 from default_runs import CONFIGS
 
 from pose_uncertainty.cli.job import main
-from pose_uncertainty.logs.study import run_study
-from pose_uncertainty.logs.sweep import simulate
+from pose_uncertainty.experiments.study import run_study
+from pose_uncertainty.pipeline.jobs import simulate_run
 
 
 def test_simulate_run_writes_the_log_of_the_library_call(tmp_path: Path) -> None:
     config = CONFIGS["right_angles"]
     assert main(["simulate-run", json.dumps(config), str(tmp_path / "a.mcap"), str(tmp_path / "a.json")]) == 0
-    simulate(config, tmp_path / "b.mcap", tmp_path / "b.json")
+    simulate_run(config, tmp_path / "b.mcap", tmp_path / "b.json")
     assert (tmp_path / "a.mcap").read_bytes() == (tmp_path / "b.mcap").read_bytes()
     assert set(json.loads((tmp_path / "a.json").read_text(encoding="utf-8"))) >= {"total_s"}
 

@@ -25,9 +25,9 @@ import yaml
 from pose_uncertainty.cli import main
 from pose_uncertainty.core import trajectories
 from pose_uncertainty.core.schema import load_schema
-from pose_uncertainty.logs import cost, sweep
-from pose_uncertainty.logs.progress import Progress
-from pose_uncertainty.logs.run import RunConfig, execute
+from pose_uncertainty.experiments import cost, sweep
+from pose_uncertainty.experiments.progress import Progress
+from pose_uncertainty.experiments.run import RunConfig, execute
 from pose_uncertainty.methods import maps, sampling
 
 REPO = Path(__file__).resolve().parents[1]
@@ -234,14 +234,14 @@ def test_pipeline_schema_refuses_text_that_is_no_number() -> None:
 #: the parent's resident set at the fork, which Linux carries over the exec)
 PEAK = """
 import json, sys
-from pose_uncertainty.logs.sweep import simulate
-simulate(json.loads(sys.argv[1]), sys.argv[2])
+from pose_uncertainty.pipeline.jobs import simulate_run
+simulate_run(json.loads(sys.argv[1]), sys.argv[2])
 with open("/proc/self/status") as fh:
     print(next(int(ln.split()[1]) * 1024 for ln in fh if ln.startswith("VmHWM:")))
 """
 
 #: one representative run per driver, each a few seconds, each peak more than twice the
-#: interpreter's 45 MB so that the driver dominates it (coefficients: logs/cost.py's docstring)
+#: interpreter's 45 MB so that the driver dominates it (coefficients: experiments/cost.py's docstring)
 REPRESENTATIVE = {
     "steps": {"trajectory": {"name": "straight", "dt": 2.5e-5}, "monte_carlo": {"n_particles": 0}},
     "monte_carlo": {"trajectory": {"name": "straight", "dt": 0.01}, "monte_carlo": {"n_particles": 300_000}},

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from pose_uncertainty.analysis import drives as ad
+from pose_uncertainty.analysis import drive_growth as ad
 from pose_uncertainty.core import drives as dr
 from pose_uncertainty.core import trajectories as tr
 from pose_uncertainty.methods import drive_noise as dn

@@ -22,13 +22,14 @@ from pose_uncertainty.cli import main
 from pose_uncertainty.core import drives as dr
 from pose_uncertainty.core import trajectories as tr
 from pose_uncertainty.core.schema import load_schema
-from pose_uncertainty.core.tables import read_table
-from pose_uncertainty.logs import sweep, tables
-from pose_uncertainty.logs.drive_config import GEOMETRY
-from pose_uncertainty.logs.run import RunConfig, RunResult, execute
-from pose_uncertainty.logs.runlog import open_run, write_run
+from pose_uncertainty.core.table_io import read_table
+from pose_uncertainty.experiments import sweep
+from pose_uncertainty.experiments.drive_config import GEOMETRY
+from pose_uncertainty.experiments.run import RunConfig, RunResult, execute
+from pose_uncertainty.pipeline import tables
 from pose_uncertainty.present import figures
 from pose_uncertainty.present.pipeline_figures import drives_figure
+from pose_uncertainty.records.run import open_run, write_run
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -351,8 +352,8 @@ def test_follow_is_what_the_run_drives() -> None:
 
 def test_report_section_formats_the_logged_drive_measures(drive_logs, tmp_path: Path) -> None:
     """The section "Beyond the differential drive" shows the table's numbers, formatted, and nothing else."""
-    from pose_uncertainty.analysis.claims import write_claims
-    from pose_uncertainty.logs.summary import summarize_pipeline
+    from pose_uncertainty.pipeline.claims import write_claims
+    from pose_uncertainty.pipeline.summary import summarize_pipeline
     from pose_uncertainty.present.pipeline_figures import render_set_figure
     from pose_uncertainty.present.report import _fmt, build_report
 

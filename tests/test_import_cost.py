@@ -19,10 +19,10 @@ from default_runs import CONFIGS
 _RUN_HEAVY = ["scipy.special", "scipy.fft", "scipy.optimize", "jsonschema", "matplotlib", "PIL", "contourpy"]
 _JOB = "from pose_uncertainty.cli.job import main; "  # the runs' and studies' job command
 JOBS = {
-    "simulate_run": (_JOB + "from pose_uncertainty.logs.sweep import simulate", _RUN_HEAVY),
-    "simulate_localization": (_JOB + "from pose_uncertainty.logs.localization_log import simulate_localization",
+    "simulate_run": (_JOB + "from pose_uncertainty.pipeline.jobs import simulate_run", _RUN_HEAVY),
+    "simulate_localization": (_JOB + "from pose_uncertainty.pipeline.jobs import simulate_localization",
                               _RUN_HEAVY),
-    "run_study": (_JOB + "from pose_uncertainty.logs.study import run_study", _RUN_HEAVY),
+    "run_study": (_JOB + "from pose_uncertainty.pipeline.jobs import run_study", _RUN_HEAVY),
     "render_run_figures": ("from pose_uncertainty.present.pipeline_figures import render_run_figures",
                            ["scipy.optimize", "scipy.special", "jsonschema"]),
 }  # fmt: skip
@@ -48,7 +48,7 @@ def test_the_check_sees_a_heavy_import():
 
 def test_a_localization_log_kind_is_found_without_importing_its_module_first():
     code = (
-        "from pose_uncertainty.logs import runlog; before = dict(runlog.LOG_KINDS); "
+        "from pose_uncertainty.records import run as runlog; before = dict(runlog.LOG_KINDS); "
         "kind = runlog.log_kind('pose-uncertainty-localization'); "
         "print(len(before), kind is not None, runlog.log_kind(runlog.FORMAT) is None)"
     )

@@ -1,10 +1,12 @@
 """The package's folders are its layers; a lower layer never imports a higher one.
 
-Layers, lowest first: ``core`` (validation, kinematics, trajectories, noise, statistics)
-← ``methods`` (covariance, exponential coordinates, motion models, maps, Monte Carlo)
-← ``localization`` (worlds, sensors, Bayes filters) ← ``analysis`` (accuracy, calibration,
-claims, studies) ← ``robot`` (a real robot's bags: calibration, nav2 parameters) ← ``logs`` (run configuration, execution, MCAP logs, sweeps, tables)
-← ``present`` (figures, report) ← ``cli``. Every import is checked, at module top or not.
+Layers, lowest first: ``core`` (validation, kinematics, trajectories, noise, statistics,
+provenance) ← ``methods`` (covariance, exponential coordinates, motion models, maps, Monte
+Carlo) ← ``localization`` (worlds, sensors, Bayes filters) ← ``analysis`` (measures, accuracy,
+calibration, studies) ← ``robot`` (a real robot's bags: calibration, nav2 parameters)
+← ``experiments`` (configuration, sweeps, execution, cost) ← ``records`` (the log formats)
+← ``pipeline`` (job entry points, tables, summaries, claims) ← ``present`` (figures, report)
+← ``cli``. Every import is checked, at module top or not.
 """
 
 import ast
@@ -13,7 +15,7 @@ from pathlib import Path
 import pytest
 
 PKG = Path(__file__).resolve().parents[1] / "src" / "pose_uncertainty"
-LAYERS = ("core", "methods", "localization", "analysis", "robot", "logs", "present", "cli")
+LAYERS = ("core", "methods", "localization", "analysis", "robot", "experiments", "records", "pipeline", "present", "cli")
 
 
 def _layer_of(parts: tuple[str, ...]) -> str | None:
@@ -78,9 +80,9 @@ def test_no_import_of_a_higher_layer(path):
 def test_the_checker_sees_a_violation(tmp_path):
     # the check itself must be able to fail: a core module importing present is caught
     fake = PKG / "core" / "_layer_probe_tmp.py"
-    fake.write_text("from ..present import report\nfrom pose_uncertainty.logs import runlog\n")
+    fake.write_text("from ..present import report\nfrom pose_uncertainty.records import run\n")
     try:
         targets = [t for _, t in _imports(fake)]
     finally:
         fake.unlink()
-    assert [_layer_of(t) for t in targets] == ["present", "logs"]
+    assert [_layer_of(t) for t in targets] == ["present", "records"]

@@ -8,7 +8,7 @@ import pytest
 
 from pose_uncertainty.core import trajectories as tr
 from pose_uncertainty.localization import ekf as E
-from pose_uncertainty.localization import measures as MS
+from pose_uncertainty.localization import evaluation as MS
 from pose_uncertainty.localization import sensors as S
 from pose_uncertainty.localization import simulate as SIM
 from pose_uncertainty.localization import world as W

@@ -11,7 +11,7 @@ from pose_uncertainty.core.stats import (
     hdr_levels,
     hdr_region,
 )
-from pose_uncertainty.localization import measures as MS
+from pose_uncertainty.localization import evaluation as MS
 
 PRS = np.array(list(COVERAGE_LEVELS.values()))
 

@@ -19,29 +19,29 @@ from pose_uncertainty.core import stats
 from pose_uncertainty.core import trajectories as tr
 from pose_uncertainty.core.grids import Grid
 from pose_uncertainty.core.schema import load_schema
-from pose_uncertainty.core.tables import read_table
+from pose_uncertainty.core.table_io import read_table
+from pose_uncertainty.experiments import sweep
+from pose_uncertainty.experiments.localization import (
+    LocalizationConfig,
+    execute_localization,
+    expand_localization,
+    numbers_from_text,
+)
 from pose_uncertainty.localization import ekf as E
 from pose_uncertainty.localization import histogram as HF
 from pose_uncertainty.localization import particle as PF
 from pose_uncertainty.localization import resampling as R
 from pose_uncertainty.localization import sensors as S
 from pose_uncertainty.localization import simulate as SIM
-from pose_uncertainty.localization.measures import mass_region_flags, nees, pose_errors
+from pose_uncertainty.localization.evaluation import mass_region_flags, nees, pose_errors
 from pose_uncertainty.localization.motion import Motion, sample_motion, wheel_draws
 from pose_uncertainty.localization.world import World, sample_free_poses
-from pose_uncertainty.logs import localization_log as LL
-from pose_uncertainty.logs import sweep
-from pose_uncertainty.logs.localization import (
-    LocalizationConfig,
-    execute_localization,
-    expand_localization,
-    numbers_from_text,
-)
-from pose_uncertainty.logs.reproducibility import MISMATCH
-from pose_uncertainty.logs.runlog import PartialLogWarning, RunLogError, open_run, verify_run
-from pose_uncertainty.logs.tables import collect_table
 from pose_uncertainty.methods import maps as M
-from pose_uncertainty.present import localization_figures as LF
+from pose_uncertainty.pipeline.tables import collect_table
+from pose_uncertainty.present import localization as LF
+from pose_uncertainty.records import localization as LL
+from pose_uncertainty.records.reproducibility import MISMATCH
+from pose_uncertainty.records.run import PartialLogWarning, RunLogError, open_run, verify_run
 
 REPO = Path(__file__).resolve().parents[1]
 BOX = [[0.0, 0.0, 6.0, 0.0], [6.0, 0.0, 6.0, 5.0], [6.0, 5.0, 0.0, 5.0], [0.0, 5.0, 0.0, 0.0]]

@@ -16,17 +16,17 @@ import pytest
 from numpy.testing import assert_allclose
 
 from pose_uncertainty.analysis import accuracy, measures
-from pose_uncertainty.analysis.claims import method_guide, unscented_summary
 from pose_uncertainty.core import trajectories
 from pose_uncertainty.core.grids import Grid
 from pose_uncertainty.core.stats import PR_3SIGMA, pr_to_k
-from pose_uncertainty.core.tables import read_table
-from pose_uncertainty.logs.run import RunConfig, execute
-from pose_uncertainty.logs.runlog import RunLog, open_run, verify_run, write_run
-from pose_uncertainty.logs.tables import collect_table
+from pose_uncertainty.core.table_io import read_table
+from pose_uncertainty.experiments.run import RunConfig, execute
 from pose_uncertainty.methods import covariance, expcoords, unscented
 from pose_uncertainty.methods.sampling import sample_end_poses
+from pose_uncertainty.pipeline.claims import method_guide, unscented_summary
+from pose_uncertainty.pipeline.tables import collect_table
 from pose_uncertainty.present import figures
+from pose_uncertainty.records.run import RunLog, open_run, verify_run, write_run
 
 CIRCLE = {
     "name": "circle2",

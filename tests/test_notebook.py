@@ -56,8 +56,8 @@ def _text(nb: dict) -> str:
 
 @pytest.mark.slow
 def test_notebook_runs_on_given_logs(kernel_env: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from pose_uncertainty.logs.run import RunConfig, execute
-    from pose_uncertainty.logs.runlog import write_run
+    from pose_uncertainty.experiments.run import RunConfig, execute
+    from pose_uncertainty.records.run import write_run
 
     runs = kernel_env / "runs"
     runs.mkdir()

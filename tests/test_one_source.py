@@ -20,9 +20,9 @@ import pytest
 from test_pipeline import quick_pipeline
 
 from pose_uncertainty.core.stats import COVERAGE_LEVELS, fraction_inside_ellipse
-from pose_uncertainty.core.tables import read_table
-from pose_uncertainty.logs.runlog import open_run
-from pose_uncertainty.logs.study import read_study
+from pose_uncertainty.core.table_io import read_table
+from pose_uncertainty.experiments.study import read_study
+from pose_uncertainty.records.run import open_run
 
 GOLDEN = Path(__file__).with_name("golden") / "quick_claims.json"
 

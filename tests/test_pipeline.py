@@ -25,10 +25,11 @@ import pytest
 import yaml
 from PIL import Image
 
-from pose_uncertainty.analysis.claims import VERDICTS
 from pose_uncertainty.core.schema import load_schema
-from pose_uncertainty.core.tables import read_table
-from pose_uncertainty.logs import sweep
+from pose_uncertainty.core.table_io import read_table
+from pose_uncertainty.experiments import sweep
+from pose_uncertainty.pipeline import jobs
+from pose_uncertainty.pipeline.claims import VERDICTS
 
 REPO = Path(__file__).resolve().parents[1]
 SNAKEMAKE = Path(sys.executable).with_name("snakemake")
@@ -227,8 +228,8 @@ def test_bad_config_fails_before_any_rule_runs(tmp_path: Path) -> None:
 
 
 def test_quick_pipeline_end_to_end(quick: Path) -> None:
-    from pose_uncertainty.logs.runlog import open_run
     from pose_uncertainty.present import figures
+    from pose_uncertainty.records.run import open_run
 
     cfg = sweep.validate_config(_config("quick.yaml"), SCHEMA)
     sets = sweep.expand_all(cfg)
@@ -292,8 +293,8 @@ def test_report_has_the_studies_sections(quick: Path) -> None:
 
 def test_report_has_method_c_and_umbmark(quick: Path) -> None:
     """Method C in the per-run tables (= the logs), its section, and the UMBmark section with its figure."""
-    from pose_uncertainty.logs.runlog import open_run
     from pose_uncertainty.present.pipeline_figures import render_study_figure
+    from pose_uncertainty.records.run import open_run
 
     html = (quick / "reports/comparison.html").read_text(encoding="utf-8")
     for sid in ("method-c", "umbmark", "fig-studies-umbmark"):
@@ -351,7 +352,7 @@ def test_changing_one_parameter_reruns_only_what_it_affects(quick: Path) -> None
 def test_pipeline_logs_are_byte_reproducible(quick: Path, tmp_path: Path) -> None:
     run = sweep.expand_all(sweep.validate_config(_config("quick.yaml"), SCHEMA))["A1_shape"][1]
     again = tmp_path / "again.mcap"
-    sweep.simulate(run.config, again)
+    jobs.simulate_run(run.config, again)
     assert again.read_bytes() == (quick / run.path).read_bytes()
 
 
@@ -441,11 +442,8 @@ def test_report_has_the_drives_section(quick: Path) -> None:
 def test_localization_figures_one_job_per_set(quick: Path) -> None:
     """Every localization run's figures are drawn (one job per set) into runs/<run>/ and shown in the report,
     with the bytes the replay functions give from the run's log alone."""
-    from pose_uncertainty.logs import localization as loc
-    from pose_uncertainty.present.localization_figures import (
-        RUN_FIGURES,
-        render_localization_run_figures,
-    )
+    from pose_uncertainty.experiments import localization as loc
+    from pose_uncertainty.present.localization import RUN_FIGURES, render_localization_run_figures
 
     html = (quick / "reports/comparison.html").read_text(encoding="utf-8")
     sets = loc.expand_localization(sweep.validate_config(_config("quick.yaml"), SCHEMA))

@@ -30,9 +30,9 @@ from mcap.records import Metadata
 from mcap.writer import Writer as McapWriter
 
 from pose_uncertainty.cli import main
-from pose_uncertainty.logs import reproducibility as rp
-from pose_uncertainty.logs.run import RunConfig, execute
-from pose_uncertainty.logs.runlog import _scan, log_bytes, open_run, write_run
+from pose_uncertainty.experiments.run import RunConfig, execute
+from pose_uncertainty.records import reproducibility as rp
+from pose_uncertainty.records.run import _scan, log_bytes, open_run, write_run
 
 HERE = Path(__file__).resolve().parent
 REFERENCES = HERE / "data" / "default_runs"
@@ -316,9 +316,9 @@ def test_every_log_records_the_machine_arithmetic(straight_log: Path) -> None:
 
 
 def test_the_report_flags_logs_made_on_other_arithmetic(tmp_path: Path) -> None:
-    from pose_uncertainty.analysis.claims import write_claims
-    from pose_uncertainty.logs import tables
-    from pose_uncertainty.logs.summary import summarize_pipeline
+    from pose_uncertainty.pipeline import tables
+    from pose_uncertainty.pipeline.claims import write_claims
+    from pose_uncertainty.pipeline.summary import summarize_pipeline
     from pose_uncertainty.present.report import build_report
 
     result = execute(RunConfig.from_dict(STRAIGHT))

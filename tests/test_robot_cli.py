@@ -13,8 +13,8 @@ from default_runs import CONFIGS
 from rosbags.highlevel import AnyReader
 
 from pose_uncertainty.cli import main
-from pose_uncertainty.logs.run import RunConfig, execute
-from pose_uncertainty.logs.runlog import open_run, write_run
+from pose_uncertainty.experiments.run import RunConfig, execute
+from pose_uncertainty.records.run import open_run, write_run
 from pose_uncertainty.robot.calibrate import OUTPUT_FILES
 from pose_uncertainty.robot.messages import cov3_from_6, yaw_of
 from pose_uncertainty.robot.simulate import SimulatedRobot, calibration_drive, write_simulated_bag

@@ -13,12 +13,12 @@ from mcap.reader import make_reader
 
 from pose_uncertainty.core import trajectories
 from pose_uncertainty.core.grids import Grid
-from pose_uncertainty.logs import runlog
-from pose_uncertainty.logs.run import RunConfig, RunResult, execute
-from pose_uncertainty.logs.runlog import PartialLogWarning, RunLogError, open_run, write_run
+from pose_uncertainty.experiments.run import RunConfig, RunResult, execute
 from pose_uncertainty.methods import covariance
 from pose_uncertainty.methods.maps import ProbabilityMap
 from pose_uncertainty.present import figures
+from pose_uncertainty.records import run as runlog
+from pose_uncertainty.records.run import PartialLogWarning, RunLogError, open_run, write_run
 
 CONFIG = {
     "name": "s_curve_test",
@@ -242,8 +242,8 @@ def test_write_is_atomic(
 
 KILL_SCRIPT = """
 import os, signal, sys
-from pose_uncertainty.logs import runlog
-from pose_uncertainty.logs.run import RunConfig, execute
+from pose_uncertainty.records import run as runlog
+from pose_uncertainty.experiments.run import RunConfig, execute
 
 result = execute(RunConfig.from_dict({config!r}))
 real_put, count = runlog._Log.put, [0]

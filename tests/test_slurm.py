@@ -7,7 +7,7 @@ one running simulation with ``scancel`` on the way, and checks that
 
 * the cancelled job is retried (the profile's ``retries``) and the pipeline completes;
 * that job asked the scheduler for what its run's cost estimate says
-  (``pose_uncertainty.logs.cost.job_resources``: ``--mem`` and ``--time``);
+  (``pose_uncertainty.experiments.cost.job_resources``: ``--mem`` and ``--time``);
 * every run log made through SLURM is byte-identical to the same run made locally
   (the quick pipeline of tests/test_pipeline.py, shared by the session);
 * the report builds from them.
@@ -34,7 +34,7 @@ import yaml
 from test_pipeline import REPO, copy_workflow, quick_pipeline
 
 from pose_uncertainty.core.schema import load_schema
-from pose_uncertainty.logs import cost, sweep
+from pose_uncertainty.experiments import cost, sweep
 
 VENV_BIN = Path(sys.executable).parent
 BINARIES = ("sinfo", "squeue", "sbatch", "scancel", "srun")

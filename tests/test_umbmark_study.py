@@ -12,7 +12,7 @@ from numpy.testing import assert_allclose
 
 from pose_uncertainty.analysis import studies as st
 from pose_uncertainty.analysis import umbmark as um
-from pose_uncertainty.logs.study import read_study, run_study, study_params
+from pose_uncertainty.experiments.study import read_study, run_study, study_params
 from pose_uncertainty.methods import systematic as sy
 from pose_uncertainty.present.pipeline_figures import (
     STUDY_FIGURES,

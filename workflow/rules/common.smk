@@ -5,10 +5,10 @@ import sys as _sys
 from pathlib import Path
 from importlib import resources as _resources
 
-from pose_uncertainty.logs import sweep as _sweep
-from pose_uncertainty.logs import localization as _loc
-from pose_uncertainty.logs import study as _study
-from pose_uncertainty.logs.provenance import source_sha256
+from pose_uncertainty.experiments import sweep as _sweep
+from pose_uncertainty.experiments import localization as _loc
+from pose_uncertainty.experiments import study as _study
+from pose_uncertainty.core.provenance import source_sha256
 from pose_uncertainty.core.schema import load_schema
 from pose_uncertainty.present.pipeline_figures import STUDY_FIGURES as _STUDY_FIGURES
 
@@ -49,9 +49,10 @@ except ValueError as _exc:
 
 # The source of the layers each rule runs (a rule param): Snakemake reruns a rule when its code
 # changes, so no log, table or figure can be older than the code that makes it.
-SOURCE_RUNS = source_sha256("core", "methods", "localization", "analysis", "logs")
-SOURCE_CLAIMS = source_sha256("core", "methods", "localization", "analysis")
-SOURCE_PRESENT = source_sha256("core", "methods", "localization", "analysis", "logs", "present")
+SOURCE_RUNS = source_sha256("core", "methods", "localization", "analysis", "experiments", "records", "pipeline")
+SOURCE_CLAIMS = source_sha256("core", "methods", "localization", "analysis", "pipeline")
+SOURCE_PRESENT = source_sha256("core", "methods", "localization", "analysis", "experiments", "records", "pipeline",
+                               "present")
 RUN_BY_ID = {(s, r.id): r for s, runs in RUNS.items() for r in runs}
 SETS = list(RUNS)
 
@@ -206,7 +207,7 @@ def polar_logs(wildcards):
     return [r.path for r in (runs or RUNS[wildcards.set])[:8]]
 
 
-# --- localization (pose_uncertainty.logs.localization): its sets, runs, outputs --------------------
+# --- localization (pose_uncertainty.experiments.localization): its sets, runs, outputs --------------------
 # Config key `localization.sets`: sweeps over localization run configurations, expanded like the
 # experiment sets; logs in data/localization/<set>/<run>.mcap, rules in workflow/rules/localization.smk.
 try:

@@ -1,5 +1,5 @@
 # One run → one MCAP log (byte-reproducible) + its wall-clock timings (pose_uncertainty.cli.job).
-from pose_uncertainty.logs import cost as _cost
+from pose_uncertainty.experiments import cost as _cost
 
 
 rule simulate_run:

@@ -1,8 +1,8 @@
-"""Adapter: one CSV of logged measures for a set (pose_uncertainty.logs.tables.collect_table)."""
+"""Adapter: one CSV of logged measures for a set (pose_uncertainty.pipeline.tables.collect_table)."""
 
 from contextlib import redirect_stderr
 
-from pose_uncertainty.logs.tables import collect_table
+from pose_uncertainty.pipeline.tables import collect_table
 
 sm = snakemake  # noqa: F821 - injected by Snakemake
 with open(sm.log[0], "w", encoding="utf-8") as log, redirect_stderr(log):

@@ -1,11 +1,11 @@
 """Adapter: draw the figures of every localization log of one set into <folder>/<run>/<kind>.png
-(pose_uncertainty.present.localization_figures), written into a temporary folder renamed at the end."""
+(pose_uncertainty.present.localization), written into a temporary folder renamed at the end."""
 
 from contextlib import redirect_stderr
 from pathlib import Path
 
 from pose_uncertainty.core.atomic import atomic_directory
-from pose_uncertainty.present.localization_figures import render_localization_run_figures
+from pose_uncertainty.present.localization import render_localization_run_figures
 
 sm = snakemake  # noqa: F821 - injected by Snakemake
 kinds = list(sm.params.kinds)

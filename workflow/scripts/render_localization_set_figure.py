@@ -1,8 +1,8 @@
-"""Adapter: draw a localization set's figure (pose_uncertainty.present.localization_figures)."""
+"""Adapter: draw a localization set's figure (pose_uncertainty.present.localization)."""
 
 from contextlib import redirect_stderr
 
-from pose_uncertainty.present.localization_figures import render_localization_set_figure
+from pose_uncertainty.present.localization import render_localization_set_figure
 
 sm = snakemake  # noqa: F821 - injected by Snakemake
 with open(sm.log[0], "w", encoding="utf-8") as log, redirect_stderr(log):

@@ -1,8 +1,8 @@
-"""Adapter: provenance from every log, seeds and rule times (pose_uncertainty.logs.summary)."""
+"""Adapter: provenance from every log, seeds and rule times (pose_uncertainty.pipeline.summary)."""
 
 from contextlib import redirect_stderr
 
-from pose_uncertainty.logs.summary import summarize_pipeline
+from pose_uncertainty.pipeline.summary import summarize_pipeline
 
 sm = snakemake  # noqa: F821 - injected by Snakemake
 with open(sm.log[0], "w", encoding="utf-8") as log, redirect_stderr(log):

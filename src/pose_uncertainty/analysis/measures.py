@@ -1,6 +1,6 @@
 """Every per-run measure the tables, claims, figures and report use, with its unit and definition.
 
-A run computes these once, where it executes (:func:`pose_uncertainty.logs.run.execute`),
+A run computes these once, where it executes (:func:`pose_uncertainty.experiments.run.execute`),
 and logs them; everything downstream reads them back. Names:
 
 * run — ``path_length``, ``duration``, ``end_x``, ``end_y``, ``end_theta``;
@@ -17,13 +17,13 @@ and logs them; everything downstream reads them back. Names:
   is not logged: its covariance is the exponential-coordinates Gaussian's (the banana's,
   ``accuracy_expcoords_*``) to a relative 4·10⁻¹¹ on a 64 m line and 1.6·10⁻⁹ on eight laps of
   the 1 m circle (k = 5·10⁻⁴ m, b = 0.2 m), at twice Method C's cost;
-* runs with a ``drive`` section only (:mod:`pose_uncertainty.logs.drive_run`):
+* runs with a ``drive`` section only (:mod:`pose_uncertainty.experiments.drive_run`):
   ``A_growth_*``, ``MC_growth_*`` — power-law exponents of the spreads against
-  path length (:func:`pose_uncertainty.analysis.drives.growth_measures`), and for a
+  path length (:func:`pose_uncertainty.analysis.drive_growth.growth_measures`), and for a
   skid-steer drive ``drive_plain_odometry_*`` — the bias of plain differential
-  odometry (:func:`pose_uncertainty.analysis.drives.plain_odometry_measures`);
+  odometry (:func:`pose_uncertainty.analysis.drive_growth.plain_odometry_measures`);
 * ``loc_*`` — a localization run and its filters (registry and functions in
-  :mod:`pose_uncertainty.analysis.localization_measures`).
+  :mod:`pose_uncertainty.analysis.localization`).
 
 :func:`describe` gives the unit and definition of any of these names; a name it
 does not know raises ``KeyError`` (a run cannot log an undefined number).
@@ -54,7 +54,7 @@ from ..core.stats import (
 from ..core.validation import check_last_axis
 from ..methods.covariance import ellipse
 from ..methods.maps import ProbabilityMap
-from .localization_measures import DEFINITIONS as _LOCALIZATION_DEFINITIONS
+from .localization import DEFINITIONS as _LOCALIZATION_DEFINITIONS
 
 __all__ = [
     "cloud_measures",
@@ -156,7 +156,7 @@ _DEFINITIONS: tuple[tuple[str, str, str], ...] = (
      "mean log-likelihood of the Monte Carlo end {2}s under the {1} Gaussian"),
     (r"accuracy_(cartesian|expcoords)_nees_(pose|xy)", "1",
      "mean normalised estimation error squared of the {1} Gaussian ({2}; 3 or 2 if consistent)"),
-    # --- runs with a drive section (issue 12; pose_uncertainty.logs.drive_run) ---
+    # --- runs with a drive section (issue 12; pose_uncertainty.experiments.drive_run) ---
     (r"A_growth_(sigma_along|sigma_across|sigma_theta)", "1",
      ("exponent p of the power law {1} ∝ s^p fitted (least squares, log-log) to Method A's {1} against "
      "the path length s at the growth points: the Monte Carlo checkpoints and the end, or without "

@@ -25,7 +25,7 @@
   clouds, ellipses and bananas.
 
 The pipeline runs each study as a job of its own (config key ``studies``; kinds
-in :data:`STUDIES`, executed and logged by :mod:`pose_uncertainty.logs.study`);
+in :data:`STUDIES`, executed and logged by :mod:`pose_uncertainty.experiments.study`);
 :func:`summarize` turns the logged results into what the report quotes.
 """
 

@@ -29,8 +29,8 @@ from ..analysis.umbmark import read_returns_csv, umbmark
 from ..core import trajectories
 from ..core.trajectories import Trajectory
 from ..core.validation import check_probability
-from ..logs.config import RunConfig
-from ..logs.runlog import open_run
+from ..experiments.config import RunConfig
+from ..records.run import open_run
 from ._common import load_config_file
 
 __all__ = ["METHODS", "add_parser", "cmd_calibrate"]

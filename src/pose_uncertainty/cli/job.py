@@ -9,11 +9,11 @@ written atomically by the functions called; progress goes to stderr (the rule's 
 Commands
 --------
 ``simulate-run CONFIG_JSON LOG.mcap TIMINGS.json``
-    :func:`pose_uncertainty.logs.sweep.simulate`.
+    :func:`pose_uncertainty.pipeline.jobs.simulate_run`.
 ``simulate-localization CONFIG_JSON LOG.mcap TIMINGS.json``
-    :func:`pose_uncertainty.logs.localization_log.simulate_localization`.
+    :func:`pose_uncertainty.pipeline.jobs.simulate_localization`.
 ``run-study NAME SPEC_JSON OUT.json``
-    :func:`pose_uncertainty.logs.study.run_study`.
+    :func:`pose_uncertainty.pipeline.jobs.run_study`.
 
 Exit status: 0 success; 2 bad usage or a configuration that is not a JSON object (one line
 on stderr); an error of the computation ends with its traceback on stderr (status 1), as a
@@ -59,18 +59,14 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one job; returns the exit status (see the module docstring)."""
     args = _parser().parse_args(argv)
+    from ..pipeline import jobs
+
     if args.kind == "simulate-run":
-        from ..logs.sweep import simulate
-
-        simulate(args.config, args.log, args.timings)
+        jobs.simulate_run(args.config, args.log, args.timings)
     elif args.kind == "simulate-localization":
-        from ..logs.localization_log import simulate_localization
-
-        simulate_localization(args.config, args.log, args.timings)
+        jobs.simulate_localization(args.config, args.log, args.timings)
     else:
-        from ..logs.study import run_study
-
-        run_study(args.name, args.spec, args.out)
+        jobs.run_study(args.name, args.spec, args.out)
     return 0
 
 

@@ -9,12 +9,12 @@ from typing import Any
 
 import numpy as np
 
-from ..logs.localization_log import LocalizationLog
-from ..logs.provenance import MACHINE_KEYS, provenance
-from ..logs.reproducibility import IDENTICAL, MISMATCH, Comparison
-from ..logs.runlog import PartialLogWarning, open_run, verify_run
+from ..core.provenance import MACHINE_KEYS, provenance
 from ..present.figures import render_figures
-from ..present.localization_figures import render_localization_figures
+from ..present.localization import render_localization_figures
+from ..records.localization import LocalizationLog
+from ..records.reproducibility import IDENTICAL, MISMATCH, Comparison
+from ..records.run import PartialLogWarning, open_run, verify_run
 from ..robot.run_bag import write_run_bag
 from ._common import EXIT_MISMATCH, EXIT_OK, CommandError
 

@@ -5,14 +5,18 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from ..logs.config import RunConfig
-from ..logs.localization import LocalizationConfig, execute_localization, is_localization_config
-from ..logs.localization_log import write_localization
-from ..logs.progress import Progress
-from ..logs.run import execute
-from ..logs.runlog import write_run
+from ..experiments.config import RunConfig
+from ..experiments.localization import (
+    LocalizationConfig,
+    execute_localization,
+    is_localization_config,
+)
+from ..experiments.progress import Progress
+from ..experiments.run import execute
 from ..present.figures import render_figures
-from ..present.localization_figures import render_localization_figures
+from ..present.localization import render_localization_figures
+from ..records.localization import write_localization
+from ..records.run import write_run
 from ._common import EXIT_OK, CommandError, load_config_file
 
 __all__ = ["add_parser", "cmd_run"]

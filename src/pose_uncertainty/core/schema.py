@@ -1,7 +1,7 @@
 """JSON Schema (2020-12) validation with one-line errors: the key, the bad value, what is allowed.
 
 The one formatter of schema errors of the package, used for the pipeline config
-(:mod:`pose_uncertainty.logs.sweep`) and the world files
+(:mod:`pose_uncertainty.experiments.sweep`) and the world files
 (:mod:`pose_uncertainty.localization.world`).
 """
 

@@ -48,7 +48,7 @@ from ..core.noise import check_scaling
 from ..core.validation import check_choice, check_finite, check_last_axis, check_positive
 from ..methods.covariance import step as covariance_step
 from ..methods.motion_models import velocity_forward, velocity_variances
-from .measures import gaussian_region_flags
+from .evaluation import gaussian_region_flags
 from .motion import Motion
 from .result import (
     ASSOCIATIONS,

@@ -31,7 +31,7 @@ from ..core.grids import Grid
 from ..core.kinematics import wrap_angle
 from ..core.validation import check_choice, check_positive, check_positive_int
 from ..methods.maps import GridTransition, ProbabilityMap, grid_transition, predict_on_grid
-from .measures import region_flags_of_mass
+from .evaluation import region_flags_of_mass
 from .motion import Motion
 from .result import (
     ASSOCIATIONS,

@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 
 from ..core.kinematics import wrap_angle
 from ..core.validation import check_choice, check_positive, check_positive_int
-from .measures import region_flags_of_mass, weighted_mean_cov
+from .evaluation import region_flags_of_mass, weighted_mean_cov
 from .motion import Motion, sample_motion, wheel_draws
 from .resampling import (
     SCHEMES,

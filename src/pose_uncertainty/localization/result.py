@@ -27,7 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..core.stats import COVERAGE_LEVELS
 from ..core.validation import check_choice, check_finite, check_nonnegative
-from .measures import convergence, nees, pose_errors
+from .evaluation import convergence, nees, pose_errors
 from .sensors import RangeBearingSensor, associate
 from .simulate import SimulatedRun
 from .world import World

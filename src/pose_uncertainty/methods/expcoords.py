@@ -608,7 +608,7 @@ _TRUNC = 50.0
 #: :func:`pdf_xy` sums densely up to this many nodes
 _DENSE_NODES = 64
 #: target number of (point, node-range) pairs (or terms) held at once by :func:`pdf_xy`: each
-#: array of them is 8 MiB, a few live at once (a run's peak memory: logs/cost.py)
+#: array of them is 8 MiB, a few live at once (a run's peak memory: experiments/cost.py)
 _PAIRS_PER_CHUNK = 1 << 20
 #: :func:`pdf_xy` sums blocks of this many consecutive nodes densely (a power of 2)
 _BLOCK = 32

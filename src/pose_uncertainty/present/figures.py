@@ -1,4 +1,4 @@
-"""Figures of a run, drawn from a :class:`~pose_uncertainty.logs.run.RunResult` alone.
+"""Figures of a run, drawn from a :class:`~pose_uncertainty.experiments.run.RunResult` alone.
 
 These are the functions the pipeline calls and ``pose-uncertainty replay
 --figures`` calls on a run read back from its log; since the log is lossless,
@@ -35,7 +35,7 @@ from PIL import Image, PngImagePlugin
 
 from .. import __version__
 from ..core.atomic import atomic_write_bytes
-from ..logs.run import RunResult
+from ..experiments.run import RunResult
 from ..methods import covariance
 from ..methods.maps import ProbabilityMap
 

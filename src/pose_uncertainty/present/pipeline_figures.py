@@ -30,9 +30,9 @@ from matplotlib.figure import Figure
 
 from ..core.drives import DRIVES
 from ..core.stats import COVERAGE_LEVELS
-from ..logs.runlog import open_run
-from ..logs.study import read_study
+from ..experiments.study import read_study
 from ..methods.covariance import ellipse_polyline
+from ..records.run import open_run
 from . import figures
 
 __all__ = [

@@ -3,14 +3,14 @@
 :func:`build_report` renders ``reports/comparison.html`` from the Jinja2 template
 ``templates/comparison.html.j2`` with
 
-* the per-set tables (:mod:`pose_uncertainty.logs.tables`: every number a logged
+* the per-set tables (:mod:`pose_uncertainty.pipeline.tables`: every number a logged
   measure of a run, under its own name);
 * ``reports/claims.json`` — the claims, the method guide and the Method C summary
-  (:func:`pose_uncertainty.analysis.claims.write_claims`);
+  (:func:`pose_uncertainty.pipeline.claims.write_claims`);
 * ``reports/studies.json`` — the studies' logged results and the numbers their text
-  quotes (:func:`pose_uncertainty.logs.study.collect_studies`);
+  quotes (:func:`pose_uncertainty.experiments.study.collect_studies`);
 * ``reports/pipeline.json`` — provenance read from every log, seeds and per-rule
-  times (:func:`pose_uncertainty.logs.summary.summarize_pipeline`);
+  times (:func:`pose_uncertainty.pipeline.summary.summarize_pipeline`);
 * the runs with a drive section, arranged by drive and path for the section "Beyond the
   differential drive" (their table rows as they are);
 * the figures (inlined as ``data:`` URIs: no network request, works offline; each PNG
@@ -39,9 +39,9 @@ from PIL import Image
 
 from ..core.atomic import atomic_write_text
 from ..core.drives import DRIVES
+from ..core.provenance import MACHINE_KEYS
 from ..core.stats import COVERAGE_LEVELS
-from ..core.tables import read_table
-from ..logs.provenance import MACHINE_KEYS
+from ..core.table_io import read_table
 
 __all__ = ["build_report", "read_speed_results"]
 
@@ -237,13 +237,13 @@ def build_report(
     ----------
     manifest : mapping — ``{"sets": [{name, title, source, description, figures, runs: [{id,
         log, swept, config, figures}]}], "config": {...}}`` (built by the workflow)
-    tables : mapping of set name to its CSV (:func:`pose_uncertainty.logs.tables.collect_table`)
-    claims_path : path — ``{"claims", "guide"}`` JSON (:func:`pose_uncertainty.analysis.claims.write_claims`)
-    pipeline_path : path — provenance, seeds and rule times (:func:`pose_uncertainty.logs.summary.summarize_pipeline`)
+    tables : mapping of set name to its CSV (:func:`pose_uncertainty.pipeline.tables.collect_table`)
+    claims_path : path — ``{"claims", "guide"}`` JSON (:func:`pose_uncertainty.pipeline.claims.write_claims`)
+    pipeline_path : path — provenance, seeds and rule times (:func:`pose_uncertainty.pipeline.summary.summarize_pipeline`)
     out : path — the HTML file (self-contained: images inlined, no external resources)
     title : str
     config_text : str — the validated config as YAML (shown verbatim)
-    studies_path : path, optional — :func:`pose_uncertainty.logs.study.collect_studies` output
+    studies_path : path, optional — :func:`pose_uncertainty.experiments.study.collect_studies` output
     studies_figures : mapping, optional — figures of the studies sections by kind; missing files are skipped
     speed_dir : path, optional — folder of the speed benchmarks' results (:func:`read_speed_results`)
     localization : mapping, optional — ``{"sets": [{name, title, source, description, table, figures,

@@ -1,6 +1,6 @@
-"""Figures of localization runs, drawn from their logs alone (:mod:`pose_uncertainty.logs.localization_log`).
+"""Figures of localization runs, drawn from their logs alone (:mod:`pose_uncertainty.records.localization`).
 
-Per run (a :class:`~pose_uncertainty.logs.localization.LocalizationResult` or the log read back):
+Per run (a :class:`~pose_uncertainty.experiments.localization.LocalizationResult` or the log read back):
 
 * :func:`paths_figure` — the world, the true path, dead reckoning and each filter's estimate
   with its final 98.89 % ellipse: from dead reckoning to localization at a glance;
@@ -32,11 +32,11 @@ import matplotlib as mpl
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..analysis.localization_measures import FILTERS
+from ..analysis.localization import FILTERS
 from ..core.stats import PR_3SIGMA
-from ..logs.localization import LocalizationResult
-from ..logs.runlog import open_run
+from ..experiments.localization import LocalizationResult
 from ..methods.covariance import ellipse_polyline
+from ..records.run import open_run
 from . import figures
 
 __all__ = [

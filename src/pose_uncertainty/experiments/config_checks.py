@@ -1,7 +1,7 @@
 """Checks of run-configuration values: one-line errors naming the key, the value and what is allowed.
 
-Shared by :mod:`pose_uncertainty.logs.run` (the run configuration) and
-:mod:`pose_uncertainty.logs.drive_config` (its ``drive`` section). Every error has
+Shared by :mod:`pose_uncertainty.experiments.run` (the run configuration) and
+:mod:`pose_uncertainty.experiments.drive_config` (its ``drive`` section). Every error has
 the form ``"config key '<dotted.key>' must be <rule>, got <value>"`` or, for
 unknown keys, ``"unknown config key(s) '<dotted.key>' (allowed: ...)"``.
 """

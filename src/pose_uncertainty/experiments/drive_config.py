@@ -5,7 +5,7 @@ track with the wheel constants ``k_r``, ``k_l`` (today's runs, logged exactly as
 before). With one, the trajectory is the geometric path that the drive follows
 (:func:`pose_uncertainty.core.drives.follow`), and Method A, Monte Carlo and
 the exponential-coordinates Gaussian are those of the drive
-(:mod:`pose_uncertainty.logs.drive_run`)::
+(:mod:`pose_uncertainty.experiments.drive_run`)::
 
     drive:
       type: tricycle          # differential | skid_steer | tricycle | ackermann | two_axle
@@ -50,7 +50,7 @@ from typing import Any
 
 from ..core import trajectories
 from ..core.drives import DRIVES, Drive, follow
-from ..core.tables import jsonable
+from ..core.table_io import jsonable
 from ..methods.drive_noise import DriveErrorModel, IcrSlip, channels
 from ..methods.wheel_noise import WheelErrorSources
 from .config_checks import check_keys, fail, integer, real

@@ -1,10 +1,10 @@
 """The measures of a localization run, with their units and definitions (a sibling of :mod:`.measures`).
 
-A localization run (:mod:`pose_uncertainty.logs.localization`) simulates ``R`` independent
+A localization run (:mod:`pose_uncertainty.experiments.localization`) simulates ``R`` independent
 runs of one configuration (the same path, world and sensors; independent noise) and runs
 each configured filter — ``ekf``, ``histogram``, ``particle`` — on the same data. The
 measures below are computed once there, from the filters' results against the true path
-(:mod:`pose_uncertainty.localization.measures`), logged with the unit and definition of
+(:mod:`pose_uncertainty.localization.evaluation`), logged with the unit and definition of
 :func:`pose_uncertainty.analysis.measures.describe` (which consults :data:`DEFINITIONS`),
 and read back by the tables, the figures and the report.
 
@@ -34,7 +34,7 @@ from numpy.typing import NDArray
 
 from ..core.kinematics import wrap_angle
 from ..core.stats import COVERAGE_LEVELS, wilson_interval
-from ..localization.measures import convergence, nees, nees_band, pose_errors
+from ..localization.evaluation import convergence, nees, nees_band, pose_errors
 from ..localization.result import FilterResult
 from ..localization.simulate import SimulatedRun
 

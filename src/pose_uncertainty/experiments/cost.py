@@ -2,9 +2,9 @@
 
 :func:`estimate` predicts, from a run's parameters alone (nothing of the size of
 the run is allocated), the peak resident memory [bytes] and the wall-clock time
-[s] of computing and logging it (``pose_uncertainty.logs.sweep.simulate``:
-:func:`~pose_uncertainty.logs.run.execute` then
-:func:`~pose_uncertainty.logs.runlog.write_run`), as a sum of named *drivers*:
+[s] of computing and logging it (``pose_uncertainty.pipeline.jobs.simulate_run``:
+:func:`~pose_uncertainty.experiments.run.execute` then
+:func:`~pose_uncertainty.records.run.write_run`), as a sum of named *drivers*:
 
 ========================  ===========================================  ==================================
 driver                    memory                                       time

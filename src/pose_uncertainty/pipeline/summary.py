@@ -4,7 +4,7 @@
 columns come from each run log), the study logs and Snakemake's ``benchmark:``
 files, and writes one JSON document the report shows as it is:
 
-* ``provenance`` — per key of :data:`pose_uncertainty.logs.provenance.PROVENANCE_KEYS`,
+* ``provenance`` — per key of :data:`pose_uncertainty.core.provenance.PROVENANCE_KEYS`,
   the value most logs hold (``value``), how many logs hold each value
   (``counts``) and every log whose value differs (``differs``: set/study, run, value);
 * ``seeds`` — per set, the seed of every run;
@@ -24,9 +24,9 @@ from typing import Any
 import numpy as np
 
 from ..core.atomic import atomic_write_text
-from ..core.tables import read_table
-from .provenance import PROVENANCE_KEYS
-from .study import read_study
+from ..core.provenance import PROVENANCE_KEYS
+from ..core.table_io import read_table
+from ..experiments.study import read_study
 
 __all__ = ["provenance_summary", "rule_times", "summarize_pipeline"]
 

@@ -24,8 +24,8 @@ from typing import Any
 
 from ..analysis.studies import STUDIES, summarize
 from ..core.atomic import atomic_write_text
-from ..core.tables import jsonable
-from .provenance import provenance
+from ..core.provenance import provenance
+from ..core.table_io import jsonable
 
 __all__ = ["FORMAT", "collect_studies", "read_study", "run_study", "study_params"]
 

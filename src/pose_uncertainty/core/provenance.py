@@ -33,7 +33,7 @@ __all__ = [
 ]
 
 #: The package's layer folders, lowest first (tests/test_layers.py checks that none imports a higher one).
-LAYERS: tuple[str, ...] = ("core", "methods", "localization", "analysis", "robot", "logs", "present", "cli")
+LAYERS: tuple[str, ...] = ("core", "methods", "localization", "analysis", "robot", "experiments", "records", "pipeline", "present", "cli")
 
 _PACKAGE = Path(__file__).resolve().parents[1]
 _REPO_ROOT = _PACKAGE.parents[1]

@@ -5,8 +5,8 @@ with noisy wheels and sensors (:mod:`pose_uncertainty.localization.simulate`), r
 configured Bayes filter — the EKF (Method A's prediction), the histogram filter (Method B's)
 and the particle filter (Monte Carlo's) — on the same data, and measures them against the
 true path. :func:`execute_localization` turns a :class:`LocalizationConfig` into a
-:class:`LocalizationResult`; :mod:`pose_uncertainty.logs.localization_log` writes and reads
-it as one MCAP log, :mod:`pose_uncertainty.present.localization_figures` draws it.
+:class:`LocalizationResult`; :mod:`pose_uncertainty.records.localization` writes and reads
+it as one MCAP log, :mod:`pose_uncertainty.present.localization` draws it.
 
 A configuration is a plain mapping (YAML or JSON; numbers such as ``1e-3`` may be written
 as YAML reads them, as strings)::
@@ -60,10 +60,11 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
-from ..analysis import localization_measures as lm
+from ..analysis import localization as lm
 from ..analysis import measures
 from ..core import trajectories
-from ..core.tables import jsonable
+from ..core.provenance import provenance
+from ..core.table_io import jsonable
 from ..core.validation import parse_number
 from ..localization import ekf, histogram, particle, simulate
 from ..localization.motion import MOTION_MODELS, Motion, velocity_alphas_for_wheels
@@ -78,7 +79,6 @@ from .config_checks import fail as _fail
 from .config_checks import integer as _int
 from .config_checks import name as _name
 from .config_checks import real as _float
-from .provenance import provenance
 from .sweep import ConfigError, Run, expand_set
 
 __all__ = [
@@ -593,7 +593,7 @@ class FilterTrack:
     name : str — "ekf", "histogram" or "particle"
     mean : ndarray, shape (K, 3) [m, m, rad]; cov : ndarray, shape (K, 3, 3)
     series : dict of str to ndarray (K,) — errors, σ's, NEES (and ``nees_avg`` over the R runs),
-        region flags and diagnostics (:func:`pose_uncertainty.analysis.localization_measures.filter_measures`)
+        region flags and diagnostics (:func:`pose_uncertainty.analysis.localization.filter_measures`)
     particles : dict of int to ndarray (m, 4) — at the logged steps: x [m], y [m], θ [rad], weight
         (every ``n/m``-th particle, ``m = min(n, max_particles_logged)``)
     grids : dict of int to ndarray (nx, ny) — the histogram filter's θ-marginal mass at the logged steps
@@ -621,7 +621,7 @@ class LocalizationResult:
     landmark_z : ndarray (K, L, 2); landmark_valid : ndarray of bool (K, L)
     beam_z : ndarray (K, B) [m] or None; beam_valid : ndarray of bool (K,)
     filters : dict of str to FilterTrack — in the order of
-        :data:`~pose_uncertainty.analysis.localization_measures.FILTERS`
+        :data:`~pose_uncertainty.analysis.localization.FILTERS`
     series : dict of str to ndarray (K,) — run-level series (dead-reckoning error)
     metrics, metric_units, metric_definitions : dict — every measure (deterministic)
     timings : dict of str to float — wall-clock seconds, NOT deterministic
@@ -775,7 +775,7 @@ def _normalize(cfg: Mapping[str, Any]) -> dict[str, Any]:
 def expand_localization(config: Mapping[str, Any]) -> dict[str, list[Run]]:
     """Expand the pipeline config's localization sets (key ``localization.sets``) into their runs.
 
-    Each set is a sweep as :func:`pose_uncertainty.logs.sweep.expand_set` (``base`` + ``sweep``
+    Each set is a sweep as :func:`pose_uncertainty.experiments.sweep.expand_set` (``base`` + ``sweep``
     axes) over localization configurations; ``localization.defaults`` and the config's ``seed``
     are shared by every set. An empty dict when ``localization.enabled`` is false.
 

@@ -37,7 +37,7 @@ Timings are the only non-deterministic quantity; they are written (to
 ``/timings``) only when asked (``include_timings=True``, ``run --timings``). A
 log written without timings is byte-identical for the same config, seed,
 package version, environment, commit and machine. On another machine it agrees
-within the reproducibility contract (:mod:`pose_uncertainty.logs.reproducibility`),
+within the reproducibility contract (:mod:`pose_uncertainty.records.reproducibility`),
 which :func:`verify_run` checks record by record.
 
 Reading
@@ -88,12 +88,12 @@ from numpy.typing import NDArray
 
 from .. import __version__
 from ..core.atomic import atomic_write
+from ..core.provenance import PROVENANCE_KEYS, provenance
+from ..experiments.config import RunConfig
+from ..experiments.run import RunResult, execute
 from ..methods import covariance
 from ..methods.maps import ProbabilityMap
-from .config import RunConfig
-from .provenance import PROVENANCE_KEYS, provenance
 from .reproducibility import MISMATCH, Comparison, compare_log_bytes, environment_notes
-from .run import RunResult, execute
 
 __all__ = [
     "FORMAT",
@@ -162,7 +162,7 @@ class LogKind(NamedTuple):
 
     ``assemble(path, records, meta, library, partial, problem)`` builds the log object from the
     CRC-checked records and the metadata record; ``verify(log)`` recomputes it and returns the
-    :class:`~pose_uncertainty.logs.reproducibility.Comparison` as :func:`verify_run` does.
+    :class:`~pose_uncertainty.records.reproducibility.Comparison` as :func:`verify_run` does.
     """
 
     assemble: Callable[..., Any]
@@ -170,12 +170,12 @@ class LogKind(NamedTuple):
 
 
 #: Log kinds beside the dead-reckoning run, by the ``format`` of their metadata record
-#: (``pose_uncertainty.logs.localization_log`` registers the localization runs).
+#: (``pose_uncertainty.records.localization`` registers the localization runs).
 LOG_KINDS: dict[str, LogKind] = {}
 
 #: The module that registers each kind in :data:`LOG_KINDS`, imported the first time a log of
 #: that kind is read (so that a job that only writes dead-reckoning runs never imports it).
-_KIND_MODULES = {"pose-uncertainty-localization": "pose_uncertainty.logs.localization_log"}
+_KIND_MODULES = {"pose-uncertainty-localization": "pose_uncertainty.records.localization"}
 
 
 def log_kind(fmt: object) -> LogKind | None:
@@ -1115,7 +1115,7 @@ def verify_log(log: RunLog | Any, fresh_bytes: bytes) -> Comparison:
     """Compare ``log``'s file with ``fresh_bytes``, a fresh log of its recomputation.
 
     The three outcomes of the reproducibility contract
-    (:mod:`pose_uncertainty.logs.reproducibility`): identical bytes; every record equal
+    (:mod:`pose_uncertainty.records.reproducibility`): identical bytes; every record equal
     within tolerance; a mismatch. Notes say what differs in the machine and libraries
     (the log's provenance against this machine's) and what is not compared (timings).
     """
@@ -1132,7 +1132,7 @@ def verify_run(log: RunLog) -> Comparison:
     The fresh log is written with the logged provenance and timings, so that on the machine
     that made the log the bytes are identical; on another machine every message of every
     topic is decoded and compared field by field within the contract's tolerance
-    (:func:`~pose_uncertainty.logs.reproducibility.compare_log_bytes`).
+    (:func:`~pose_uncertainty.records.reproducibility.compare_log_bytes`).
 
     Returns
     -------

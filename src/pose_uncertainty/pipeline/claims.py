@@ -8,7 +8,7 @@ only in part or under conditions), or ``not measured`` (the sets it needs are no
 in the config) — the reason, and the figure that shows it.
 
 Every number a claim uses is a logged measure of a run, read from the per-set
-tables (:mod:`pose_uncertainty.logs.tables`; names and definitions in
+tables (:mod:`pose_uncertainty.pipeline.tables`; names and definitions in
 :mod:`pose_uncertainty.analysis.measures`); a claim only combines them across runs
 (ratios, orders, fitted growth laws) and says which reference point each
 distance uses. The default config (``config/config.yaml``) provides every set
@@ -30,7 +30,7 @@ import numpy as np
 
 from ..core.atomic import atomic_write_text
 from ..core.stats import COVERAGE_LEVELS, fit_growth
-from ..core.tables import read_table
+from ..core.table_io import read_table
 
 __all__ = ["VERDICTS", "Claim", "evaluate_claims", "method_guide", "unscented_summary", "write_claims"]
 
@@ -596,7 +596,7 @@ def evaluate_claims(rows: Rows) -> list[Claim]:
 
     Parameters
     ----------
-    rows : mapping of set name to its rows (dicts from :func:`pose_uncertainty.core.tables.read_table`)
+    rows : mapping of set name to its rows (dicts from :func:`pose_uncertainty.core.table_io.read_table`)
 
     Returns
     -------
@@ -780,7 +780,7 @@ def method_guide(rows: Rows) -> list[dict[str, Any]]:
 
     Parameters
     ----------
-    rows : mapping of set name to its rows (:func:`pose_uncertainty.core.tables.read_table`)
+    rows : mapping of set name to its rows (:func:`pose_uncertainty.core.table_io.read_table`)
 
     Returns
     -------

@@ -9,7 +9,7 @@ across-track spread grows as ``s^1.5`` (an integrated heading random walk) and
 its along-track spread as ``s^0.5``; a synchro drive never turns, so both of its
 spreads grow as ``s^0.5``.
 
-A run with a ``drive`` section (:mod:`pose_uncertainty.logs.drive_run`) logs the
+A run with a ``drive`` section (:mod:`pose_uncertainty.experiments.drive_run`) logs the
 same fits as measures (:func:`growth_measures`, at the points of
 :func:`growth_points`), and for a skid-steer drive how far plain differential
 odometry is off (:func:`plain_odometry_measures`).

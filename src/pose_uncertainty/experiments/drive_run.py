@@ -1,7 +1,7 @@
 """A run with a ``drive`` section: the drive's Method A, Monte Carlo, banana and measures.
 
-:func:`pose_uncertainty.logs.run.execute` calls these when the run configures a
-drive (:mod:`pose_uncertainty.logs.drive_config`); everything else of a run —
+:func:`pose_uncertainty.experiments.run.execute` calls these when the run configures a
+drive (:mod:`pose_uncertainty.experiments.drive_config`); everything else of a run —
 its trajectory, the probability maps, the logged measures, the log — is the
 same as for the default differential drive.
 
@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..analysis import drives as adr
+from ..analysis import drive_growth as adr
 from ..core.drives import Drive, DrivePath, follow
 from ..core.trajectories import Trajectory
 from ..methods import drive_covariance as dc
@@ -96,7 +96,7 @@ def expcoords(s: DriveSetup, cov0: ArrayLike | None) -> ExpGaussian:
 def growth_steps(s: DriveSetup, checkpoints: Sequence[int]) -> list[int] | None:
     """The steps a growth law is fitted at: the Monte Carlo checkpoints and the end, if ≥ 2 checkpoints.
 
-    None (20 points evenly spaced in path length, :func:`pose_uncertainty.analysis.drives.growth_points`)
+    None (20 points evenly spaced in path length, :func:`pose_uncertainty.analysis.drive_growth.growth_points`)
     with fewer checkpoints, so that Method A's and the Monte Carlo's exponents come
     from the same points whenever the Monte Carlo has any to offer.
     """

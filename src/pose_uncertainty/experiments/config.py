@@ -1,6 +1,6 @@
 """A run's configuration: typed, validated, every default filled in, with units.
 
-A *run* is one parameter point of a sweep (:mod:`pose_uncertainty.logs.run` executes
+A *run* is one parameter point of a sweep (:mod:`pose_uncertainty.experiments.run` executes
 it). A configuration is written as a plain mapping (YAML or JSON)::
 
     name: circle_a4
@@ -14,7 +14,7 @@ it). A configuration is written as a plain mapping (YAML or JSON)::
     maps:
       - {name: velocity, model: velocity, alpha: [0.05, 0.05, 0.05, 0.05, 0.05, 0.05]}
 
-An optional ``drive`` section (:mod:`pose_uncertainty.logs.drive_config`) makes the
+An optional ``drive`` section (:mod:`pose_uncertainty.experiments.drive_config`) makes the
 robot any drive of thesis 002; the trajectory is then the path it follows. Without it
 the run is the differential drive of ``k_r``, ``k_l``.
 
@@ -23,7 +23,7 @@ trajectory builder's defaults too), so that a logged configuration re-runs the
 same computation; :meth:`RunConfig.units` gives the unit of each key. Numbers
 written as text (``1e9``, ``5e-4``: YAML 1.1 reads them as strings) are read as
 numbers; trajectories are validated and counted without being built, so a
-configuration can be costed (:mod:`pose_uncertainty.logs.cost`) before anything
+configuration can be costed (:mod:`pose_uncertainty.experiments.cost`) before anything
 is allocated.
 """
 
@@ -39,7 +39,7 @@ import numpy as np
 from ..core import trajectories
 from ..core.grids import Grid
 from ..core.stats import PR_3SIGMA
-from ..core.tables import jsonable
+from ..core.table_io import jsonable
 from ..methods import maps
 from .config_checks import builder_keywords
 from .config_checks import check_keys as _check_keys
@@ -299,7 +299,7 @@ class RunConfig:
     name : str
         Run identifier.
     drive : DriveConfig or None
-        The robot's drive (:mod:`pose_uncertainty.logs.drive_config`): its type,
+        The robot's drive (:mod:`pose_uncertainty.experiments.drive_config`): its type,
         geometry and odometry errors; the trajectory is then the path it follows.
         None (no ``drive`` key) = the differential drive of ``trajectory.track``
         with ``k_r``, ``k_l``, logged exactly as before the drives existed.

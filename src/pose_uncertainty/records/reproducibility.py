@@ -72,7 +72,7 @@ import numpy as np
 from mcap.records import Channel, Header, Message, Metadata, Schema
 from mcap_protobuf.decoder import DecoderFactory
 
-from .provenance import MACHINE_KEYS
+from ..core.provenance import MACHINE_KEYS
 
 __all__ = [
     "FIXED_DEPTH",
@@ -317,7 +317,7 @@ def _short(v: Any) -> str:
 
 
 def _records(data: bytes) -> list[Any]:
-    from .runlog import _scan  # the CRC-validating scanner of every log kind
+    from .run import _scan  # the CRC-validating scanner of every log kind
 
     records, problem = _scan(data)
     if problem is not None:

@@ -3,7 +3,7 @@
 The pipeline config (``config/config.yaml``, validated against
 ``workflow/schemas/config.schema.yaml``, JSON Schema 2020-12) holds named
 *experiment sets*. A set is a sweep: a ``base`` run configuration (the keys of
-:class:`pose_uncertainty.logs.run.RunConfig`) and a list of *axes*; each axis maps
+:class:`pose_uncertainty.experiments.run.RunConfig`) and a list of *axes*; each axis maps
 dotted keys (``trajectory.speed``, ``k_r``, ``monte_carlo.method``, ``maps``)
 to equal-length lists whose values are taken together (zipped); the runs of
 the set are the product of its axes::
@@ -29,22 +29,16 @@ from __future__ import annotations
 
 import copy
 import itertools
-import json
 import math
 import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 from ..core import trajectories
-from ..core.atomic import atomic_write_text
 from ..core.schema import first_error
 from ..core.validation import parse_number
 from .config import RunConfig
-from .progress import Progress
-from .run import execute
-from .runlog import write_run
 
 __all__ = [
     "ConfigError",
@@ -55,7 +49,6 @@ __all__ = [
     "label_value",
     "n_steps",
     "run_label",
-    "simulate",
     "validate_config",
 ]
 
@@ -128,7 +121,7 @@ def _fill_defaults(schema: Mapping[str, Any], instance: Any, root: Mapping[str, 
     """Insert schema ``default`` values for missing object keys, recursively (in place).
 
     Local ``$ref`` are followed; a schema with ``x-fill-defaults: false`` (the run
-    configuration, whose defaults :class:`~pose_uncertainty.logs.run.RunConfig` fills) is left alone.
+    configuration, whose defaults :class:`~pose_uncertainty.experiments.run.RunConfig` fills) is left alone.
     """
     root = schema if root is None else root
     schema = _resolve(schema, root)
@@ -327,7 +320,7 @@ def expand_set(
     spec : mapping with ``base`` (partial run config) and ``sweep`` (list of axes)
     defaults : mapping, optional — run-config defaults shared by every set
     normalize : callable, optional — validates a run configuration and returns every parameter
-        (default: :class:`~pose_uncertainty.logs.run.RunConfig`'s ``from_dict`` then ``to_dict``;
+        (default: :class:`~pose_uncertainty.experiments.run.RunConfig`'s ``from_dict`` then ``to_dict``;
         the localization runs pass their own)
 
     Returns
@@ -437,30 +430,3 @@ def n_steps(config: Mapping[str, Any]) -> int:
     """Number of steps of a run configuration's trajectory (counted, not built)."""
     tp = {k: v for k, v in config["trajectory"].items() if k != "name"}
     return trajectories.n_steps(config["trajectory"]["name"], **tp)
-
-
-# --- running -----------------------------------------------------------------------------
-
-
-def simulate(config: Mapping[str, Any], out: str | Path, timings_out: str | Path | None = None) -> Path:
-    """Execute one run and write its log (and, optionally, its wall-clock timings as JSON).
-
-    Parameters
-    ----------
-    config : mapping — a run configuration (``RunConfig.from_dict`` input)
-    out : path — destination ``.mcap`` (written atomically, byte-reproducible: no timings inside)
-    timings_out : path, optional — JSON file with the run's timings [s]
-
-    Returns
-    -------
-    Path — ``out``
-    """
-    result = execute(RunConfig.from_dict(config))
-    Path(out).parent.mkdir(parents=True, exist_ok=True)
-    path = write_run(out, result, progress=Progress(f"{result.config.name}: writing the log"))
-    if timings_out is not None:
-        atomic_write_text(
-            timings_out,
-            json.dumps({k: float(v) for k, v in sorted(result.timings.items())}, indent=1) + "\n",
-        )
-    return path

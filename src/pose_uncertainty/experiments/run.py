@@ -5,12 +5,12 @@ constants, a seed and what to compute — Method A (covariance propagation with
 its error ellipses), Method C (the unscented transform, always: a loop over the
 steps, a fraction of a second per 1000 steps), Monte Carlo end poses under the same
 model, and optional probability maps (Method B). :func:`execute` turns a
-:class:`~pose_uncertainty.logs.config.RunConfig` into a :class:`RunResult` —
-after :mod:`pose_uncertainty.logs.cost` has checked that it fits the machine —
+:class:`~pose_uncertainty.experiments.config.RunConfig` into a :class:`RunResult` —
+after :mod:`pose_uncertainty.experiments.cost` has checked that it fits the machine —
 and computes every measure once (:mod:`pose_uncertainty.analysis.measures`);
-:mod:`pose_uncertainty.logs.runlog` writes and reads results as MCAP files,
+:mod:`pose_uncertainty.records.run` writes and reads results as MCAP files,
 :mod:`pose_uncertainty.present.figures` draws them. With a ``drive`` section,
-:mod:`pose_uncertainty.logs.drive_run` computes the drive's Method A, Monte Carlo
+:mod:`pose_uncertainty.experiments.drive_run` computes the drive's Method A, Monte Carlo
 and banana.
 """
 
@@ -29,7 +29,8 @@ from numpy.typing import NDArray
 from ..analysis import accuracy, measures
 from ..core import trajectories
 from ..core.grids import Grid
-from ..core.tables import jsonable
+from ..core.provenance import provenance
+from ..core.table_io import jsonable
 from ..methods import covariance, expcoords, maps, motion_models, sampling, unscented
 from ..methods.maps import ProbabilityMap
 from . import cost
@@ -41,10 +42,9 @@ from .drive_run import method_a as drive_method_a
 from .drive_run import sample as drive_sample
 from .drive_run import setup as drive_setup
 from .progress import Progress
-from .provenance import provenance
 
 __all__ = [
-    # the configuration (pose_uncertainty.logs.config), imported here for the callers of execute
+    # the configuration (pose_uncertainty.experiments.config), imported here for the callers of execute
     "MapConfig",
     "MonteCarloConfig",
     "RunConfig",
@@ -121,7 +121,7 @@ def execute(config: RunConfig) -> RunResult:
 
     Raises
     ------
-    pose_uncertainty.logs.cost.CostError
+    pose_uncertainty.experiments.cost.CostError
         Before anything is allocated, when the run's estimated memory or time
         exceeds the limits (``POSE_UNCERTAINTY_MAX_MEMORY``, ``POSE_UNCERTAINTY_MAX_SECONDS``).
     """
@@ -134,7 +134,7 @@ def execute(config: RunConfig) -> RunResult:
     with _timed(timings, "covariance_s"):
         if ds is None:
             cres = covariance.propagate(traj, config.k_r, config.k_l, cov0=_cov0(config))
-        else:  # the drive following the path (logs/drive_run.py)
+        else:  # the drive following the path (experiments/drive_run.py)
             cres = drive_method_a(ds, _cov0(config))
     c_end = None
     if ds is None:  # Method C (issue 11), on the differential drive's wheel-noise model

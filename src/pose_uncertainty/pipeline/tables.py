@@ -13,7 +13,7 @@ Every column of a row comes from one logged source of its run:
 * ``time_<part>`` — the run's wall-clock timings [s] from its ``*.timings.json``
   side file (not reproducible, so not in the log itself).
 
-A localization run's row (:mod:`pose_uncertainty.logs.localization_log`) has the same
+A localization run's row (:mod:`pose_uncertainty.records.localization`) has the same
 columns, its ``param.*`` from :data:`LOCALIZATION_PARAMS` and its world's source and random
 landmarks, its measures ``loc_*`` and its timings ``time_<filter>_step`` [s per step].
 """
@@ -26,9 +26,9 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from ..core.tables import write_table
-from .localization_log import LocalizationLog
-from .runlog import RunLog, open_run
+from ..core.table_io import write_table
+from ..records.localization import LocalizationLog
+from ..records.run import RunLog, open_run
 
 __all__ = ["FIRST_COLUMNS", "LOCALIZATION_PARAMS", "collect_table", "run_row"]
 

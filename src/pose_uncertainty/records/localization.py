@@ -1,10 +1,10 @@
 """Localization run logs: one MCAP file per run, to watch the filters in Foxglove and to replay them.
 
 The container, compression, CRCs, atomic write and byte-level determinism are those of
-the dead-reckoning run logs (:mod:`pose_uncertainty.logs.runlog`); the metadata record
+the dead-reckoning run logs (:mod:`pose_uncertainty.records.run`); the metadata record
 ``pose_uncertainty.run`` carries ``format: pose-uncertainty-localization``, and
-:func:`pose_uncertainty.logs.runlog.open_run` hands such a file to :func:`assemble` here
-(registered in :data:`~pose_uncertainty.logs.runlog.LOG_KINDS`), ``verify_run`` to
+:func:`pose_uncertainty.records.run.open_run` hands such a file to :func:`assemble` here
+(registered in :data:`~pose_uncertainty.records.run.LOG_KINDS`), ``verify_run`` to
 :func:`verify_localization`. Log time = simulated time (ns); frame ``world``.
 
 ==================================  ==================================  ===========================================
@@ -55,21 +55,21 @@ from mcap.records import Channel, Message, Schema
 from numpy.typing import NDArray
 
 from .. import __version__
-from ..analysis.localization_measures import SERIES_UNITS
+from ..analysis.localization import SERIES_UNITS
 from ..core.atomic import atomic_write
+from ..core.provenance import PROVENANCE_KEYS
 from ..core.stats import PR_3SIGMA
-from ..localization.world import OccupancyGrid, World
-from ..methods.covariance import ellipse_polyline
-from . import runlog
-from .localization import (
+from ..experiments.localization import (
     FilterTrack,
     LocalizationConfig,
     LocalizationResult,
     execute_localization,
 )
-from .provenance import PROVENANCE_KEYS
+from ..localization.world import OccupancyGrid, World
+from ..methods.covariance import ellipse_polyline
+from . import run as runlog
 from .reproducibility import MISMATCH, Comparison
-from .runlog import (
+from .run import (
     _F64,
     BASE,
     METADATA_NAME,
@@ -99,7 +99,6 @@ __all__ = [
     "compare_localization",
     "format_localization_summary",
     "localization_log_bytes",
-    "simulate_localization",
     "verify_localization",
     "write_localization",
 ]
@@ -353,25 +352,13 @@ def localization_log_bytes(result: LocalizationResult, *, include_timings: bool 
 
 def write_localization(path: str | os.PathLike[str], result: LocalizationResult, *,
                        include_timings: bool = False) -> Path:  # fmt: skip
-    """Write a localization log atomically (as :func:`pose_uncertainty.logs.runlog.write_run`).
+    """Write a localization log atomically (as :func:`pose_uncertainty.records.run.write_run`).
 
     Without timings (the default) the same configuration and seed give a byte-identical file.
     """
     with atomic_write(path, "wb") as fh:
         _write_localization_stream(fh, result, include_timings)
     return Path(path)
-
-
-def simulate_localization(config: dict[str, Any], out: str | os.PathLike[str],
-                          timings_out: str | os.PathLike[str] | None = None) -> Path:  # fmt: skip
-    """Execute one localization run and write its log (and, optionally, its timings as JSON)."""
-    result = execute_localization(LocalizationConfig.from_dict(config))
-    path = write_localization(out, result)
-    if timings_out is not None:
-        Path(timings_out).write_text(
-            json.dumps({k: float(v) for k, v in sorted(result.timings.items())}, indent=1) + "\n", encoding="utf-8"
-        )
-    return path
 
 
 # ============================================================================= reading
@@ -385,7 +372,7 @@ class LocalizationLog(LocalizationResult):
     ----------------------------------------
     path : Path; metadata : dict — the ``pose_uncertainty.run`` record; library : str
     topics : dict of str to (schema name, message count)
-    partial : bool; problems : tuple of str — as :class:`pose_uncertainty.logs.runlog.RunLog`
+    partial : bool; problems : tuple of str — as :class:`pose_uncertainty.records.run.RunLog`
     """
 
     path: Path = Path()
@@ -639,7 +626,7 @@ def verify_localization(log: LocalizationLog) -> Comparison:
 
     The fresh log is written with the logged provenance and timings; every record of the two
     logs is compared within the reproducibility contract
-    (:func:`~pose_uncertainty.logs.runlog.verify_log`).
+    (:func:`~pose_uncertainty.records.run.verify_log`).
     """
     if log.partial:
         return Comparison(status=MISMATCH, mismatches=["the log is partial; a partial log cannot be verified"])

@@ -1,0 +1,63 @@
+"""The pipeline's job entry points: execute one run of each kind and write its log and timings.
+
+Each is what one Snakemake job runs (through ``python -m pose_uncertainty.cli.job``): the
+execution of :mod:`pose_uncertainty.experiments`, then the log of :mod:`pose_uncertainty.records`,
+written atomically and byte-reproducible (no timings inside; they go to a JSON file beside it).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from ..core.atomic import atomic_write_text
+from ..experiments.config import RunConfig
+from ..experiments.localization import LocalizationConfig, execute_localization
+from ..experiments.progress import Progress
+from ..experiments.run import execute
+from ..experiments.study import run_study
+from ..records.localization import write_localization
+from ..records.run import write_run
+
+__all__ = ["run_study", "simulate_localization", "simulate_run"]
+
+
+def _write_timings(timings: Mapping[str, float], out: str | os.PathLike[str] | None) -> None:
+    if out is not None:
+        atomic_write_text(out, json.dumps({k: float(v) for k, v in sorted(timings.items())}, indent=1) + "\n")
+
+
+def simulate_run(config: Mapping[str, Any], out: str | os.PathLike[str],
+                 timings_out: str | os.PathLike[str] | None = None) -> Path:  # fmt: skip
+    """Execute one dead-reckoning run and write its log (and, optionally, its timings as JSON).
+
+    Parameters
+    ----------
+    config : mapping — a run configuration (``RunConfig.from_dict`` input)
+    out : path — destination ``.mcap`` (written atomically, byte-reproducible: no timings inside)
+    timings_out : path, optional — JSON file with the run's timings [s]
+
+    Returns
+    -------
+    Path — ``out``
+    """
+    result = execute(RunConfig.from_dict(config))
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    path = write_run(out, result, progress=Progress(f"{result.config.name}: writing the log"))
+    _write_timings(result.timings, timings_out)
+    return path
+
+
+def simulate_localization(config: Mapping[str, Any], out: str | os.PathLike[str],
+                          timings_out: str | os.PathLike[str] | None = None) -> Path:  # fmt: skip
+    """Execute one localization run and write its log (and, optionally, its timings as JSON).
+
+    Parameters and return as :func:`simulate_run`, for a ``kind: localization`` configuration.
+    """
+    result = execute_localization(LocalizationConfig.from_dict(dict(config)))
+    path = write_localization(out, result)
+    _write_timings(result.timings, timings_out)
+    return path
