@@ -1,4 +1,4 @@
-# pose-uncertainty: every experiment of SPEC §4 → run logs, figures, tables, the comparison report.
+# pose-uncertainty: every experiment of the theses → run logs, figures, tables, the comparison report.
 # Wiring only; the rules live in workflow/rules/, the numerics in src/pose_uncertainty/.
 import os
 

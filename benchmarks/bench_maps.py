@@ -1,4 +1,4 @@
-"""Speed and accuracy of the probability maps (SPEC §3), against the thesis's algorithms.
+"""Speed and accuracy of the probability maps (Němec 2012 §2.2), against the thesis's algorithms.
 
 Run: ``.venv/bin/python -m benchmarks.bench_maps`` (or ``make bench``).
 Writes ``benchmarks/results/maps.json``.
@@ -14,7 +14,7 @@ Speed
    over source cells — the most favourable direct form), measured on a 12 × 12 × 12 grid
    and scaled by the number of pairs; peak memory by tracemalloc.
 
-Accuracy (the figures the issue asks to state)
+Accuracy (stated beside the speed)
 3. Single-step maps (θ marginalised) against 10⁶ samples of the model's own sampler, for
    the thesis cases B1 (straight, arc, rotation) and both models: Thrun's density and the
    change-of-variables-corrected one; with the expected distance from sampling noise alone.

@@ -1,6 +1,6 @@
 """Run-log speed: write and summarise a run of 1000 steps, 10⁵ end particles and 3 maps.
 
-Targets (issue 4): write ≤ 2 s, summary ≤ 1 s. The run is computed with the real
+Targets: write ≤ 2 s, summary ≤ 1 s. The run is computed with the real
 trajectory, covariance and Monte Carlo code; the three maps are synthetic
 101 × 101 × 180 (x, y, θ) float64 arrays, the size of the default map grid
 (1 m × 1 m at 1 cm, 2° headings; 14.7 MB each), since multi-step maps along

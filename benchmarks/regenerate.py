@@ -15,7 +15,7 @@ changed, and measures:
 * ``jobs`` and ``job_s`` per rule: the sum of the jobs' wall clocks (Snakemake's ``benchmark:`` files);
 * ``report_mb`` (``reports/comparison.html``), ``data_mb`` (``data/``) and the number of figures.
 
-The measurements before the work on issue 13 (commit 79ddfda, measured the same way in
+The measurements before the work on the regeneration time (commit 79ddfda, measured the same way in
 the session that did it) are written beside them (``before``), so the report shows both.
 Writes ``benchmarks/results/regenerate.json``.
 
@@ -40,7 +40,7 @@ from ._common import write_results
 
 REPO = Path(__file__).resolve().parents[1]
 
-#: Commit 79ddfda, `make report` on a fresh clone, this 2-core machine (the issue's figures:
+#: Commit 79ddfda, `make report` on a fresh clone, this 2-core machine (as first measured:
 #: 8 min 35 s with the venv; measured again under the load of other work: 10 min 58 s).
 BEFORE: dict[str, Any] = {
     "commit": "79ddfda",

@@ -218,7 +218,7 @@ def test_claim10_branches():
     assert "from the map's centre, the noiseless exact-arc end pose" in c.measured
 
 
-# --- 12: seed 001's bent cloud, FK method, track -------------------------------------------
+# --- 12: Šafránek 2022's bent cloud, FK method, track --------------------------------------
 
 
 def _s001(bend: float, fk_rel: float, major_b01: float, major_b02: float, n: int = 1000):

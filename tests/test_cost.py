@@ -1,6 +1,6 @@
 """Cost estimates and guards: a run that cannot fit is refused before it allocates anything.
 
-The issue's three failures, replayed as a new user meets them: a 10⁹ m line (numpy asked
+Three reported failures, replayed as a new user meets them: a 10⁹ m line (numpy asked
 for 745 GiB), dt = 1e-6 s (ran past 100 s and 2 GB without a sign of life), ``length:
 1e9`` (YAML 1.1 reads it as a string; Python's format code 'g' failed on it). Then the
 memory estimate against the measured peak of fresh processes, numbers written as text
@@ -41,7 +41,7 @@ def _run_cli(tmp_path: Path, text: str, capsys: pytest.CaptureFixture[str]) -> t
     return status, capsys.readouterr().err
 
 
-# --- the issue's three failures -------------------------------------------------------------
+# --- the three reported failures ------------------------------------------------------------
 
 
 @pytest.mark.parametrize("length", ["1000000000.0", "1e9"])

@@ -197,7 +197,7 @@ def test_expcoords_gaussian_matches_monte_carlo(drive):
 @pytest.mark.parametrize(
     "drive", [dr.Omni3(0.15), dr.Ackermann(0.3, 0.2)], ids=["omni3", "ackermann"]
 )
-def test_encoder_sources_of_seed_001_match_monte_carlo(drive, regime):
+def test_encoder_sources_of_safranek_2022_match_monte_carlo(drive, regime):
     # quantisation (uniform), surface and additive errors: Method A uses only their variance,
     # the Monte Carlo draws them; at 20 ms steps the per-step variance is ~1e-7 m² per wheel
     path = dr.follow(drive, SHORT_ARC)

@@ -89,7 +89,7 @@ def test_every_drive_type_round_trips_with_every_default(kind: str) -> None:
                                   **({"track": 0.2} if d.get("track", 0) is None else {}))  # fmt: skip
 
 
-def test_the_encoder_section_is_filled_with_seed_001s_values() -> None:
+def test_the_encoder_section_is_filled_with_safranek_2022s_values() -> None:
     cfg = RunConfig.from_dict(_config({"type": "omni3", "errors": {"encoder": {"pulses_per_rev": 1000}}}))
     enc = cfg.to_dict()["drive"]["errors"]["encoder"]
     assert enc == {"pulses_per_rev": 1000, "wheel_diameter": 0.065, "integration_time": 0.01,

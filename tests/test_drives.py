@@ -1,4 +1,4 @@
-"""The drives of thesis 002: limits that tie them together, inverses, Jacobians, paths, geometry errors."""
+"""The drives of Skalka 2011: limits that tie them together, inverses, Jacobians, paths, geometry errors."""
 
 import math
 

@@ -197,7 +197,7 @@ def test_histogram_filter_solves_global_localization():
 
 def test_kidnapped_robot_recovers_with_random_particles():
     # tracking from the known start; at step 60 (6 s) the robot is carried 3 m away. With 1 %
-    # random particles at every correction (seed 002's remedy), or with Augmented MCL
+    # random particles at every correction (the remedy of Skalka 2011 §2.7.1.3), or with Augmented MCL
     # (α_slow = 0.05, α_fast = 0.5), the filter relocalizes within 5 s; without injection the
     # particles never find the new pose. (With landmark measurements the per-step likelihood
     # fluctuates by O(1) in its logarithm, so Augmented MCL also injects during tracking.)

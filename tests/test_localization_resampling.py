@@ -26,7 +26,7 @@ def _copies(scheme: str, seed: int) -> np.ndarray:
 
 
 def _seed_loop(q: np.ndarray, T: np.ndarray) -> np.ndarray:
-    """Seed 002, Table 2.1, the common selection loop, literally (scalar Python)."""
+    """Skalka 2011, Table 2.1, the common selection loop, literally (scalar Python)."""
     out, i, j = [], 0, 0
     while i < len(T):
         if T[i] < q[j]:

@@ -16,7 +16,7 @@ from pose_uncertainty.methods import motion_models as mm
 A6 = np.full(6, 0.05)
 A4 = np.full(4, 0.05)
 N_PARTICLES = 1_000_000
-#: Hellinger target of the issue for multi-step maps vs Monte Carlo of the same model, applied
+#: Hellinger target for multi-step maps vs Monte Carlo of the same model, applied
 #: to the model/discretisation part: H² − E[H²_noise] ≤ TARGET² (E from the Poisson formula
 #: of ``hellinger_noise_floor``; its standard deviation at 10⁶ particles is ~1e-5 in H²).
 TARGET = 0.05
@@ -71,7 +71,7 @@ def test_map_statistics_of_a_known_gaussian():
 
 
 def test_claim6_rotation_in_place_peak():
-    # Thesis (SPEC §5 claim 6): Thrun's map of a rotation in place peaks ~2 cm from the start
+    # Němec 2012 §4.1.1 (claim 6): Thrun's map of a rotation in place peaks ~2 cm from the start
     # on the line at 0.5 rad. Point values at cell centres reproduce it: cell (±2, ±1) cm.
     thrun = M.single_step_map("velocity", (0, 0, 0), (0.0, 1.0), 1.0, A6)
     peak = thrun.most_probable_xy()

@@ -14,7 +14,7 @@ from pose_uncertainty.core.grids import Grid
 from pose_uncertainty.methods import maps as M
 from pose_uncertainty.methods import motion_models as mm
 
-A6 = np.full(6, 0.05)  # thesis error constants (SPEC §4, Method B)
+A6 = np.full(6, 0.05)  # thesis error constants (Němec 2012 ch. 4, Method B)
 A4 = np.full(4, 0.05)
 THESIS = {"straight": (1.0, 0.0), "arc": (1.0, 1.0), "rotation": (0.0, 1.0)}
 
@@ -88,7 +88,7 @@ def test_bad_input_names_the_value_and_what_is_allowed(call, match):
 
 
 def _thrun_inverse(x_t, x_prev, dt):
-    """SPEC §3.2 printed construction (μ, x*, y*, r*, Δφ), for generic (non-straight) points."""
+    """The printed construction (μ, x*, y*, r*, Δφ; Thrun §5.3, Němec 2012 §2.2.1) for non-straight points."""
     x, y, th = x_prev
     xp, yp = x_t[:, 0], x_t[:, 1]
     mu = 0.5 * ((x - xp) * np.cos(th) + (y - yp) * np.sin(th)) / (
@@ -113,7 +113,7 @@ def test_velocity_inverse_agrees_with_the_printed_construction_and_inverts_the_m
     assert_allclose(Vh, V, atol=1e-9)
     assert_allclose(wh, w, atol=1e-9)
     assert_allclose(gh, g, atol=1e-9)
-    # SPEC's μ construction gives the same ω̂ and |V̂| (it has no sign for reverse motion)
+    # the printed μ construction gives the same ω̂ and |V̂| (it has no sign for reverse motion)
     V_thrun, w_thrun = _thrun_inverse(xt, x0, dt)
     assert_allclose(w_thrun, wh, atol=1e-9)
     assert_allclose(np.abs(V_thrun), np.abs(Vh), atol=1e-9)

@@ -95,7 +95,7 @@ def test_shipped_configs_validate(name: str) -> None:
             assert r.config["name"] == r.id
 
 
-def test_default_config_holds_every_experiment_of_spec_4() -> None:
+def test_default_config_holds_every_experiment_of_the_theses() -> None:
     sets = sweep.expand_all(sweep.validate_config(_config(), SCHEMA))
     expected = {
         "A1_shape": 6, "A2_profile": 6, "A3_parameters": 12, "A4_distribution": 2,
@@ -272,6 +272,18 @@ def test_quick_pipeline_end_to_end(quick: Path) -> None:
     ) as png:
         assert inlined.format == "WEBP"
         assert np.array_equal(np.asarray(inlined.convert("RGB")), np.asarray(png.convert("RGB")))
+
+
+def test_report_cites_only_what_a_reader_can_look_up(quick: Path) -> None:
+    """The generated report has none of the words tests/test_words.py keeps out of the product."""
+    from test_words import FORBIDDEN
+
+    html = (quick / "reports/comparison.html").read_text(encoding="utf-8")
+    text = re.sub(r"data:[^\"')\s]+", "data:", html)  # inlined images are not words
+    hits = [f"comparison.html:{n}: {kind}: {m.group(0)!r} in {line.strip()[:160]}"
+            for n, line in enumerate(text.splitlines(), 1)
+            for kind, pattern in FORBIDDEN.items() for m in pattern.finditer(line)]
+    assert not hits, "\n".join(hits)
 
 
 def test_report_has_the_studies_sections(quick: Path) -> None:

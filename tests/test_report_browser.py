@@ -152,7 +152,7 @@ def _free_port() -> int:
         return int(s.getsockname()[1])
 
 
-#: Element ids of the studies sections (issue 6) that the quick report must contain.
+#: Element ids of the studies sections that the quick report must contain.
 STUDY_SECTION_IDS: list[str] = [
     "studies", "accuracy", "accuracy-distance", "expcoords", "fig-studies-expcoords", "growth-laws",
     "regimes", "polar-cartesian", "calibration",
@@ -278,4 +278,4 @@ def test_report_renders_offline_without_console_errors(
     assert all(w > 0 for _, w in images), f"images that did not decode: {[a for a, w in images if w <= 0]}"
     assert title.startswith("Pose uncertainty")
     assert n_claims == 12
-    assert json.loads(study_ids) == STUDY_SECTION_IDS  # issue 6's sections are in the quick report
+    assert json.loads(study_ids) == STUDY_SECTION_IDS  # the studies sections are in the quick report

@@ -406,7 +406,7 @@ def test_state_at(result: RunResult, logfile: Path) -> None:
 MAP_CONFIG = {
     "name": "b1_arc",
     "seed": 1,
-    # one step of V = 1 m/s, ω = 1 rad/s for Δt = 1 s (SPEC §4 B1, arc)
+    # one step of V = 1 m/s, ω = 1 rad/s for Δt = 1 s (Němec 2012 §4.1.1, arc)
     "trajectory": {"name": "arc", "radius": 1.0, "angle": 1.0, "speed": 1.0, "dt": 1.0},
     "monte_carlo": {"n_particles": 500},
     "maps": [

@@ -1,4 +1,4 @@
-"""The seed-001 studies and growth laws: known values and two routes to each number."""
+"""The studies of Šafránek 2022 and the growth laws: known values and two routes to each number."""
 
 import math
 

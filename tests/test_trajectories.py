@@ -1,4 +1,4 @@
-"""Trajectory builders: geometry of every SPEC §4 path, speed profiles, bad input."""
+"""Trajectory builders: geometry of every path of Němec 2012 ch. 3–4, speed profiles, bad input."""
 
 import math
 

@@ -20,22 +20,22 @@ from pose_uncertainty.present.pipeline_figures import (
     umbmark_figure,
 )
 
-SPEC = {"study": "umbmark", "n": 4, "n_boot": 100, "dt": 0.05, "seed": 9}
+STUDY = {"study": "umbmark", "n": 4, "n_boot": 100, "dt": 0.05, "seed": 9}
 
 
 @pytest.fixture(scope="module")
 def log(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return run_study("umbmark", SPEC, tmp_path_factory.mktemp("umb") / "umbmark.json")
+    return run_study("umbmark", STUDY, tmp_path_factory.mktemp("umb") / "umbmark.json")
 
 
 def test_umbmark_is_a_configurable_study() -> None:
-    kind, params = study_params("u", SPEC)
+    kind, params = study_params("u", STUDY)
     assert kind == "umbmark"
     assert st.STUDIES["umbmark"] is um.umbmark_experiment
     assert params["side"] == 4.0
     assert params["n"] == 4
     with pytest.raises(ValueError, match=r"studies\.u\.wobble"):
-        study_params("u", {**SPEC, "wobble": 1})
+        study_params("u", {**STUDY, "wobble": 1})
 
 
 def test_logged_estimates_equal_umbmark_on_the_logged_returns(log: Path) -> None:

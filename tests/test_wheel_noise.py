@@ -1,4 +1,4 @@
-"""Seed 001's wheel-speed error sources and their equivalent k, checked against Monte Carlo."""
+"""Šafránek 2022's wheel-speed error sources and their equivalent k, checked against Monte Carlo."""
 
 import math
 
@@ -11,13 +11,13 @@ from pose_uncertainty.methods import covariance as cv
 from pose_uncertainty.methods import wheel_noise as wn
 
 
-def test_seed001_numbers():
+def test_safranek_2022_numbers():
     s = wn.SEED001
     # one pulse: π·0.065 m / (400 · 0.01 s) = 0.05105 m/s; uniform ±½ pulse: q²/12
     assert_allclose(s.pulse_speed, math.pi * 0.065 / 4.0)
     assert_allclose(s.quantisation_var, s.pulse_speed**2 / 12)
     assert_allclose(wn.speed_variance(s, 1.0), s.pulse_speed**2 / 12 + 1e-4 + 1e-4)
-    # k = σ_v² dt/|v|; for dt/|v| = 0.01 it coincides with seed 001's empirical 0.01·σ_v²
+    # k = σ_v² dt/|v|; for dt/|v| = 0.01 it coincides with Šafránek 2022's empirical 0.01·σ_v²
     assert_allclose(wn.k_equivalent(s, 1.0, 0.01), 0.01 * wn.speed_variance(s, 1.0))
     assert_allclose(wn.k_equivalent(s, 2.0, 0.01), wn.speed_variance(s, 2.0) * 0.005)
 
@@ -53,7 +53,7 @@ def test_total_travel_variance_growth(regime):
 
 
 def test_end_pose_covariance_matches_method_a_with_equivalent_k():
-    # seed 001: 1 m/s, track 0.1 m, 10 ms, 1 s. Route 1: Monte Carlo with the physical error
+    # Šafránek 2022: 1 m/s, track 0.1 m, 10 ms, 1 s. Route 1: Monte Carlo with the physical error
     # sources per step; route 2: Method A with k = σ_v² dt/|v|. σ_θ ≈ 0.03 rad, so the
     # linearisation error is ~σ_θ² ≈ 0.1 %; sample-covariance s.e. √(2/n) ≈ 0.6 % at n = 5e4.
     t = tr.straight(1.0, speed=1.0, dt=0.01, track=0.1)

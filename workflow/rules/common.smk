@@ -202,7 +202,7 @@ def all_outputs():
 
 
 def polar_logs(wildcards):
-    """Runs drawn in seed 001's Cartesian/polar view: the midpoint-sampler runs (at most 8)."""
+    """Runs drawn in Šafránek 2022's Cartesian/polar view: the midpoint-sampler runs (at most 8)."""
     runs = [r for r in RUNS[wildcards.set] if r.config["monte_carlo"]["method"] == "midpoint"]
     return [r.path for r in (runs or RUNS[wildcards.set])[:8]]
 

@@ -1,4 +1,4 @@
-# The claims of SPEC §5 and the method guide from the tables, the pipeline's provenance from the
+# The claims of the theses and the method guide from the tables, the pipeline's provenance from the
 # logs, and the self-contained HTML report that formats them.
 
 

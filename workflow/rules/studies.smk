@@ -1,4 +1,4 @@
-# The studies (seed 001's, the growth laws, the accuracy cases, ...): one job and one log each,
+# The studies (Šafránek 2022's, the growth laws, the accuracy cases, ...): one job and one log each,
 # with their parameters from config key `studies.runs`; collected for the report.
 
 

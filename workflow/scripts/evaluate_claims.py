@@ -1,4 +1,4 @@
-"""Adapter: evaluate the claims of SPEC §5 (pose_uncertainty.pipeline.claims.write_claims)."""
+"""Adapter: evaluate the claims of the theses (pose_uncertainty.pipeline.claims.write_claims)."""
 
 from contextlib import redirect_stderr
 

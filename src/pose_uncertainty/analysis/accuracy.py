@@ -408,7 +408,7 @@ def compare_methods(
     if expcoords is not None:
         pose_e, cov_e = (np.asarray(v, dtype=float) for v in expcoords)
         res["expcoords"] = evaluate_expcoords(s, pose_e, cov_e, rng, grid, prs, n_threshold=n_threshold)
-    if unscented is not None:  # Method C (issue 11)
+    if unscented is not None:  # Method C
         pose_c, cov_c = (np.asarray(v, dtype=float) for v in unscented)
         res["unscented"] = evaluate_cartesian(s, pose_c, cov_c, grid, prs)
     for name, dens in (densities or {}).items():

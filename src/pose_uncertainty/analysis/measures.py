@@ -156,7 +156,7 @@ _DEFINITIONS: tuple[tuple[str, str, str], ...] = (
      "mean log-likelihood of the Monte Carlo end {2}s under the {1} Gaussian"),
     (r"accuracy_(cartesian|expcoords)_nees_(pose|xy)", "1",
      "mean normalised estimation error squared of the {1} Gaussian ({2}; 3 or 2 if consistent)"),
-    # --- runs with a drive section (issue 12; pose_uncertainty.experiments.drive_run) ---
+    # --- runs with a drive section (pose_uncertainty.experiments.drive_run) -------------
     (r"A_growth_(sigma_along|sigma_across|sigma_theta)", "1",
      ("exponent p of the power law {1} ∝ s^p fitted (least squares, log-log) to Method A's {1} against "
      "the path length s at the growth points: the Monte Carlo checkpoints and the end, or without "
@@ -178,7 +178,7 @@ _DEFINITIONS: tuple[tuple[str, str, str], ...] = (
      "(x, y) covariance at the end: its bias in standard deviations of the uncertainty (3 at 98.89 %)")),
 )
 
-# --- Method C, the unscented transform (issue 11): C_*, the mean shifts, accuracy_unscented_* ---
+# --- Method C, the unscented transform: C_*, the mean shifts, accuracy_unscented_* --------------
 _METHOD_C_DEFINITIONS: tuple[tuple[str, str, str], ...] = (
     (r"C_sigma_(x|y)", "m", "Method C's (the unscented transform's) standard deviation of {1} at the end"),
     (r"C_sigma_theta", "rad", "Method C's standard deviation of the heading at the end"),
@@ -364,7 +364,7 @@ def run_measures(path_length: float, duration: float, end: ArrayLike) -> dict[st
     return out
 
 
-# --- Method C, the unscented transform (issue 11) ----------------------------------------------
+# --- Method C, the unscented transform ---------------------------------------------------------
 
 
 def _shift(point: NDArray[np.float64], nominal: NDArray[np.float64]) -> tuple[float, float]:

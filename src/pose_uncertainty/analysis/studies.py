@@ -1,4 +1,4 @@
-"""The seed-001 studies and the growth laws, as functions returning tables (lists of dicts).
+"""The studies of Šafránek 2022 and the growth laws, as functions returning tables (lists of dicts).
 
 * :func:`integration_vs_step` — the three integration methods against step
   size: error of the end pose from the exact arc, and the fitted order;
@@ -7,7 +7,7 @@
   millimetres, float32, float64 and long double: a sequential step loop in
   the given type (the one place a per-step loop is the point), its drift from
   the exact end pose and what it does to the cloud of end poses.
-* :func:`error_sources_vs_monte_carlo` — seed 001's error sources mapped to
+* :func:`error_sources_vs_monte_carlo` — Šafránek 2022's error sources mapped to
   the equivalent ``k`` (:mod:`pose_uncertainty.methods.wheel_noise`) and checked
   against Monte Carlo; :func:`regime_growth` — systematic (per-run) against
   random (per-step) errors and their growth with distance.
@@ -76,13 +76,13 @@ __all__ = [
 NUMBER_TYPES: tuple[str, ...] = ("int_mm", "float32", "float64", "longdouble")
 
 
-# --- trajectories of seed 001 -------------------------------------------------------------------
+# --- trajectories of Šafránek 2022 --------------------------------------------------------------
 
 
 def constant_speed_trajectory(
     v_r: float = 1.0, v_l: float = 0.95, duration: float = 1.0, dt: float = 0.01, track: float = 0.1
 ) -> tr.Trajectory:
-    """Seed 001's run: constant wheel speeds [m/s] for ``duration`` [s] in steps of ``dt`` [s]."""
+    """Šafránek 2022's run: constant wheel speeds [m/s] for ``duration`` [s] in steps of ``dt`` [s]."""
     n = check_positive_int("n_steps", max(1, round(float(check_positive("duration", duration)) / dt)))
     return tr.Trajectory(
         ds_r=np.full(n, v_r * dt), ds_l=np.full(n, v_l * dt), dt=dt, track=track,
@@ -125,7 +125,7 @@ def integration_vs_step(
 ) -> dict[str, Any]:
     """End-pose error of each integration method against the exact arc, for several steps.
 
-    Wheel speeds are constant (seed 001's arc: 1 and 0.95 m/s, b = 0.1 m,
+    Wheel speeds are constant (Šafránek 2022's arc: 1 and 0.95 m/s, b = 0.1 m,
     1 s), so the exact arc is the truth for every step size.
 
     Returns
@@ -207,7 +207,7 @@ def integrate_in_type(
 ) -> NDArray[np.float64]:
     """Integrate wheel travels with a sequential step loop in one number type.
 
-    As in seed 001, lengths are millimetres inside the loop and the wheel
+    As in Šafránek 2022, lengths are millimetres inside the loop and the wheel
     *speeds* [mm/s] are stored in the type (for integers: truncated toward
     zero, C's conversion); each step's travel is speed × step. The result is
     returned in metres as float64.
@@ -220,7 +220,7 @@ def integrate_in_type(
     method : {"exact", "midpoint", "euler", "euler_end"}
     scheme : {"full", "seed001"}
         ``full`` — every quantity (speeds, step, heading, trigonometry,
-        positions) in the type (floats only); ``seed001`` — as seed 001's C++:
+        positions) in the type (floats only); ``seed001`` — as Šafránek 2022's C++:
         positions and speeds in the type, heading and the increments in double,
         each increment added to the stored position and converted back to the
         type (for integers with truncation toward zero). ``int_mm`` always
@@ -238,7 +238,7 @@ def integrate_in_type(
     l_m = np.atleast_2d(np.asarray(ds_l, dtype=np.float64))
     is_int = number_type == "int_mm"
     T: Any = _NUMPY_TYPES[number_type]
-    # wheel speeds [mm/s] stored in the type (seed 001 keeps them in TYPENAME)
+    # wheel speeds [mm/s] stored in the type (Šafránek 2022 keeps them in TYPENAME)
     vr_t = _store(r_m / step * 1000.0, T)
     vl_t = _store(l_m / step * 1000.0, T)
     if scheme == "full" and not is_int:
@@ -287,7 +287,7 @@ def _integrate_all_in_type(
 def _integrate_as_seed001(
     vr_t: NDArray, vl_t: NDArray, track: float, step: float, method: str, T: Any
 ) -> tuple[NDArray, NDArray, NDArray[np.float64]]:
-    """Scheme ``seed001``, as seed 001's C++: positions and speeds in ``T``, the rest in double.
+    """Scheme ``seed001``, as Šafránek 2022's C++: positions and speeds in ``T``, the rest in double.
 
     Each increment is computed in double, added to the stored position and
     converted back to ``T`` (integers: truncated toward zero). Arguments and
@@ -343,7 +343,7 @@ def number_type_drift(
 ) -> list[dict[str, Any]]:
     """Drift of the noiseless end pose computed in each number type from the exact result.
 
-    Constant wheel speeds (seed 001's arc), exact-arc steps, so the only error
+    Constant wheel speeds (Šafránek 2022's arc), exact-arc steps, so the only error
     is arithmetic; the reference is the closed form in long double.
 
     Returns
@@ -423,13 +423,13 @@ def error_sources_vs_monte_carlo(
     n: int = 100_000,
     seed: int = 1,
 ) -> dict[str, float]:
-    """Seed 001's error sources → equivalent ``k`` → Method A, against Monte Carlo of the sources.
+    """Šafránek 2022's error sources → equivalent ``k`` → Method A, against Monte Carlo of the sources.
 
     Straight run at ``speed``; per-step regime.
 
     Returns
     -------
-    dict: ``k_equivalent`` [m], ``k_seed001_factor`` (seed 001's
+    dict: ``k_equivalent`` [m], ``k_seed001_factor`` (Šafránek 2022's
     ``0.01·σ_v²``), the Monte Carlo total-travel variance per metre of the
     right wheel ``k_mc_travel`` [m], and Method A's against the Monte Carlo
     end-pose variances ``var_<x|y|theta>_method_a`` / ``_mc``.
@@ -811,7 +811,7 @@ def _method_cloud_spread(
     v_r: float = 1.0, v_l: float = 0.95, duration: float = 1.0, dt: float = 0.01, track: float = 0.1,
     k: float = 4.17e-6, n: int = 100_000, seed: int = 7,
 ) -> dict[str, Any]:
-    """:func:`method_cloud_spread` on seed 001's constant-speed arc."""
+    """:func:`method_cloud_spread` on Šafránek 2022's constant-speed arc."""
     return method_cloud_spread(constant_speed_trajectory(v_r, v_l, duration, dt, track), k, k, n, seed)
 
 
@@ -819,7 +819,7 @@ def _number_type_clouds(
     v_r: float = 1.0, v_l: float = 1.0, duration: float = 1.0, dt: float = 0.01, track: float = 0.1,
     n: int = 1000, seed: int = 3, regime: str = "per_step", scheme: str = "seed001",
 ) -> dict[str, Any]:
-    """:func:`number_type_clouds` with seed 001's error sources."""
+    """:func:`number_type_clouds` with Šafránek 2022's error sources."""
     t = constant_speed_trajectory(v_r, v_l, duration, dt, track)
     return number_type_clouds(t, wn.SEED001, n, seed, regime=regime, scheme=scheme)
 
@@ -828,7 +828,7 @@ def _error_sources(
     speed: float = 1.0, duration: float = 1.0, dt: float = 0.01, track: float = 0.1,
     n: int = 100_000, seed: int = 1,
 ) -> dict[str, float]:
-    """:func:`error_sources_vs_monte_carlo` with seed 001's error sources."""
+    """:func:`error_sources_vs_monte_carlo` with Šafránek 2022's error sources."""
     return error_sources_vs_monte_carlo(wn.SEED001, speed=speed, duration=duration, dt=dt, track=track,
                                         n=n, seed=seed)  # fmt: skip
 
@@ -889,7 +889,7 @@ STUDIES: dict[str, Any] = {
     "calibration_demo": calibration_demo,
     "accuracy_vs_distance": _accuracy_vs_distance,
     "expcoords_regions": expcoords_regions,
-    "umbmark": um.umbmark_experiment,  # issue 11: systematic errors, UMBmark before/after correction
+    "umbmark": um.umbmark_experiment,  # systematic errors, UMBmark before/after correction
 }
 
 
@@ -959,7 +959,7 @@ def _accuracy_summary(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
     key = "coverage_xy_98.89"
     worst = min(rows, key=lambda r: r["cartesian"][key])
     ban = [r["expcoords"][key] for r in rows if "expcoords" in r]
-    c_rows = [r for r in rows if "unscented" in r]  # Method C (issue 11)
+    c_rows = [r for r in rows if "unscented" in r]  # Method C
     worst_c = min(c_rows, key=lambda r: r["unscented"][key]) if c_rows else None
     return {
         "worst_a": worst["cartesian"][key], "worst_case": worst["case"],

@@ -12,7 +12,7 @@ Commands
     :func:`pose_uncertainty.pipeline.jobs.simulate_run`.
 ``simulate-localization CONFIG_JSON LOG.mcap TIMINGS.json``
     :func:`pose_uncertainty.pipeline.jobs.simulate_localization`.
-``run-study NAME SPEC_JSON OUT.json``
+``run-study NAME STUDY_JSON OUT.json``
     :func:`pose_uncertainty.pipeline.jobs.run_study`.
 
 Exit status: 0 success; 2 bad usage or a configuration that is not a JSON object (one line

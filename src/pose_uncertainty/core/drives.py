@@ -1,4 +1,4 @@
-"""The drives of thesis 002 §3.2.2: per-step odometry measurements ↔ body twist increments.
+"""The drives of Skalka 2011 §3.2.2: per-step odometry measurements ↔ body twist increments.
 
 Every drive maps its own per-step odometry measurements ``u`` (shape (..., m)) to
 the body-frame twist increment of its reference point ``ξ = (v₁, v₂, Δθ)`` —

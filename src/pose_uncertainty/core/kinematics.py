@@ -1,4 +1,4 @@
-"""Differential-drive kinematics (SPEC §1.1–1.2), batched over leading dimensions.
+"""Differential-drive kinematics (Šafránek 2022 §2.2.2–2.2.3), batched over leading dimensions.
 
 Holonomic drives also move sideways: :func:`step_twist` and :func:`integrate_twist`
 take a body-frame twist increment ``(v₁, v₂, Δθ)`` per step (forward, left,

@@ -1,4 +1,4 @@
-"""Zero-mean noise densities and samplers of the probabilistic motion models (SPEC §3.1).
+"""Zero-mean noise densities and samplers of the motion models (Thrun ch. 5; Němec 2012 §2.2.1).
 
 Every function takes a **variance** ``var`` (never a standard deviation):
 
@@ -8,9 +8,9 @@ Every function takes a **variance** ``var`` (never a standard deviation):
     sample_triangular(b²)  = (√6/2) (rand(−b, b) + rand(−b, b))
 
 and the variance of each noise term is built from the controls by
-:func:`scaled_variance`, either as in the book and seed 000 (``"squared"``,
-``α_a u_a² + α_b u_b²``, the default) or as in the lecture decks 003/004
-(``"abs"``, ``α_a |u_a| + α_b |u_b|``).
+:func:`scaled_variance`, either as in the book and Němec 2012 (``"squared"``,
+``α_a u_a² + α_b u_b²``, the default) or as in the lecture decks (Kulich 2014 and
+the Russian lecture deck on motion models: ``"abs"``, ``α_a |u_a| + α_b |u_b|``).
 
 Zero variance. A variance of exactly zero makes a density a Dirac. The densities
 here raise every variance to at least :data:`MIN_VARIANCE` (10⁻¹²) so that they stay
@@ -186,8 +186,8 @@ def scaled_variance(
 ) -> NDArray[np.float64]:
     """Variance of one noise term from two controls.
 
-    ``"squared"`` (book, seed 000): ``α_a u_a² + α_b u_b²``;
-    ``"abs"`` (lecture decks 003/004): ``α_a |u_a| + α_b |u_b|``.
+    ``"squared"`` (book, Němec 2012): ``α_a u_a² + α_b u_b²``;
+    ``"abs"`` (Kulich 2014, the Russian lecture deck on motion models): ``α_a |u_a| + α_b |u_b|``.
 
     Parameters
     ----------

@@ -5,7 +5,7 @@ at step ``dt`` on a robot of track ``b``. Everything else — body travel
 ``Δs = (Δs_r+Δs_l)/2``, turn ``Δθ = (Δs_r−Δs_l)/b``, the controls ``(V, ω)``
 and the noiseless poses (exact arcs) — is derived from them.
 
-Builders cover every path of SPEC §4 and compose from segments:
+Builders cover every path of Němec 2012 ch. 3–4 and compose from segments:
 
 >>> from pose_uncertainty import trajectories as tr
 >>> t = tr.straight(length=1.0, speed=1.0, dt=0.01, track=0.2)
@@ -178,7 +178,7 @@ class Trajectory:
         return float(np.abs(self.ds_r).sum()), float(np.abs(self.ds_l).sum())
 
     def poses_by(self, method: str = "exact") -> NDArray[np.float64]:
-        """Noiseless poses by one integration method (SPEC §1.1), shape (N+1, 3)."""
+        """Noiseless poses by one integration method (Šafránek 2022 §2.2.2), shape (N+1, 3)."""
         return integrate(self.ds, self.dtheta, self.start, method=method)  # type: ignore[arg-type]
 
     @property
@@ -337,7 +337,7 @@ def from_segments(
     )
 
 
-# --- the paths of SPEC §4 -------------------------------------------------------------
+# --- the paths of Němec 2012 ch. 3–4 --------------------------------------------------
 # Each path is its segments (a function of the geometric parameters) driven by from_segments.
 
 

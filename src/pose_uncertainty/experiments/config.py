@@ -15,7 +15,7 @@ it). A configuration is written as a plain mapping (YAML or JSON)::
       - {name: velocity, model: velocity, alpha: [0.05, 0.05, 0.05, 0.05, 0.05, 0.05]}
 
 An optional ``drive`` section (:mod:`pose_uncertainty.experiments.drive_config`) makes the
-robot any drive of thesis 002; the trajectory is then the path it follows. Without it
+robot any drive of Skalka 2011 §3.2.2; the trajectory is then the path it follows. Without it
 the run is the differential drive of ``k_r``, ``k_l``.
 
 :meth:`RunConfig.to_dict` returns *every* parameter, defaults included (the
@@ -60,7 +60,7 @@ __all__ = [
 ]
 
 
-#: Units of the trajectory builder parameters (SPEC §1, pose_uncertainty.core.trajectories).
+#: Units of the trajectory builder parameters (pose_uncertainty.core.trajectories).
 TRAJECTORY_UNITS: dict[str, str] = {
     "name": "-",
     "length": "m",
@@ -81,7 +81,7 @@ TRAJECTORY_UNITS: dict[str, str] = {
 
 @dataclass(frozen=True)
 class MonteCarloConfig:
-    """Monte Carlo sampling of end poses under Method A's noise model (SPEC §2.2).
+    """Monte Carlo sampling of end poses under Method A's noise model (Němec 2012 §2.1.2).
 
     Attributes
     ----------
@@ -132,7 +132,7 @@ class MonteCarloConfig:
 
 @dataclass(frozen=True)
 class MapConfig:
-    """One probability map (Method B, SPEC §3) computed for the run.
+    """One probability map (Method B, Němec 2012 §2.2) computed for the run.
 
     Attributes
     ----------
@@ -285,7 +285,7 @@ class RunConfig:
         speed m/s, angular_speed rad/s, dt s, track m).
     k_r, k_l : float
         Odometry error constants [m]: per-step wheel-travel variance per metre of
-        travel, ``Σ_Δ = diag(k_r|Δs_r|, k_l|Δs_l|)`` (SPEC §2).
+        travel, ``Σ_Δ = diag(k_r|Δs_r|, k_l|Δs_l|)`` (Němec 2012 §2.1).
     cov0 : tuple of tuple of float or None
         Initial pose covariance, 3×3 over (x [m], y [m], θ [rad]); None = zero.
     pr : float

@@ -16,7 +16,7 @@ the exponential-coordinates Gaussian are those of the drive
         k: null               # m per metre of travel of every travel channel (null: k_r, k_l)
         steer_var: 0.02       # rad², per step, on every steering angle
         steer_bias: 0.0       # rad, true minus reported
-        encoder: null         # seed 001's encoder sources instead of k (mapping, see below)
+        encoder: null         # Šafránek 2022's encoder sources instead of k (mapping, see below)
         slip: null            # skid_steer only: {chi_var [1], x_icr_var [m²]}
 
 Geometry keys per type (:data:`GEOMETRY`; a key of another type is rejected):
@@ -34,7 +34,7 @@ drive that has them (differential, skid_steer, ackermann); a number or one
 number per travel channel sets it directly. ``steer_var`` and ``steer_bias`` act
 on the steering angles and must be 0 for a drive without any.
 ``encoder`` takes the keys of :class:`pose_uncertainty.methods.wheel_noise.WheelErrorSources`
-(defaults: seed 001's chassis) and replaces ``k``.
+(defaults: Šafránek 2022's chassis) and replaces ``k``.
 
 A drive that cannot follow the configured path (a rotation in place with
 limited steering, a sideways step of a car) is rejected when the configuration
@@ -133,7 +133,7 @@ class DriveErrors:
 
 
 def _encoder(data: Any) -> dict[str, Any]:
-    """``drive.errors.encoder``: every WheelErrorSources field, seed 001's defaults filled in."""
+    """``drive.errors.encoder``: every WheelErrorSources field, Šafránek 2022's defaults filled in."""
     check_keys("drive.errors.encoder", data, _ENCODER_KEYS)
     full = {f.name: data.get(f.name, f.default) for f in fields(WheelErrorSources)}
     where = "drive.errors.encoder."

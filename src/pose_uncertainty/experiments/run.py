@@ -137,7 +137,7 @@ def execute(config: RunConfig) -> RunResult:
         else:  # the drive following the path (experiments/drive_run.py)
             cres = drive_method_a(ds, _cov0(config))
     c_end = None
-    if ds is None:  # Method C (issue 11), on the differential drive's wheel-noise model
+    if ds is None:  # Method C, on the differential drive's wheel-noise model
         with _timed(timings, "unscented_s"):
             ures = unscented.propagate(traj, config.k_r, config.k_l, cov0=_cov0(config))
         c_end = (np.asarray(ures.poses[-1], dtype=np.float64), np.asarray(ures.covs[-1], dtype=np.float64))

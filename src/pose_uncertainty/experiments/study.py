@@ -1,4 +1,4 @@
-"""One study (a seed-001 study, a growth law, an accuracy case, ...) as a configured, logged job.
+"""One study (a study of Šafránek 2022, a growth law, an accuracy case, ...) as a configured, logged job.
 
 A study is configured by a kind (a key of
 :data:`pose_uncertainty.analysis.studies.STUDIES`) and keyword parameters;

@@ -1,14 +1,14 @@
-"""The Kalman filter and EKF localization with range–bearing landmarks (Thrun §3.2–3.3, §7.4; deck 004).
+"""The Kalman filter and EKF localization with range–bearing landmarks (Thrun §3.2–3.3, §7.4; Kulich 2014).
 
 Pure, batched functions over leading dimensions (``mean (..., 3)``, ``cov (..., 3, 3)``).
 
-Linear Kalman filter (deck 004, "Kalman_filter")::
+Linear Kalman filter (Kulich 2014, "Kalman_filter")::
 
     predict:  x̄ = F x + b,          P̄ = F P Fᵀ + Q
     update:   S = H P̄ Hᵀ + R,       K = P̄ Hᵀ S⁻¹,     x = x̄ + K ν,   ν = z − H x̄
               P = (I − K H) P̄ (I − K H)ᵀ + K R Kᵀ        (Joseph form)
 
-The deck prints ``P = (I − K H) P̄``, equal in exact arithmetic; the Joseph form
+Kulich 2014 prints ``P = (I − K H) P̄``, equal in exact arithmetic; the Joseph form
 stays symmetric positive semi-definite under round-off and for any gain.
 
 EKF: the same update with ``ν = z − h(x̄)`` (bearing components wrapped) and
@@ -23,7 +23,7 @@ when ``h`` is linear. Two predictions:
       Σ' = G Σ Gᵀ + V M Vᵀ,   M = diag(α1V²+α2ω², α3V²+α4ω², α5V²+α6ω²)
 
   with ``G = ∂(x', y', θ')/∂(x, y, θ)`` and ``V = ∂(x', y', θ')/∂(V, ω, γ)`` in the
-  sinc form, so ``ω → 0`` (straight driving) needs no special case. Deck 004
+  sinc form, so ``ω → 0`` (straight driving) needs no special case. Kulich 2014
   prints ``V[0, 0] = −(sin θ + sin(θ+ωΔt))/ω``: the first sine has the wrong
   sign (it is ``(−sin θ + sin(θ+ωΔt))/ω``), and ``y' = y_c + (v/ω) cos(θ+ωΔt)``
   where it is ``y_c − …``. The γ term (heading drift of the sampler, α5, α6) is

@@ -1,4 +1,4 @@
-"""Histogram (grid) filter on a fixed ``(x, y, θ)`` grid (Thrun §4.1, §8.2; deck 004).
+"""Histogram (grid) filter on a fixed ``(x, y, θ)`` grid (Thrun §4.1, §8.2; Kulich 2014).
 
 Prediction: the multi-step map's step (:func:`pose_uncertainty.methods.maps.predict_on_grid`
 with the velocity or the odometry model), on a fixed grid: mass that leaves the

@@ -4,7 +4,7 @@ Three models of one step ``k → k+1`` of a :class:`~pose_uncertainty.localizati
 all driven by the same measured wheel travels:
 
 ``"wheels"``
-    Method A's noise model (SPEC §2.2): ``Δs_r' ~ N(Δs_r, k_r|Δs_r|)``,
+    Method A's noise model (Němec 2012 §2.1.2): ``Δs_r' ~ N(Δs_r, k_r|Δs_r|)``,
     ``Δs_l' ~ N(Δs_l, k_l|Δs_l|)``, then the midpoint step. The simulator's
     ``per_step`` truth is drawn from this model (with exact arcs), so it is the
     right model there; the EKF linearises it (:func:`~pose_uncertainty.localization.ekf.ekf_predict_wheels`).

@@ -1,4 +1,4 @@
-"""Particle filter — Monte Carlo localization (Thrun Tables 8.2–8.3; seed 002 §2.7.1.3; deck 004).
+"""Particle filter — Monte Carlo localization (Thrun Tables 8.2–8.3; Skalka 2011 §2.7.1.3; Kulich 2014).
 
 Per step: prediction — every particle moved by a draw of the motion model
 (:func:`~pose_uncertainty.localization.motion.sample_motion`: wheel noise, velocity or
@@ -10,7 +10,7 @@ resampling — only when the effective sample size ``1/Σw²`` falls below
 Random particles (recovery from a kidnapping or a wrong convergence)
 --------------------------------------------------------------------
 ``injection="fixed"``: at every correction ``round(injection_fraction · n)`` particles
-are replaced by poses drawn uniformly over the free space (seed 002's simple remedy).
+are replaced by poses drawn uniformly over the free space (the simple remedy of Skalka 2011 §2.7.1.3).
 ``injection="augmented"`` (Augmented MCL, Thrun Table 8.3): short- and long-term averages
 of the measurement likelihood, ``w_slow += α_slow (w_avg − w_slow)``,
 ``w_fast += α_fast (w_avg − w_fast)`` (kept in logarithms, ``w_avg = Σ w_i p(z|x_i)``;

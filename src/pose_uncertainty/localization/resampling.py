@@ -1,4 +1,4 @@
-"""Resampling of weighted particles: the three schemes of seed 002 (Table 2.1), plus stratified.
+"""Resampling of weighted particles: the three schemes of Skalka 2011 (Table 2.1), plus stratified.
 
 Every scheme draws ``n`` sorted pointers ``T_0 ≤ … ≤ T_{n−1}`` in [0, 1) and then
 runs the seed's common selection: with the cumulative weights
@@ -18,7 +18,7 @@ first ``j`` with ``T_i < q_j``. Only the pointers differ:
     sorted uniforms without sorting, from exponential spacings: with
     ``E_0 … E_n`` i.i.d. Exp(1) and ``S_k = E_0 + … + E_k``, ``T_i = S_i / S_n``
     (``i < n``) are distributed exactly as ``n`` sorted uniforms — the same
-    law of copies as multinomial. (Seed 002 writes the systematic recursion as
+    law of copies as multinomial. (Skalka 2011 writes the systematic recursion as
     ``T[i] = t[t−1] + 1/n``: read ``T[i−1]``.)
 
 All schemes are unbiased, ``E[copies_i] = n w_i``; the variances obey
@@ -137,7 +137,7 @@ def pointers(n: int, rng: np.random.Generator, scheme: str = "systematic") -> Ar
 
 
 def select(q: ArrayLike, T: ArrayLike) -> IntArray:
-    """Seed 002's selection: pointer ``T_i`` takes the first ``j`` with ``T_i < q_j``.
+    """Skalka 2011's selection: pointer ``T_i`` takes the first ``j`` with ``T_i < q_j``.
 
     Binary search of each pointer in the sorted ``q`` (N,) (``side="right"``: ``T_i = q_j``
     moves past ``j``); ``T`` need not be sorted — the result keeps its order.

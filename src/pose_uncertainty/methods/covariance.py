@@ -1,4 +1,4 @@
-"""Method A — first-order covariance propagation (Siegwart & Nourbakhsh; SPEC §2).
+"""Method A — first-order covariance propagation (Siegwart & Nourbakhsh 2004; Němec 2012 §2.1).
 
 Midpoint step with ``Δs = (Δs_r+Δs_l)/2``, ``Δθ = (Δs_r−Δs_l)/b`` and
 ``φ = θ + Δθ/2``::
@@ -17,7 +17,7 @@ Two routes compute the same covariances:
   linear in ``(k_r, k_l)``, so the prefix sums are computed once per geometry
   for unit constants and combined for every parameter set.
 
-Error ellipses (SPEC §2.1) come from :func:`ellipse` (closed form) and
+Error ellipses (Němec 2012 §2.1.1) come from :func:`ellipse` (closed form) and
 :func:`ellipse_polyline` (transformed circle).
 """
 
@@ -217,7 +217,7 @@ def propagate_recursive(
     cov0: ArrayLike | None = None,
     start: ArrayLike = (0.0, 0.0, 0.0),
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Reference propagation: the recursion of SPEC §2, one step at a time.
+    """Reference propagation: the recursion of Němec 2012 §2.1, one step at a time.
 
     Parameters as :func:`propagate_travels`. Loops over steps (not over
     parameter sets); used to test :func:`propagate_travels`.
@@ -341,7 +341,7 @@ def propagate(
     track: ArrayLike | None = None,
     cov0: ArrayLike | None = None,
 ) -> CovarianceResult:
-    """Propagate the pose covariance along a trajectory (SPEC §2), for many parameter sets.
+    """Propagate the pose covariance along a trajectory (Němec 2012 §2.1), for many parameter sets.
 
     Parameters
     ----------
@@ -382,7 +382,7 @@ def _check_cov2(cov_xy: ArrayLike) -> NDArray[np.float64]:
 
 
 def ellipse(cov_xy: ArrayLike, pr: ArrayLike = PR_3SIGMA) -> Ellipse:
-    """Closed-form Pr-ellipse of a 2-D covariance (SPEC §2.1).
+    """Closed-form Pr-ellipse of a 2-D covariance (Němec 2012 §2.1.1).
 
     ``k = −2 ln(1 − Pr)``, ``τ = √((σx² − σy²)² + 4σxy²)``,
     ``α = ½ atan2(2σxy, σx² − σy²)``, ``a = √(k/2 (σx²+σy² ± τ))``.

@@ -14,7 +14,7 @@ with the drive's twist ``ξ(u)`` (:mod:`pose_uncertainty.core.drives`). With
 ``Σ_u`` is the per-step covariance of the measurement errors and ``Q_ξ`` of
 errors acting on the twist directly (the skid-steer's slip), both from
 :mod:`.drive_noise`. For the differential drive with the midpoint rule this
-is SPEC §2 (:mod:`.covariance`).
+is Method A (:mod:`.covariance`).
 
 The per-run (systematic) regime has errors ``δξ_i = T_i ε`` fixed for the run
 (:func:`.drive_noise.per_run_sensitivity`); to first order the pose error is

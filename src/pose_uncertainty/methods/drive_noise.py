@@ -10,9 +10,9 @@ source                    acts on                     per step (variance / bias)
 ========================  ==========================  ===================================
 ``k`` travel noise        every travel channel        ``k_j |Δs_j|`` (k per metre, as
                                                       ``k_r, k_l`` of Method A)
-``encoder`` (seed 001)    every travel channel,       ``σ_v²(v) dt²`` with
+``encoder``               every travel channel,       ``σ_v²(v) dt²`` with
                           replacing ``k``             ``σ_v² = q²/12 + c²v² + σ_a²``
-                                                      (:mod:`.wheel_noise`)
+                                                      (:mod:`.wheel_noise`; Šafránek 2022)
 ``steer_var``             every angle channel         ``steer_var`` [rad²], white
 ``steer_bias``            every angle channel         ``+steer_bias`` [rad]
 ``slip`` (:class:`IcrSlip`) the ICR of a skid-steer   ``χ ~ N(χ̄, chi_var)``,
@@ -107,7 +107,7 @@ class DriveErrorModel:
         travel channel (one number for all, or one per travel channel)
     steer_var : float or tuple — per-step steering-angle variance [rad²], ≥ 0
     steer_bias : float or tuple — steering-angle bias, true minus reported [rad]
-    encoder : WheelErrorSources, optional — seed 001's encoder, surface and
+    encoder : WheelErrorSources, optional — Šafránek 2022's encoder, surface and
         additive errors of every travel channel, in place of ``k``
     slip : IcrSlip, optional — random ICR (skid_steer only)
     """

@@ -20,7 +20,7 @@ plane as a banana, not an ellipse.
 Propagation along a trajectory
 ------------------------------
 One step of the robot with wheel travels ``(Δs_r, Δs_l)`` is exactly the twist
-``δ = (Δs, 0, Δθ)`` (the exact arc of SPEC §1.1(1) is ``exp(δ)``). With noisy
+``δ = (Δs, 0, Δθ)`` (the exact arc of Šafránek 2022 §2.2.2 is ``exp(δ)``). With noisy
 travels the step is ``exp(δ + n)``, ``n = M (e_r, e_l)``,
 ``M = [[½, ½], [0, 0], [1/b, −1/b]]``, ``Cov(e) = Σ_Δ = diag(k_r|Δs_r|, k_l|Δs_l|)``.
 Writing ``g_i = μ_i exp(ε_i)`` with the noiseless ``μ_{i+1} = μ_i exp(δ_i)``:

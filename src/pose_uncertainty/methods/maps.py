@@ -1,4 +1,4 @@
-"""Probability maps from the velocity and odometry motion models (SPEC §3, Method B).
+"""Probability maps from the velocity and odometry motion models (Method B; Thrun ch. 5; Němec 2012 §2.2).
 
 A map is the probability mass of each cell of a discretised ``(x, y, θ)`` grid
 after motion from a known start. Two constructions:
@@ -505,7 +505,7 @@ def single_step_map(
         Known start pose.
     control : array_like, shape (2,)
         ``(V, ω)`` [m/s, rad/s]. For the odometry model the odometry ``u`` is the
-        noiseless velocity motion ``start → end`` (as seed 000), unless ``odometry``
+        noiseless velocity motion ``start → end`` (as Němec 2012 §4.2), unless ``odometry``
         is given.
     dt : float [s], > 0
     alphas : array_like, shape (6,) velocity or (4,) odometry, >= 0
@@ -573,7 +573,7 @@ def _single_step(
     variance_from: str | None,
     odometry: ArrayLike | None,
 ) -> _Step:
-    """Check the control of :func:`single_step_map` and make its step (odometry: given or seed 000's)."""
+    """Check the control of :func:`single_step_map` and make its step (odometry: given or Němec 2012's)."""
     step_dt = float(check_positive("dt", dt))
     u = check_finite("control", control)
     if u.shape != (2,):
@@ -1394,7 +1394,7 @@ def multi_step_map(
     scaling : {"squared", "abs"}
     odometry : array_like, shape (N+1, 3), optional
         Odometry model: noiseless odometry poses; step ``i`` is ``odometry[i] → odometry[i+1]``.
-        Default: the noiseless poses of the velocity model along ``controls`` (seed 000).
+        Default: the noiseless poses of the velocity model along ``controls`` (as Němec 2012).
     resolution, theta_resolution : float [m, rad], > 0
         Cell size of the automatic grid.
     oversample : int, >= 1
@@ -1538,7 +1538,7 @@ def _odometry_path(
 ) -> Array | None:
     """Odometry poses (N+1, 3) of the odometry model; None for the velocity model.
 
-    Given, or the noiseless velocity poses along ``u`` (seed 000).
+    Given, or the noiseless velocity poses along ``u`` (as Němec 2012).
     """
     if model != "odometry":
         return None

@@ -1,4 +1,4 @@
-"""Velocity and odometry motion models (Thrun, Burgard & Fox; SPEC §3.2–3.3): densities and samplers.
+"""Velocity and odometry motion models (Thrun §5.3–5.4; Němec 2012 §2.2): densities and samplers.
 
 Both models are written in the frame of the start pose ``x_{t−1} = (x, y, θ)``: a
 hypothesis ``x_t = (x', y', θ')`` has the local displacement
@@ -11,7 +11,7 @@ Velocity model, ``u = (V, ω)`` for ``Δt``
 -----------------------------------------
 Inverse (hypothesis → controls ``(V̂, ω̂, γ̂)``). The circle through both points
 tangent to the start heading turns by ``Δφ = 2·atan2(l, f)``, wrapped to (−π, π]
-(SPEC's μ/x*/y*/r* construction gives the same circle; this form has no
+(Němec 2012's μ/x*/y*/r* construction gives the same circle; this form has no
 singular denominator). We take the *principal branch*: the shorter arc, driven
 forwards (``V̂ > 0``) when the hypothesis is ahead (``f ≥ 0``) and backwards
 (``V̂ < 0``) when it is behind::
@@ -53,7 +53,7 @@ conventions (documented deviations from the book, which has none):
 * all rotation differences are wrapped to (−π, π].
 
 Variances: the book's density evaluates them at the hypothesis
-(``α1 δ̂rot1² + α2 δ̂trans²`` …, SPEC §3.3) while its sampler uses the odometry
+(``α1 δ̂rot1² + α2 δ̂trans²`` …, Thrun §5.4) while its sampler uses the odometry
 ``δ`` — the two disagree. ``variance_from="hypothesis"`` gives the printed
 formula, ``"odometry"`` the sampler's. The pose density of the sampler is
 ``p / |δ̂trans|`` (Jacobian of ``(δrot1, δtrans, δrot2) → (x', y', θ')``), with
@@ -212,10 +212,10 @@ def velocity_inverse(x_t: ArrayLike, x_prev: ArrayLike, dt: float) -> tuple[Arra
 def velocity_forward(
     x_prev: ArrayLike, V: ArrayLike, omega: ArrayLike, gamma: ArrayLike, dt: float
 ) -> Array:
-    """Pose after driving ``(V, ω)`` with heading drift ``γ`` for ``dt`` (SPEC §3.2 sampler).
+    """Pose after driving ``(V, ω)`` with heading drift ``γ`` for ``dt`` (Thrun §5.3 sampler).
 
     ``x' = x + VΔt·sinc(ωΔt/2)·cos(θ+ωΔt/2)``, ``y'`` likewise with ``sin``,
-    ``θ' = θ + ωΔt + γΔt`` — the arc formula of SPEC §3.2 written without the
+    ``θ' = θ + ωΔt + γΔt`` — the arc formula of Thrun §5.3 written without the
     ``V/ω`` division, so ``ω → 0`` is the straight line. Headings are not wrapped.
 
     Parameters
@@ -470,7 +470,7 @@ def sample_velocity_path(
 def noiseless_velocity_poses(start: ArrayLike, controls: ArrayLike, dt: ArrayLike) -> Array:
     """Noiseless poses of the velocity model along ``controls``: shape (N+1, 3).
 
-    Seed 000 takes these as the odometry ``u`` of the odometry-model experiments.
+    Němec 2012 (§4.2) takes these as the odometry ``u`` of the odometry-model experiments.
     """
     u = check_finite("controls", check_last_axis("controls", controls, 2))
     steps = _per_step_dt(dt, u.shape[0])
@@ -686,7 +686,7 @@ def sample_controls(
     One control: :func:`sample_velocity` / :func:`sample_odometry`; several: the
     model's sampler applied step after step (:func:`sample_velocity_path` /
     :func:`sample_odometry_path`), which is what a multi-step map predicts. The
-    odometry ``u`` is the noiseless velocity motion (seed 000's convention).
+    odometry ``u`` is the noiseless velocity motion (Němec 2012's convention).
 
     Parameters
     ----------

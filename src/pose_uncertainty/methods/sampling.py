@@ -1,4 +1,4 @@
-"""Monte Carlo under the wheel-noise model of the covariance method (SPEC §2.2).
+"""Monte Carlo under the wheel-noise model of the covariance method (Němec 2012 §2.1.2).
 
 Two named regimes of odometry error:
 

@@ -1,6 +1,6 @@
 """Systematic odometry errors: wheels and track that differ from what the odometry assumes.
 
-Thesis 002 §3.2.1: unequal wheel diameters and a wrong track dominate the
+Skalka 2011 §3.2.1: unequal wheel diameters and a wrong track dominate the
 odometry error indoors, and grow steadily with distance. UMBmark (Borenstein &
 Feng 1996) measures them by driving a square; this module simulates that.
 

@@ -8,7 +8,7 @@ Cartesian UT (:func:`propagate`)
     Per step, the state is augmented with the step's two wheel travels,
     ``z = (x, y, θ, Δs_r, Δs_l)`` with mean ``(p̄, Δs_r, Δs_l)`` and covariance
     ``blockdiag(Σ_p, Σ_Δ)``, ``Σ_Δ = diag(k_r|Δs_r|, k_l|Δs_l|)``. Its ``2n+1 = 11``
-    sigma points go through the midpoint step of SPEC §2
+    sigma points go through the midpoint step of Method A (Němec 2012 §2.1)
     (:func:`pose_uncertainty.core.kinematics.step`, the step Method A linearises),
     so that where that step is linear on the sigma points, C equals A exactly.
     The heading mean is circular (about the propagated central point, so the

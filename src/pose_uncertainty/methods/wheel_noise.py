@@ -1,7 +1,7 @@
-"""Seed 001's error sources of a wheel-speed measurement, and their equivalent constant ``k``.
+"""Šafránek 2022's error sources of a wheel-speed measurement, and their equivalent constant ``k``.
 
 Each wheel's measured speed ``v`` is corrupted by three independent errors
-(SPEC §1.3):
+(Šafránek 2022 §2.3):
 
 * encoder quantisation — ``N`` pulses per revolution, wheel diameter ``D``,
   integration time ``T``: one pulse is ``q = πD/(N T)`` m/s and the error is
@@ -33,7 +33,7 @@ variance ``σ_v² dt²``, while the step covers ``|Δs| = |v| dt``. Matching
     k = σ_v²(v) · dt / |v|                                           [m]
 
 and over a distance ``L = n|v|dt`` the total travel has variance
-``n σ_v² dt² = k L``: linear in distance, as Method A assumes. Seed 001's
+``n σ_v² dt² = k L``: linear in distance, as Method A assumes. Šafránek 2022's
 empirical factor ``k = 0.01 σ_v²`` is this mapping for ``dt/|v| = 0.01 s²/m``
 (10 ms steps at 1 m/s) and nothing else: the proper factor depends on the
 step and on the speed. Two consequences of the derivation:
@@ -86,7 +86,7 @@ __all__ = [
 
 @dataclass(frozen=True)
 class WheelErrorSources:
-    """Error sources of one wheel's speed measurement (seed 001).
+    """Error sources of one wheel's speed measurement (Šafránek 2022 §2.3).
 
     Attributes
     ----------
@@ -123,7 +123,7 @@ class WheelErrorSources:
         return self.pulse_speed**2 / 12.0 if self.quantisation else 0.0
 
 
-#: Seed 001's chassis: 65 mm wheels, 400 pulses/rev, 10 ms, 1 % surface, 0.01 m/s noise.
+#: Šafránek 2022's chassis: 65 mm wheels, 400 pulses/rev, 10 ms, 1 % surface, 0.01 m/s noise.
 SEED001 = WheelErrorSources()
 
 

@@ -1,8 +1,8 @@
-"""The claims of the theses (SPEC §5), each evaluated from the collected per-run measures.
+"""The claims of the theses (Němec 2012, Šafránek 2022), each evaluated from the collected per-run measures.
 
 :func:`evaluate_claims` takes the per-set tables (rows of
 :func:`pose_uncertainty.present.report.run_measures`, keyed by set name) and returns one
-:class:`Claim` per claim of SPEC §5: what the source showed, what we measured
+:class:`Claim` per claim of the theses: what the source showed, what we measured
 (with the numbers), the verdict — ``confirmed``, ``refuted``, ``qualified`` (true
 only in part or under conditions), or ``not measured`` (the sets it needs are not
 in the config) — the reason, and the figure that shows it.
@@ -40,11 +40,11 @@ Rows = Mapping[str, Sequence[Mapping[str, Any]]]
 
 @dataclass
 class Claim:
-    """One claim of SPEC §5 and its evaluation.
+    """One claim of the theses and its evaluation.
 
     Attributes
     ----------
-    number : int — the claim's number in SPEC §5
+    number : int — the claim's number, 1–12 (its row of the report's claims table)
     claim : str — the claim as the theses make it
     source : str — what the source showed
     measured : str — what we measured, with numbers and units
@@ -563,36 +563,36 @@ def _c12(rows: Rows, c: Claim) -> None:
 
 _CLAIMS: list[tuple[int, str, str, Callable[[Rows, Claim], None]]] = [
     (1, "Straight line: uncertainty across the path grows much faster than along it.",
-     "Seed 000 §3.1: the ellipses on the straight line widen across the path much more than along it.", _c1),
+     "Němec 2012 §3.1: the ellipses on the straight line widen across the path much more than along it.", _c1),
     (2, "Of the three ways to (2, 2, 0°), direct < two quarter circles < right angles.",
-     "Seed 000 §3.1: final ellipses of the three paths compared by eye.", _c2),
+     "Němec 2012 §3.1: final ellipses of the three paths compared by eye.", _c2),
     (3, "The speed profile has no effect on Method A's final covariance.",
-     "Seed 000 §3.2: constant and ramp profiles give the same final ellipse.", _c3),
+     "Němec 2012 §3.2: constant and ramp profiles give the same final ellipse.", _c3),
     (4, "Larger k → larger ellipse; unequal k_r, k_l tilt it; a wider track shrinks the across-track spread.",
-     "Seed 000 §3.3: ellipses for the parameter variations on the straight line.", _c4),
+     "Němec 2012 §3.3: ellipses for the parameter variations on the straight line.", _c4),
     (5, "The Method A particle cloud on the circle looks Gaussian.",
-     "Seed 000 §3.4: a particle cloud drawn over the ellipse on the circle.", _c5),
+     "Němec 2012 §3.4: a particle cloud drawn over the ellipse on the circle.", _c5),
     (6, ("Velocity model, rotation in place: the most probable position is not the start but two points "
          "~2 cm away on the line through the start at 0.5 rad."),
-     "Seed 000 §4.1: the rotation map has two dark spots beside the start.", _c6),
+     "Němec 2012 §4.1.1: the rotation map has two dark spots beside the start.", _c6),
     (7, "Uncertainty grows \u201cexponentially\u201d with distance (both models).",
-     "Seed 000 §3–4: the maps and ellipses grow quickly with distance, called exponential.", _c7),
+     "Němec 2012 §3–4: the maps and ellipses grow quickly with distance, called exponential.", _c7),
     (8, "Velocity model: the speed at which a displacement is driven has no effect.",
-     "Seed 000 §4.3: straight 1 m and rotation 1 rad at three speeds give the same maps.", _c8),
+     "Němec 2012 §4.1.3: straight 1 m and rotation 1 rad at three speeds give the same maps.", _c8),
     (9, ("Velocity model: α1, α2 set the along-track size, α3, α4 the across-track size, α5, α6 do not "
-         "change the (x, y) map."), "Seed 000 §4.4: maps with reduced α groups.", _c9),
+         "change the (x, y) map."), "Němec 2012 §4.1.4: maps with reduced α groups.", _c9),
     (10, ("Odometry model: larger than the velocity model for straight and arc motion, much smaller for "
           "rotation in place; its peak is off the noiseless end point."),
-     "Seed 000 §4.1: odometry and velocity maps side by side.", _c10),
-    (11, "Odometry model: speed does have an effect.", "Seed 000 §4.3: odometry maps at three speeds.", _c11),
-    (12, ("(seed 001) The end-pose cloud is a bent ellipse, not an ellipse; results do not depend on the FK "
+     "Němec 2012 §4.2.1: odometry and velocity maps side by side.", _c10),
+    (11, "Odometry model: speed does have an effect.", "Němec 2012 §4.2.3: odometry maps at three speeds.", _c11),
+    (12, ("(Šafránek 2022) The end-pose cloud is a bent ellipse, not an ellipse; results do not depend on the FK "
           "method; a wider track shortens the major axis."),
-     "Seed 001: Cartesian and polar views of 1000 end poses, three FK methods, tracks 100 and 200 mm.", _c12),
+     "Šafránek 2022 §4.2–4.3: Cartesian and polar views of 1000 end poses, three FK methods, tracks 100 and 200 mm.", _c12),
 ]
 
 
 def evaluate_claims(rows: Rows) -> list[Claim]:
-    """Evaluate every claim of SPEC §5 from the per-set tables.
+    """Evaluate every claim of the theses from the per-set tables.
 
     Parameters
     ----------
@@ -600,7 +600,7 @@ def evaluate_claims(rows: Rows) -> list[Claim]:
 
     Returns
     -------
-    list of Claim, in SPEC order; a claim whose sets are missing has verdict ``"not measured"``
+    list of Claim, in the order of their numbers; a claim whose sets are missing has verdict ``"not measured"``
     and says which set it needs.
     """
     out = []
@@ -800,7 +800,7 @@ def method_guide(rows: Rows) -> list[dict[str, Any]]:
     return [g for g in items if g is not None]
 
 
-# --- Method C, the unscented transform (issue 11) ----------------------------------------------
+# --- Method C, the unscented transform ---------------------------------------------------------
 
 _PR_KEY = "coverage_xy_98_89"
 #: The long-path sets whose runs the Method C section lists.

@@ -5,11 +5,11 @@ These are the functions the pipeline calls and ``pose-uncertainty replay
 both give the same bytes.
 
 * :func:`trajectory_figure` — the nominal path in black, Pr-ellipses at regular
-  intervals in blue and the final one in red (98.89 % by default, SPEC §4 A1),
+  intervals in blue and the final one in red (98.89 % by default, as in Němec 2012 ch. 3),
   with Method C's final ellipse (green, about its own mean) beside it;
 * :func:`cloud_figure` — the Monte Carlo end poses over the final ellipses (A's, C's);
 * :func:`map_figure` — a probability map (θ marginalised), 1 m × 1 m around the
-  noiseless end point, darker = more probable (SPEC §3).
+  noiseless end point, darker = more probable (as in Němec 2012 ch. 4).
 
 Figures are built on :class:`matplotlib.figure.Figure` with the Agg canvas (no
 pyplot, no global backend switch) and saved by :func:`save_figure` with fixed
@@ -365,7 +365,7 @@ def cloud_figure(run: RunResult) -> Figure | None:
     return fig
 
 
-# --- Method C, the unscented transform (issue 11) ----------------------------------------------
+# --- Method C, the unscented transform ---------------------------------------------------------
 
 _GREEN = "tab:green"
 _C_KEYS = ("C_mean_x", "C_mean_y", "C_cov_xx", "C_cov_xy", "C_cov_yy")

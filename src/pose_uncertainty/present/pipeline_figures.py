@@ -4,7 +4,7 @@
   ``cloud``, ``map_<name>``), drawn by the same functions ``replay --figures`` uses;
 * :func:`growth_figure` — how each uncertainty measure grows with distance (log-log),
   over the runs of a set;
-* :func:`cloud_polar_figure` — seed 001's Cartesian and polar views of the end-pose clouds;
+* :func:`cloud_polar_figure` — Šafránek 2022's Cartesian and polar views of the end-pose clouds;
 * :func:`expcoords_figure` — long-path Monte Carlo clouds with Method A's ellipse and the
   exponential-coordinates Gaussian's region (the banana) drawn over them;
 * :func:`umbmark_figure` — the classic UMBmark figure: the cw and ccw return-position
@@ -204,7 +204,7 @@ def growth_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") -> Fi
 
 
 def cloud_polar_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") -> Figure:
-    """Seed 001's two views of the end-pose clouds: Cartesian (x, y) and polar (bearing, range).
+    """Šafránek 2022's two views of the end-pose clouds: Cartesian (x, y) and polar (bearing, range).
 
     One column per run (at most 8 runs: the caller selects them); top row the
     cloud in the plane with Method A's Pr-ellipse, bottom row the same cloud as
@@ -272,7 +272,7 @@ def expcoords_figure(data: Mapping[str, Any]) -> Figure:
             ax.plot(poly[:, 0], poly[:, 1], color="tab:blue", lw=1.2,
                     label=f"exp. coords {100 * pr:.2f} % (holds {100 * case['inside_banana']:.1f} %)"
                     if i == 0 else None)  # fmt: skip
-        if "c_ellipse_xy" in case:  # Method C (issue 11), in logs that have it
+        if "c_ellipse_xy" in case:  # Method C, in logs that have it
             cel, cm = np.asarray(case["c_ellipse_xy"]), case["c_mean"]
             ax.plot(cel[:, 0], cel[:, 1], color="tab:green", lw=1.2, ls="-.",
                     label=f"Method C ellipse {100 * pr:.2f} % (holds {100 * case['inside_c']:.1f} %)")
@@ -351,7 +351,7 @@ def render_set_figure(
     return figures.save_figure(fig, out)
 
 
-# --- the UMBmark figure, and a study's figure by its kind (issue 11) ------------------------------
+# --- the UMBmark figure, and a study's figure by its kind -----------------------------------------
 
 
 def umbmark_figure(data: Mapping[str, Any]) -> Figure:
