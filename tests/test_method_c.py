@@ -23,7 +23,7 @@ from pose_uncertainty.core.table_io import read_table
 from pose_uncertainty.experiments.run import RunConfig, execute
 from pose_uncertainty.methods import covariance, expcoords, unscented
 from pose_uncertainty.methods.sampling import sample_end_poses
-from pose_uncertainty.pipeline.claims import method_guide, unscented_summary
+from pose_uncertainty.pipeline.method_guide import method_guide, unscented_summary
 from pose_uncertainty.pipeline.tables import collect_table
 from pose_uncertainty.present import figures
 from pose_uncertainty.records.run import RunLog, open_run, verify_run, write_run
