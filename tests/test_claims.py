@@ -12,7 +12,8 @@ import math
 import pytest
 
 from pose_uncertainty.core.stats import COVERAGE_LEVELS
-from pose_uncertainty.pipeline.claims import VERDICTS, evaluate_claims, method_guide
+from pose_uncertainty.pipeline.claims import VERDICTS, evaluate_claims
+from pose_uncertainty.pipeline.method_guide import method_guide
 
 
 def _verdict(rows: dict, number: int) -> str:

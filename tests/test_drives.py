@@ -8,8 +8,8 @@ from numpy.testing import assert_allclose, assert_array_equal
 
 from pose_uncertainty.core import drives as dr
 from pose_uncertainty.core import kinematics as kin
+from pose_uncertainty.core import se2
 from pose_uncertainty.core import trajectories as tr
-from pose_uncertainty.methods import expcoords as ec
 
 ALL_DRIVES = [
     dr.Differential(0.2),
@@ -232,7 +232,7 @@ def test_exact_twist_step_is_the_se2_exponential(rng):
     p = rng.normal(size=(50, 3))
     xi = rng.normal(size=(50, 3))
     xi[:5, 2] = 0.0  # the straight limit
-    assert_allclose(kin.step_twist(p, xi, "exact"), ec.compose(p, ec.exp(xi)), atol=1e-14)
+    assert_allclose(kin.step_twist(p, xi, "exact"), se2.compose(p, se2.exp(xi)), atol=1e-14)
 
 
 # --- paths --------------------------------------------------------------------------------

@@ -1,7 +1,7 @@
 """The batched kernels of the histogram filter against their one-at-a-time forms, bit for bit.
 
 The transition kernel of a step is built for all source headings at once
-(``maps._source_windows``) and the step's FFTs run on batches of headings and blocks of
+(``maps.prediction._source_windows``) and the step's FFTs run on batches of headings and blocks of
 rows; each must give exactly the numbers of the plain loop (one heading, one part, one
 ``bincount`` at a time), whatever the batch, block and thread count. The belief's moments
 are checked against the sums over the whole grid; the likelihoods computed on blocks of
@@ -28,6 +28,8 @@ from pose_uncertainty.localization.sensors import (
 )
 from pose_uncertainty.localization.world import World
 from pose_uncertainty.methods import maps as M
+from pose_uncertainty.methods.maps import kernels, prediction
+from pose_uncertainty.methods.maps.transition import _rotated_cells
 
 ROOM = Grid.square(0.1, 0.1, 40, 30, 0.2, 36)
 FINE = Grid.square(-0.5, -0.5, 60, 50, 0.02, 72)
@@ -60,11 +62,11 @@ def axis_parts_one_row(f, width, weight):
     mean = float(weight @ f)
     std = math.sqrt(max(float(weight @ (f - mean) ** 2), 0.0))
     if std >= 0.5:
-        i, first = M._splat(f[None], width[None])
+        i, first = kernels._splat(f[None], width[None])
         return [(i[0], first[0]), (i[0] + 1, 1.0 - first[0])]
     base = math.floor(mean)
     frac = mean - base
-    i, first = M._splat((f - mean)[None], width[None])
+    i, first = kernels._splat((f - mean)[None], width[None])
     out = []
     for idx, w in ((i[0], first[0]), (i[0] + 1, 1.0 - first[0])):
         out.append((idx + base, w * (1.0 - frac)))
@@ -76,7 +78,7 @@ def source_window_one_at_a_time(t, k):
     """Heading k's kernel window: every (x part, y part, θ part) deposited by its own bincount, in order."""
     kern, (ax, ay, wx, wy), g = t.kernel, t.windows, t.grid
     h, mp = g.resolution, kern.head_mp
-    fx, fy = M._rotated_cells(kern, g.theta[k : k + 1], h)
+    fx, fy = _rotated_cells(kern, g.theta[k : k + 1], h)
     c, s = math.cos(g.theta[k]), math.sin(g.theta[k])
     sa, sb = kern.step_a, kern.step_b
     wdx = (np.abs(c * sa[:, 0] - s * sa[:, 1]) + np.abs(c * sb[:, 0] - s * sb[:, 1])) / h
@@ -97,9 +99,9 @@ def test_source_windows_of_all_headings_equal_the_one_part_at_a_time_deposit(nam
     t = transition(name)
     g = t.grid
     ks = np.arange(g.ntheta)
-    batched = M._source_windows(t.kernel, ks, g.theta, g.resolution, t.windows)
-    monkeypatch.setattr(M, "_WINDOW_BATCH_BYTES", 1)  # one heading per batch
-    single = M._source_windows(t.kernel, ks[::-1], g.theta, g.resolution, t.windows)[::-1]
+    batched = prediction._source_windows(t.kernel, ks, g.theta, g.resolution, t.windows)
+    monkeypatch.setattr(prediction, "_WINDOW_BATCH_BYTES", 1)  # one heading per batch
+    single = prediction._source_windows(t.kernel, ks[::-1], g.theta, g.resolution, t.windows)[::-1]
     for k in ks:
         ref = source_window_one_at_a_time(t, k)
         assert_array_equal(batched[k], ref)
@@ -112,8 +114,8 @@ def test_the_cases_cover_split_unsplit_mixed_and_folded_kernels():
     for name in CASES:
         t = transition(name)
         g = t.grid
-        for f in M._rotated_cells(t.kernel, g.theta, g.resolution):  # x, then y
-            split = M._split_rows(f, t.kernel.weight)[1]
+        for f in _rotated_cells(t.kernel, g.theta, g.resolution):  # x, then y
+            split = kernels._split_rows(f, t.kernel.weight)[1]
             seen.add("mixed" if 0 < split.sum() < split.size else ("split" if split.all() else "unsplit"))
         if t.kernel.head_mp > g.ntheta:
             seen.add("folded")
@@ -141,8 +143,8 @@ def test_prediction_does_not_depend_on_batches_blocks_threads_or_overwriting(nam
     assert info["negligible_slices"] > 0
     kept = b.copy()
     got = {"threads": M.predict_on_grid(b, M.grid_transition(grid=t.grid, **CASES[name][1]), workers=2)}
-    monkeypatch.setattr(M, "_SPECTRA_BATCH_BYTES", 1)
-    monkeypatch.setattr(M, "_BLOCK", 1)
+    monkeypatch.setattr(prediction, "_SPECTRA_BATCH_BYTES", 1)
+    monkeypatch.setattr(prediction, "_BLOCK", 1)
     got["small batches and blocks"] = M.predict_on_grid(b, transition(name), workers=1)
     assert_array_equal(b, kept)  # the input is left alone
     own = b.copy()

@@ -23,7 +23,7 @@ from pose_uncertainty.core.table_io import read_table
 from pose_uncertainty.experiments.run import RunConfig, execute
 from pose_uncertainty.methods import covariance, expcoords, unscented
 from pose_uncertainty.methods.sampling import sample_end_poses
-from pose_uncertainty.pipeline.claims import method_guide, unscented_summary
+from pose_uncertainty.pipeline.method_guide import method_guide, unscented_summary
 from pose_uncertainty.pipeline.tables import collect_table
 from pose_uncertainty.present import figures
 from pose_uncertainty.records.run import RunLog, open_run, verify_run, write_run
@@ -254,7 +254,7 @@ def test_growth_laws_and_accuracy_case_carry_method_c() -> None:
     assert_allclose(g["method_c"]["sigma_theta"], np.sqrt(2 * 5e-4 * np.asarray(g["distance"])) / 0.2, rtol=1e-9)
     # the UT's across-track spread stays below A's linearisation as σ_θ grows (E[cos θ] < 1)
     assert np.all(np.asarray(g["method_c"]["sigma_across"][1:]) < np.asarray(g["method_a"]["sigma_across"][1:]))
-    assert set(st._growth_laws(trajectory={"name": "straight", "length": 4.0, "dt": 0.1, "track": 0.2},
+    assert set(st.growth_laws_study(trajectory={"name": "straight", "length": 4.0, "dt": 0.1, "track": 0.2},
                                n_particles=200)) == {"method_a", "method_c", "monte_carlo"}  # fmt: skip
     row = st.accuracy_case({"name": "straight", "length": 4.0, "dt": 0.05, "track": 0.2}, n=500, n_bins=20,
                            n_threshold=5000, seed=1)  # fmt: skip

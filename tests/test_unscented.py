@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from pose_uncertainty.core import se2
 from pose_uncertainty.core import trajectories as tr
 from pose_uncertainty.core.kinematics import wrap_angle
 from pose_uncertainty.methods import covariance as cv
@@ -178,22 +179,22 @@ def test_se2_equals_expcoords_in_the_small_noise_limit(perturbation):
 def _one_step_reference(mu, S, ds_r, ds_l, k, b, perturbation):
     """The SE(2) UT of one step written out on the group (no shortcuts), body-frame result."""
     w = ut.sigma_weights(5)
-    Ad = ec.adjoint(mu)
+    Ad = se2.adjoint(mu)
     S_place = Ad @ S @ Ad.T if perturbation == "left" else S
     L = np.zeros((5, 5))
     L[:3, :3] = np.linalg.cholesky(S_place)
     L[3, 3], L[4, 4] = np.sqrt(k * abs(ds_r)), np.sqrt(k * abs(ds_l))
     chi = ut.sigma_points(np.zeros(5), L, w.lam)
-    g = ec.compose(ec.exp(chi[:, :3]), mu) if perturbation == "left" else ec.compose(mu, ec.exp(chi[:, :3]))
+    g = se2.compose(se2.exp(chi[:, :3]), mu) if perturbation == "left" else se2.compose(mu, se2.exp(chi[:, :3]))
     r, l_ = ds_r + chi[:, 3], ds_l + chi[:, 4]
-    g1 = ec.compose(g, ec.exp(np.stack([(r + l_) / 2, 0 * r, (r - l_) / b], -1)))
-    mu1 = ec.compose(mu, ec.exp([(ds_r + ds_l) / 2, 0.0, (ds_r - ds_l) / b]))
-    rel = ec.compose(g1, ec.inverse(mu1)) if perturbation == "left" else ec.compose(ec.inverse(mu1), g1)
+    g1 = se2.compose(g, se2.exp(np.stack([(r + l_) / 2, 0 * r, (r - l_) / b], -1)))
+    mu1 = se2.compose(mu, se2.exp([(ds_r + ds_l) / 2, 0.0, (ds_r - ds_l) / b]))
+    rel = se2.compose(g1, se2.inverse(mu1)) if perturbation == "left" else se2.compose(se2.inverse(mu1), g1)
     rel[:, 2] = wrap_angle(rel[:, 2])
-    eps = ec.log(rel)
+    eps = se2.log(rel)
     Sig = (w.Wc[:, None] * eps).T @ eps
     if perturbation == "left":
-        Ad1_inv = ec.adjoint(ec.inverse(mu1))
+        Ad1_inv = se2.adjoint(se2.inverse(mu1))
         Sig = Ad1_inv @ Sig @ Ad1_inv.T
     return Sig
 

@@ -40,7 +40,7 @@ from ..core import trajectories
 from ..core.grids import Grid
 from ..core.stats import PR_3SIGMA
 from ..core.table_io import jsonable
-from ..methods import maps
+from ..methods import maps, motion_models
 from .config_checks import builder_keywords
 from .config_checks import check_keys as _check_keys
 from .config_checks import fail as _fail
@@ -248,7 +248,7 @@ def _map_params(where: str, model: str, params: dict[str, Any], n_steps: int) ->
     if not isinstance(full["log_volume"], bool):
         raise _fail(f"{where}.log_volume", "true or false", full["log_volume"])
     try:
-        maps.check_alphas(full["alphas"], 6 if model == "velocity" else 4)
+        motion_models.check_alphas(full["alphas"], 6 if model == "velocity" else 4)
     except ValueError as exc:
         raise ValueError(f"config key '{where}.alphas': {exc}") from None
     return full

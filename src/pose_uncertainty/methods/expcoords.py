@@ -4,12 +4,9 @@ Long, Wolfe, Mashner & Chirikjian, "The Banana Distribution is Gaussian: A
 Localization Study with Exponential Coordinates", RSS 2012.
 
 A pose ``g = (x, y, θ)`` is the matrix ``[[R(θ), t], [0, 1]]``; a twist
-``ξ = (v₁, v₂, w)`` (body-frame velocity times time) maps to a pose by
-
-    exp(ξ) = (V(w) v, w),   V(w) = [[sin w / w, −(1−cos w)/w], [(1−cos w)/w, sin w / w]]
-
-and back by ``log``: ``v = V(w)⁻¹ t`` with
-``V(w)⁻¹ = (w/2)[[cot(w/2), 1], [−1, cot(w/2)]]``. The exponential-coordinates
+``ξ = (v₁, v₂, w)`` (body-frame velocity times time) maps to a pose by the
+exponential of SE(2) and back by its logarithm (the group operations are in
+:mod:`pose_uncertainty.core.se2`). The exponential-coordinates
 Gaussian with mean pose ``μ`` and covariance ``Σ`` is the law of
 
     g = μ · exp(ε),   ε ~ N(0, Σ)
@@ -20,7 +17,7 @@ plane as a banana, not an ellipse.
 Propagation along a trajectory
 ------------------------------
 One step of the robot with wheel travels ``(Δs_r, Δs_l)`` is exactly the twist
-``δ = (Δs, 0, Δθ)`` (the exact arc of Šafránek 2022 §2.2.2 is ``exp(δ)``). With noisy
+``δ = (Δs, 0, Δθ)`` (the exact arc of the differential drive is ``exp(δ)``). With noisy
 travels the step is ``exp(δ + n)``, ``n = M (e_r, e_l)``,
 ``M = [[½, ½], [0, 0], [1/b, −1/b]]``, ``Cov(e) = Σ_Δ = diag(k_r|Δs_r|, k_l|Δs_l|)``.
 Writing ``g_i = μ_i exp(ε_i)`` with the noiseless ``μ_{i+1} = μ_i exp(δ_i)``:
@@ -68,6 +65,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..core.kinematics import integrate_twist, sinc
+from ..core.se2 import adjoint, adjoint_inverse, compose, cosc, exp, inverse, log, right_jacobian
 from ..core.trajectories import Trajectory
 from ..core.validation import (
     check_finite,
@@ -80,13 +78,8 @@ from ..core.validation import (
 
 __all__ = [
     "ExpGaussian",
-    "adjoint",
-    "compose",
     "coordinates",
-    "exp",
     "hdr_threshold",
-    "inverse",
-    "log",
     "logpdf_pose",
     "marginal_xy_grid",
     "pdf_pose",
@@ -95,169 +88,9 @@ __all__ = [
     "propagate",
     "propagate_recursive",
     "propagate_twists",
-    "right_jacobian",
     "sample",
     "to_cartesian_cov",
 ]
-
-_SMALL = 1e-4  # below |w| < _SMALL the series of the sinc-like functions are used
-
-
-def _cosc(w: NDArray) -> NDArray:
-    """(1 − cos w)/w = (w/2)·sinc²(w/2), 0 at w = 0."""
-    return 0.5 * w * sinc(0.5 * w) ** 2
-
-
-def _half_cot(w: NDArray) -> NDArray:
-    """(w/2)·cot(w/2), 1 at w = 0 (series 1 − w²/12 − w⁴/720 below _SMALL)."""
-    small = np.abs(w) < _SMALL
-    ws = np.where(small, 1.0, w)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        full = 0.5 * ws / np.tan(0.5 * ws)
-    return np.where(small, 1.0 - w**2 / 12.0 - w**4 / 720.0, full)
-
-
-def _w_minus_sin_over_w2(w: NDArray) -> NDArray:
-    """(w − sin w)/w², 0 at w = 0 (series w/6 − w³/120 below 1e-2)."""
-    small = np.abs(w) < 1e-2
-    ws = np.where(small, 1.0, w)
-    return np.where(small, w / 6.0 - w**3 / 120.0, (ws - np.sin(ws)) / ws**2)
-
-
-def exp(xi: ArrayLike) -> NDArray[np.float64]:
-    """Exponential map of SE(2): twist ``(v₁, v₂, w)`` → pose ``(x, y, θ)``.
-
-    ``(x, y) = V(w)(v₁, v₂)``, ``θ = w`` (not wrapped).
-
-    Parameters
-    ----------
-    xi : array_like, shape (..., 3) — twist [m, m, rad]
-
-    Returns
-    -------
-    ndarray, shape (..., 3) — pose [m, m, rad]
-    """
-    x = check_last_axis("xi", xi, 3)
-    v1, v2, w = x[..., 0], x[..., 1], x[..., 2]
-    s, c = sinc(w), _cosc(w)
-    return np.stack([s * v1 - c * v2, c * v1 + s * v2, w], axis=-1)
-
-
-def log(pose: ArrayLike) -> NDArray[np.float64]:
-    """Logarithm of SE(2): pose ``(x, y, θ)`` → twist ``(v₁, v₂, w)`` with ``w = θ``.
-
-    The heading is used as given (unwrapped): the inverse of :func:`exp` for
-    any ``θ`` that is not a non-zero multiple of 2π. For the principal
-    logarithm wrap θ first.
-
-    Parameters
-    ----------
-    pose : array_like, shape (..., 3) [m, m, rad]
-
-    Returns
-    -------
-    ndarray, shape (..., 3) [m, m, rad]
-    """
-    p = check_last_axis("pose", pose, 3)
-    x, y, w = p[..., 0], p[..., 1], p[..., 2]
-    # V(w)⁻¹ = (w/2)[[cot(w/2), 1], [−1, cot(w/2)]]
-    a = _half_cot(w)
-    h = 0.5 * w
-    return np.stack([a * x + h * y, -h * x + a * y, w], axis=-1)
-
-
-def compose(a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
-    """Group product ``a · b`` of poses (``b`` expressed in the frame of ``a``).
-
-    Parameters
-    ----------
-    a, b : array_like, shape (..., 3), broadcastable [m, m, rad]
-    """
-    pa = check_last_axis("a", a, 3)
-    pb = check_last_axis("b", b, 3)
-    c, s = np.cos(pa[..., 2]), np.sin(pa[..., 2])
-    return np.stack(
-        [
-            pa[..., 0] + c * pb[..., 0] - s * pb[..., 1],
-            pa[..., 1] + s * pb[..., 0] + c * pb[..., 1],
-            pa[..., 2] + pb[..., 2],
-        ],
-        axis=-1,
-    )
-
-
-def inverse(pose: ArrayLike) -> NDArray[np.float64]:
-    """Group inverse ``g⁻¹ = (−Rᵀt, −θ)``; shape (..., 3)."""
-    p = check_last_axis("pose", pose, 3)
-    c, s = np.cos(p[..., 2]), np.sin(p[..., 2])
-    x, y = p[..., 0], p[..., 1]
-    return np.stack([-(c * x + s * y), s * x - c * y, -p[..., 2]], axis=-1)
-
-
-def adjoint(pose: ArrayLike) -> NDArray[np.float64]:
-    """Adjoint matrix ``Ad_g = [[R, (t_y, −t_x)ᵀ], [0, 1]]``: ``g exp(ξ) g⁻¹ = exp(Ad_g ξ)``.
-
-    Parameters
-    ----------
-    pose : array_like, shape (..., 3)
-
-    Returns
-    -------
-    ndarray, shape (..., 3, 3)
-    """
-    p = check_last_axis("pose", pose, 3)
-    c, s = np.cos(p[..., 2]), np.sin(p[..., 2])
-    one, zero = np.ones_like(c), np.zeros_like(c)
-    return np.stack(
-        [
-            np.stack([c, -s, p[..., 1]], axis=-1),
-            np.stack([s, c, -p[..., 0]], axis=-1),
-            np.stack([zero, zero, one], axis=-1),
-        ],
-        axis=-2,
-    )
-
-
-def _adjoint_inv(pose: NDArray) -> NDArray:
-    """``Ad_g⁻¹ = Ad_{g⁻¹} = [[Rᵀ, −Rᵀ(t_y, −t_x)ᵀ], [0, 1]]``."""
-    return adjoint(inverse(pose))
-
-
-def right_jacobian(xi: ArrayLike) -> NDArray[np.float64]:
-    """Right Jacobian of SE(2): ``exp(ξ + dξ) ≈ exp(ξ) exp(J_r(ξ) dξ)``.
-
-    For ``ξ = (ρ₁, ρ₂, w)``::
-
-        J_r = [[sin w/w,      (1−cos w)/w,  ρ₁(w−sin w)/w² − ρ₂(1−cos w)/w²],
-               [−(1−cos w)/w, sin w/w,      ρ₁(1−cos w)/w² + ρ₂(w−sin w)/w²],
-               [0,            0,            1                             ]]
-
-    (Solà, Deray & Atchuthan, "A micro Lie theory", 2018, eq. 163), with the
-    series at ``w → 0``.
-
-    Parameters
-    ----------
-    xi : array_like, shape (..., 3)
-
-    Returns
-    -------
-    ndarray, shape (..., 3, 3)
-    """
-    x = check_last_axis("xi", xi, 3)
-    r1, r2, w = x[..., 0], x[..., 1], x[..., 2]
-    s = sinc(w)
-    c = _cosc(w)
-    c2 = 0.5 * sinc(0.5 * w) ** 2  # (1 − cos w)/w²
-    d2 = _w_minus_sin_over_w2(w)  # (w − sin w)/w²
-    one, zero = np.ones_like(w), np.zeros_like(w)
-    return np.stack(
-        [
-            np.stack([s, c, r1 * d2 - r2 * c2], axis=-1),
-            np.stack([-c, s, r1 * c2 + r2 * d2], axis=-1),
-            np.stack([zero, zero, one], axis=-1),
-        ],
-        axis=-2,
-    )
 
 
 # --- propagation ---------------------------------------------------------------------------
@@ -292,6 +125,7 @@ def _step_noise(traj: Trajectory) -> tuple[NDArray, NDArray, NDArray]:
 
 
 def _check_k(k_r: ArrayLike, k_l: ArrayLike) -> tuple[NDArray, NDArray]:
+    """The wheels' travel-noise constants ``k_r, k_l`` [m] (scalars or per step), checked ≥ 0."""
     kr = check_nonnegative("k_r", k_r)
     kl = check_nonnegative("k_l", k_l)
     return kr, kl
@@ -335,7 +169,7 @@ def propagate(
     Pl_ = np.zeros((n + 1, 3, 3))
     np.cumsum(wr[:, None, None] * ur[:, :, None] * ur[:, None, :], axis=0, out=Pr_[1:])
     np.cumsum(wl[:, None, None] * ul[:, :, None] * ul[:, None, :], axis=0, out=Pl_[1:])
-    Ad_inv = _adjoint_inv(mu)  # (N+1, 3, 3)
+    Ad_inv = adjoint_inverse(mu)  # (N+1, 3, 3)
     AdT = np.swapaxes(Ad_inv, -1, -2)
     G_r = Ad_inv @ Pr_ @ AdT
     G_l = Ad_inv @ Pl_ @ AdT
@@ -395,7 +229,7 @@ def propagate_twists(
     terms = U @ Qxi @ np.swapaxes(U, -1, -2)  # (B..., N, 3, 3)
     P = np.zeros((*terms.shape[:-3], xi.shape[0] + 1, 3, 3))
     np.cumsum(terms, axis=-3, out=P[..., 1:, :, :])
-    Ad_inv = _adjoint_inv(mu)
+    Ad_inv = adjoint_inverse(mu)
     covs = Ad_inv @ P @ np.swapaxes(Ad_inv, -1, -2)
     if np.any(S0):
         T = Ad_inv @ adjoint(mu[0])
@@ -502,6 +336,7 @@ def sample(
 
 
 def _check_cov3(cov: ArrayLike) -> NDArray:
+    """A finite 3×3 covariance of exponential coordinates [m², m², rad²]; ``ValueError`` otherwise."""
     S = check_finite("cov", cov)
     if S.shape != (3, 3):
         raise ValueError(f"cov must have shape (3, 3), got shape {S.shape}")
@@ -538,6 +373,13 @@ def pdf_pose(points: ArrayLike, mean_pose: ArrayLike, cov: ArrayLike) -> NDArray
 
 
 class _Conditional(NamedTuple):
+    """The planar marginal as a quadrature over the heading deviation ``w = ε_θ``.
+
+    Node ``q`` carries the Gaussian ``(x, y) | w_q`` (mean, precision, log-normaliser)
+    and its weight; ``pdf_xy(p) = Σ_q weights_q · exp(log_norm_q − ½ m2_q(p))`` with the
+    Mahalanobis distance ``m2_q(p) = (p − μ_q)ᵀ P_q (p − μ_q)``. Built by :func:`_conditional`.
+    """
+
     nodes: NDArray  # (q,) heading deviation w
     weights: NDArray  # (q,) quadrature weights, sum 1
     means: NDArray  # (q, 2) mean of (x, y) given w
@@ -556,7 +398,7 @@ def _conditional_means(mean_pose: NDArray, S: NDArray, w: NDArray) -> tuple[NDAr
     s_ww = S[2, 2]
     s_vw = S[:2, 2]
     m = (s_vw / s_ww)[None, :] * w[:, None] if s_ww > 0 else np.zeros((w.size, 2))
-    s, c = sinc(w), _cosc(w)
+    s, c = sinc(w), cosc(w)
     V = np.stack([np.stack([s, -c], -1), np.stack([c, s], -1)], -2)  # (q, 2, 2)
     th = mean_pose[2]
     R = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
@@ -666,6 +508,15 @@ def _gen_eig_min(A: NDArray, B: NDArray) -> NDArray:
 
 
 def _range_tree(cond: _Conditional) -> _RangeTree:
+    """The :class:`_RangeTree` of the quadrature nodes of ``cond`` (see :func:`_pdf_xy_pruned`).
+
+    Each node's term gets a truncation threshold ``r2_q`` on its Mahalanobis distance
+    (the term is dropped below ``e^-T/n`` of the largest peak, ``T = _TRUNC``); the
+    ranges of nodes, halved level by level from one range down to blocks of ``_BLOCK``,
+    get the centre, metric and bound that prove a whole range dropped at a point; the
+    blocks finally get the log of each term as a quadratic polynomial in the block's
+    principal frame, for the dense sum.
+    """
     n = cond.nodes.size
     with np.errstate(divide="ignore"):
         la = np.log(cond.weights) + cond.log_norm  # log of the peak of each node's term

@@ -81,10 +81,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..core.kinematics import integrate, step, wrap_angle
+from ..core.se2 import adjoint, compose, exp, inverse, log
 from ..core.trajectories import Trajectory
 from ..core.validation import check_choice, check_finite, check_positive
 from .covariance import CovarianceResult, _check_inputs
-from .expcoords import ExpGaussian, adjoint, compose, exp, inverse, log
+from .expcoords import ExpGaussian
 
 __all__ = [
     "PERTURBATIONS",

@@ -265,7 +265,7 @@ def build_report(
         drives=_drive_runs(sets),
         claims=claims["claims"],
         guide=claims["guide"],
-        unscented=claims.get("unscented"),  # Method C: pipeline.claims.unscented_summary
+        unscented=claims.get("unscented"),  # Method C: pipeline.method_guide.unscented_summary
         provenance=prov,
         machine_keys=MACHINE_KEYS,
         package=prov.get("package_version", {}).get("value", "unknown"),

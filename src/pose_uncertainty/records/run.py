@@ -48,6 +48,13 @@ data-section CRC and the summary CRC, and raises :class:`RunLogError` (a
 corrupted or foreign file. ``open_run(path, recover=True)`` returns what an
 incomplete file holds (whole, CRC-checked chunks only) and warns with
 :class:`PartialLogWarning`.
+
+Length
+------
+One module of about 1150 lines on purpose: it is the one interface of one log kind
+(write, read, summary, verify). Writer and reader share the topic table, the message
+schemas and the field conventions defined here; split apart, each half would import the
+other's private message builders.
 """
 
 from __future__ import annotations

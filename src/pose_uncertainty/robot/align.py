@@ -35,8 +35,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from ..core import se2
 from ..core.kinematics import wrap_angle
-from ..methods import expcoords as ec
 from .bag import BagError, PoseStream, Recording, WheelStream
 from .config import RobotConfig
 
@@ -201,8 +201,8 @@ def interpolate_poses(
     med = float(np.median(np.diff(t_src)))
     valid = (t_query >= t_src[0]) & (t_query <= t_src[-1]) & (span <= max_gap * med)
     a, b = poses[i], poses[i + 1]
-    rel = ec.compose(ec.inverse(a), b)
+    rel = se2.compose(se2.inverse(a), b)
     rel[:, 2] = wrap_angle(rel[:, 2])
-    out = ec.compose(a, ec.exp(u[:, None] * ec.log(rel)))
+    out = se2.compose(a, se2.exp(u[:, None] * se2.log(rel)))
     out[~valid] = np.nan
     return out, valid, i, np.where(valid, u, 0.0)

@@ -37,8 +37,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ..core import se2
 from ..core.kinematics import sinc
-from ..methods import expcoords as ec
 from .align import AlignedRecording
 from .segments import Segments, predict, residuals
 
@@ -134,7 +134,7 @@ def nominal_from_odometry(rec: AlignedRecording) -> tuple[float, float, float] |
     if np.count_nonzero(same) < 10:
         return None
     wi, p = idx[same], rec.odom_poses[same]
-    rel = ec.compose(ec.inverse(p[:-1]), p[1:])
+    rel = se2.compose(se2.inverse(p[:-1]), p[1:])
     dth = np.diff(p[:, 2])
     chord = np.copysign(np.hypot(rel[:, 0], rel[:, 1]), rel[:, 0])
     ds = chord / sinc(dth / 2.0)

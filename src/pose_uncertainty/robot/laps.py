@@ -21,8 +21,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..analysis.umbmark import umbmark
+from ..core import se2
 from ..core.kinematics import integrate
-from ..methods import expcoords as ec
 from .align import AlignedRecording, interpolate_poses
 
 __all__ = ["find_laps", "umbmark_from_recording"]
@@ -84,8 +84,8 @@ def umbmark_from_recording(rec: AlignedRecording, nominal: tuple[float, float, f
         a, c = lap["start"], lap["end"]
         if not (ok[a] and ok[c]):
             continue
-        true_rel = ec.compose(ec.inverse(truth[a]), truth[c])[:2]
-        odo_rel = ec.compose(ec.inverse(odo[a]), odo[c])[:2]
+        true_rel = se2.compose(se2.inverse(truth[a]), truth[c])[:2]
+        odo_rel = se2.compose(se2.inverse(odo[a]), odo[c])[:2]
         returns[lap["direction"]].append(true_rel - odo_rel)
     counts = {d: len(v) for d, v in returns.items()}
     if min(counts.values()) < 2:

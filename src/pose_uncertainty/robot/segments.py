@@ -29,8 +29,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..core import se2
 from ..core.kinematics import integrate, wrap_angle
-from ..methods import expcoords as ec
 from .align import AlignedRecording, interpolate_poses
 
 __all__ = ["LENGTHS", "Segments", "cut_segments", "predict", "residuals"]
@@ -130,7 +130,7 @@ def cut_segments(
     steps = np.minimum(steps, rec.t.size - 2)
     dl = np.where(inside, np.diff(rec.phi_l)[steps], 0.0)
     dr = np.where(inside, np.diff(rec.phi_r)[steps], 0.0)
-    z = ec.compose(ec.inverse(truth[a]), truth[c])
+    z = se2.compose(se2.inverse(truth[a]), truth[c])
     z[:, 2] = truth[c, 2] - truth[a, 2]
     w = (1.0 - u) ** 2 + u**2
     return Segments(a, c, dl, dr, z, w[a], w[c], tau[c] - tau[a])
