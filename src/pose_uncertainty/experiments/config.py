@@ -40,13 +40,13 @@ from ..core import trajectories
 from ..core.grids import Grid
 from ..core.stats import PR_3SIGMA
 from ..core.table_io import jsonable
+from ..core.validation import parse_numbers
 from ..methods import maps
 from .config_checks import builder_keywords
 from .config_checks import check_keys as _check_keys
 from .config_checks import fail as _fail
 from .config_checks import integer as _int
 from .config_checks import name as _name
-from .config_checks import numbers as _numbers
 from .config_checks import real as _float
 from .drive_config import DriveConfig, check_path
 
@@ -242,7 +242,7 @@ def _map_params(where: str, model: str, params: dict[str, Any], n_steps: int) ->
             f"unknown config key(s) {', '.join(repr(f'{where}.{k}') for k in unknown)} "
             f"(allowed for a {kind}-step {model} map: name, model, {', '.join(sorted(defaults))})"
         )
-    params = {k: _numbers(v, defaults[k]) for k, v in params.items()}
+    params = {k: parse_numbers(v, defaults[k]) for k, v in params.items()}
     full = jsonable({**defaults, **params})
     full["n_sampler"] = _int(f"{where}.n_sampler", full["n_sampler"])
     if not isinstance(full["log_volume"], bool):
@@ -264,7 +264,7 @@ def _trajectory_params(data: Any) -> tuple[dict[str, Any], int]:
     if name not in trajectories.BUILDERS:
         raise _fail("trajectory.name", f"one of {tuple(trajectories.BUILDERS)}", name)
     defaults, params = builder_keywords("trajectory", trajectories.BUILDERS[name], data)
-    params = {k: _numbers(v, defaults[k]) for k, v in params.items()}
+    params = {k: parse_numbers(v, defaults[k]) for k, v in params.items()}
     full = {"name": name, **jsonable({**defaults, **params})}
     try:  # validated and counted without building it (the cost guard comes first)
         n = trajectories.n_steps(name, **{k: v for k, v in full.items() if k != "name"})

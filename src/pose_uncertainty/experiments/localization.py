@@ -65,7 +65,7 @@ from ..analysis import measures
 from ..core import trajectories
 from ..core.provenance import provenance
 from ..core.table_io import jsonable
-from ..core.validation import parse_number
+from ..core.validation import parse_numbers
 from ..localization import ekf, histogram, particle, simulate
 from ..localization.motion import MOTION_MODELS, Motion, velocity_alphas_for_wheels
 from ..localization.resampling import SCHEMES
@@ -91,7 +91,6 @@ __all__ = [
     "execute_localization",
     "expand_localization",
     "is_localization_config",
-    "numbers_from_text",
 ]
 
 #: The value of a localization configuration's ``kind`` key.
@@ -106,15 +105,6 @@ Array = NDArray[np.float64]
 
 
 # ============================================================================= validation helpers
-
-
-def numbers_from_text(value: Any) -> Any:
-    """A copy of a configuration with number-like strings (``"1e-3"``, as YAML 1.1 reads them) as floats."""
-    if isinstance(value, Mapping):
-        return {k: numbers_from_text(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [numbers_from_text(v) for v in value]
-    return parse_number(value)  # the one reading of numbers written as text
 
 
 def is_localization_config(data: Any) -> bool:
@@ -249,7 +239,7 @@ def _world(data: Any) -> dict[str, Any]:
             raise _fail("world.file", "a path", src)
         inline, base = _read_world_file(src)
         out["source"] = src
-        data = {**numbers_from_text(inline), **data}
+        data = {**parse_numbers(inline), **data}
     if "source" in data:
         src_given = str(data.pop("source"))
         out.setdefault("source", src_given)
@@ -471,7 +461,7 @@ class LocalizationConfig:
         """
         if not isinstance(data, Mapping):
             raise _fail("config", "a mapping", data)
-        data = numbers_from_text(data)
+        data = parse_numbers(data)
         _check_keys("", data, cls.KEYS)
         if data.get("kind", KIND) != KIND:
             raise _fail("kind", f"{KIND!r}", data.get("kind"))
@@ -786,13 +776,13 @@ def expand_localization(config: Mapping[str, Any]) -> dict[str, list[Run]]:
     section = config.get("localization") or {}
     if not section.get("enabled", True):
         return {}
-    defaults = numbers_from_text(dict(section.get("defaults", {}) or {}))
+    defaults = parse_numbers(dict(section.get("defaults", {}) or {}))
     if "seed" in config and "seed" not in defaults:
         defaults["seed"] = config["seed"]
     out: dict[str, list[Run]] = {}
     for name, spec in (section.get("sets", {}) or {}).items():
         try:
-            out[name] = expand_set(name, numbers_from_text(spec), defaults, normalize=_normalize)
+            out[name] = expand_set(name, parse_numbers(spec), defaults, normalize=_normalize)
         except ConfigError as exc:
             raise ConfigError(str(exc).replace(f"experiment_sets.{name}", f"localization.sets.{name}", 1)) from None
     return out
