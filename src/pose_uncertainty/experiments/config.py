@@ -41,6 +41,7 @@ from ..core.grids import Grid
 from ..core.stats import PR_3SIGMA
 from ..core.table_io import jsonable
 from ..core.validation import parse_numbers
+from ..localization.motion import K_WHEEL
 from ..methods import maps
 from ..methods.sampling import REGIMES
 from .config_checks import builder_keywords
@@ -65,8 +66,6 @@ __all__ = [
 ]
 
 
-_POS = {"lo": 0.0, "lo_open": True}  # a number > 0
-_NONNEG = {"lo": 0.0}  # a number >= 0
 
 #: The keys of ``trajectory``: the keyword parameters of the builders of
 #: :data:`pose_uncertainty.core.trajectories.BUILDERS`, whose defaults they take.
@@ -74,17 +73,17 @@ TRAJECTORY_KEYS: tuple[Key, ...] = (
     Key("name", "choice", "-", "Builder name (required; pose_uncertainty.core.trajectories.BUILDERS).",
         allowed=tuple(trajectories.BUILDERS)),
     Key("length", "number", "m", "Line length [m].", FROM_CODE),
-    Key("radius", "number", "m", "Arc/circle radius [m].", FROM_CODE, **_POS),
+    Key("radius", "number", "m", "Arc/circle radius [m].", FROM_CODE, lo=0.0, lo_open=True),
     Key("angle", "number", "rad", "Arc or rotation angle [rad] (default: the builder's).", FROM_CODE),
-    Key("laps", "number", "1", "Circle laps [1].", FROM_CODE, **_POS),
+    Key("laps", "number", "1", "Circle laps [1].", FROM_CODE, lo=0.0, lo_open=True),
     Key("direction", "choice", "1 (+1 left, -1 right)", "Circle direction (+1 left, -1 right).", FROM_CODE,
         allowed=(1, -1)),
     Key("dx", "number", "m", "Target x of right_angles/direct [m].", FROM_CODE),
     Key("dy", "number", "m", "Target y of right_angles/direct [m].", FROM_CODE),
-    Key("speed", "number", "m/s", "Axle-centre speed [m/s].", FROM_CODE, **_POS),
-    Key("angular_speed", "number", "rad/s", "Rotation-in-place rate [rad/s].", FROM_CODE, **_POS),
-    Key("dt", "number", "s", "Step [s].", FROM_CODE, **_POS),
-    Key("track", "number", "m", "Wheel separation b [m].", FROM_CODE, **_POS),
+    Key("speed", "number", "m/s", "Axle-centre speed [m/s].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("angular_speed", "number", "rad/s", "Rotation-in-place rate [rad/s].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("dt", "number", "s", "Step [s].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("track", "number", "m", "Wheel separation b [m].", FROM_CODE, lo=0.0, lo_open=True),
     Key("profile", "choice", "- (constant | ramp)", "Speed profile of each segment.", FROM_CODE,
         allowed=("constant", "ramp")),
     Key("start", "array", "(m, m, rad)", "Start pose (x [m], y [m], theta [rad]).", FROM_CODE,
@@ -143,9 +142,9 @@ MAP_KEYS: tuple[Key, ...] = (
         "the sha256 of the full array, which replay --verify compares.", FROM_CODE),
     Key("size", "number", "m",
         "Side of the square grid [m]: single-step map centred on the noiseless end (the thesis: 1 m); "
-        "multi-step map null = a grid that grows with the spread.", FROM_CODE, nullable=True, **_POS),
-    Key("resolution", "number", "m", "Cell side [m] (the thesis: 1 cm).", FROM_CODE, **_POS),
-    Key("theta_resolution", "number", "rad", "Heading cell width [rad] (default 2 degrees).", FROM_CODE, **_POS),
+        "multi-step map null = a grid that grows with the spread.", FROM_CODE, nullable=True, lo=0.0, lo_open=True),
+    Key("resolution", "number", "m", "Cell side [m] (the thesis: 1 cm).", FROM_CODE, lo=0.0, lo_open=True),
+    Key("theta_resolution", "number", "rad", "Heading cell width [rad] (default 2 degrees).", FROM_CODE, lo=0.0, lo_open=True),
 )
 
 
@@ -347,9 +346,9 @@ RUN_KEYS: tuple[Key, ...] = (
         "angles [rad], speed [m/s], angular_speed [rad/s], dt [s], track [m]; a parameter left out takes the "
         "builder's default.", None, keys=TRAJECTORY_KEYS),
     Key("k_r", "number", "m (wheel-travel variance per metre of travel)",
-        "Right-wheel error constant k_r [m] (Sigma_Delta = diag(k_r|ds_r|, k_l|ds_l|)).", 5e-4, **_NONNEG),
+        "Right-wheel error constant k_r [m] (Sigma_Delta = diag(k_r|ds_r|, k_l|ds_l|)).", K_WHEEL, lo=0.0),
     Key("k_l", "number", "m (wheel-travel variance per metre of travel)", "Left-wheel error constant k_l [m].",
-        5e-4, **_NONNEG),
+        K_WHEEL, lo=0.0),
     Key("cov0", "array", "3x3 over (x [m], y [m], theta [rad]): m^2, m*rad, rad^2",
         "Initial pose covariance, 3x3 over (x [m], y [m], theta [rad]), symmetric positive semi-definite; "
         "null = zero.", None, nullable=True),

@@ -138,8 +138,12 @@ class Key:
 
     # --- schema -------------------------------------------------------------------------------
 
-    def schema(self, default: Any = None) -> dict[str, Any]:
-        """The JSON Schema (2020-12) of this key; ``default`` replaces a :data:`FROM_CODE` default."""
+    def schema(self, code: Any = None) -> dict[str, Any]:
+        """The JSON Schema (2020-12) of this key.
+
+        ``code`` gives the :data:`FROM_CODE` defaults: the value for a key, a mapping of its
+        keys' values (nested alike) for a section.
+        """
         out: dict[str, Any] = {"description": self.doc}
         if isinstance(self.unit, str):
             out["x-unit"] = self.unit
@@ -153,26 +157,32 @@ class Key:
         if self.kind == "name":
             out["pattern"] = "^[A-Za-z0-9_][A-Za-z0-9_.-]*$"
         if self.kind in ("number", "integer"):
-            if self.lo is not None:
-                lo = int(self.lo) if self.kind == "integer" else self.lo
-                out["exclusiveMinimum" if self.lo_open else "minimum"] = lo
+            if self.lo is not None:  # an integral bound as an int: the error reads "> 0", not "> 0.0"
+                out["exclusiveMinimum" if self.lo_open else "minimum"] = _bound(self.lo)
             if self.hi is not None and math.isfinite(self.hi):
-                out["exclusiveMaximum" if self.hi_open else "maximum"] = self.hi
+                out["exclusiveMaximum" if self.hi_open else "maximum"] = _bound(self.hi)
         out.update(dict(self.extra))
         if self.kind == "section":
             out["additionalProperties"] = False
-            out["properties"] = keys_schema(self.keys)
+            out["properties"] = keys_schema(self.keys, code if isinstance(code, Mapping) else None)
         if self.kind == "sections":
             out["items"] = {"type": "object", **dict(self.extra.get("items", {})),
-                            "properties": keys_schema(self.keys)}  # fmt: skip
-        d = default if self.default is FROM_CODE else self.default
-        out["default"] = [] if self.kind == "sections" and d is None else d
+                            "properties": keys_schema(self.keys, code if isinstance(code, Mapping) else None)}  # fmt: skip
+        if self.kind == "section":
+            out["default"] = None if self.nullable else {}
+        else:
+            d = code if self.default is FROM_CODE else self.default
+            out["default"] = list(d) if isinstance(d, tuple) else d
         return out
 
 
-def keys_schema(keys: tuple[Key, ...], defaults: Mapping[str, Any] | None = None) -> dict[str, Any]:
-    """The ``properties`` of a section's JSON Schema; ``defaults`` fill the :data:`FROM_CODE` ones."""
-    return {k.name: k.schema((defaults or {}).get(k.name)) for k in keys}
+def _bound(bound: float) -> float | int:
+    return int(bound) if float(bound).is_integer() else bound
+
+
+def keys_schema(keys: tuple[Key, ...], code: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """The ``properties`` of a section's JSON Schema; ``code`` gives the :data:`FROM_CODE` defaults."""
+    return {k.name: k.schema((code or {}).get(k.name)) for k in keys}
 
 
 def units(keys: tuple[Key, ...]) -> dict[str, Any]:

@@ -64,15 +64,14 @@ GEOMETRY: dict[str, tuple[str, ...]] = {
     for kind, cls in DRIVES.items()
 }
 
-_POS = {"lo": 0.0, "lo_open": True}  # a number > 0
 _NUMBERS = {"items": {"type": "number", "minimum": 0}}  # one number per channel
 
 #: The keys of ``drive.errors.encoder``: the fields of WheelErrorSources, whose defaults (the
 #: chassis of Němec 2012) they take.
 ENCODER_KEYS: tuple[Key, ...] = (
     Key("pulses_per_rev", "integer", "1/rev", "Encoder pulses per wheel revolution [1/rev].", FROM_CODE, lo=1),
-    Key("wheel_diameter", "number", "m", "Wheel diameter [m].", FROM_CODE, **_POS),
-    Key("integration_time", "number", "s", "Time over which pulses are counted [s].", FROM_CODE, **_POS),
+    Key("wheel_diameter", "number", "m", "Wheel diameter [m].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("integration_time", "number", "s", "Time over which pulses are counted [s].", FROM_CODE, lo=0.0, lo_open=True),
     Key("surface_rel_std", "number", "1 (relative to the speed)",
         "Surface irregularity, std relative to the speed [1].", FROM_CODE, lo=0.0),
     Key("additive_std", "number", "m/s", "Additive white speed noise std [m/s].", FROM_CODE, lo=0.0),
@@ -116,23 +115,23 @@ DRIVE_KEYS: tuple[Key, ...] = (
         "omni wheels).", "differential", allowed=tuple(DRIVES)),
     Key("track", "number", "m (null = trajectory.track)",
         "Wheel or track separation b [m] (differential, skid_steer, ackermann's steered axle); null = "
-        "trajectory.track.", None, nullable=True, **_POS),
+        "trajectory.track.", None, nullable=True, lo=0.0, lo_open=True),
     Key("wheelbase", "number", "m",
         "Wheelbase [m] (tricycle, ackermann - rear axle to steered wheel(s); two_axle - between the axles); "
-        "null = the drive's default, 0.3 m.", None, nullable=True, **_POS),
+        "null = the drive's default, 0.3 m.", None, nullable=True, lo=0.0, lo_open=True),
     Key("max_steering", "number", "rad",
         "Largest steering angle [rad] in (0, pi/2] (tricycle, ackermann, two_axle); null = the drive's default, "
         "pi/3; pi/2 lets a tricycle rotate in place.", None, nullable=True, lo=0.0, hi=math.pi / 2, lo_open=True,
         rule=f"in (0, π/2] rad (allowed: steering up to ±90° = {math.pi / 2!r} rad)"),
     Key("chi", "number", "1 (ICR expansion factor)",
         "ICR expansion factor chi [1] of a skid_steer drive (the tracks' ICRs at +-chi b/2; 1 = no slip); "
-        "null = 1.", None, nullable=True, **_POS),
+        "null = 1.", None, nullable=True, lo=0.0, lo_open=True),
     Key("x_icr", "number", "m (longitudinal ICR offset)",
         "Longitudinal ICR offset [m] of a skid_steer drive (lateral slip -x_icr dtheta per step); null = 0 (a "
         "path with turns needs 0).", None, nullable=True),
     Key("radius", "number", "m (omni wheels from the centre)",
         "Distance R [m] of the three omni wheels from the centre (omni3); null = 0.15 m.", None, nullable=True,
-        **_POS),
+        lo=0.0, lo_open=True),
     Key("wheels", "array", "m (body positions [x, y] of the wheels)",
         "Body positions [x, y] [m] of the wheels of an mdof drive (n >= 2, two distinct); null = the corners of "
         "a 0.3 m x 0.2 m rectangle.", None, nullable=True,

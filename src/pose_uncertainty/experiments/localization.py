@@ -67,7 +67,7 @@ from ..core.provenance import provenance
 from ..core.table_io import jsonable
 from ..core.validation import parse_numbers
 from ..localization import ekf, histogram, particle, simulate
-from ..localization.motion import MOTION_MODELS, Motion, velocity_alphas_for_wheels
+from ..localization.motion import K_WHEEL, MOTION_MODELS, Motion, velocity_alphas_for_wheels
 from ..localization.resampling import SCHEMES
 from ..localization.result import ASSOCIATIONS, SCENARIOS, FilterResult, Start
 from ..localization.sensors import BeamSensor, RangeBearingSensor
@@ -301,7 +301,7 @@ def build_world(spec: Mapping[str, Any]) -> World:
 
 def _truth(data: Any) -> dict[str, Any]:
     _check_keys("truth", data, ("k_r", "k_l", "regime", "path"))
-    return {"k_r": _num("truth.k_r", data.get("k_r", 1e-3), 0.0), "k_l": _num("truth.k_l", data.get("k_l", 1e-3), 0.0),
+    return {"k_r": _num("truth.k_r", data.get("k_r", K_WHEEL), 0.0), "k_l": _num("truth.k_l", data.get("k_l", K_WHEEL), 0.0),
             "regime": _choice("truth.regime", data.get("regime", "per_step"), REGIMES),
             "path": _choice("truth.path", data.get("path", "commanded"), simulate.TRUTHS)}  # fmt: skip
 
@@ -349,8 +349,8 @@ def _motion(where: str, data: Any, models: tuple[str, ...], default: dict[str, A
     if model == "velocity" and "alphas" not in data and "alphas" not in base:
         base = {**base, "alphas": default["velocity_alphas"], "scaling": "abs"}
     out = {"model": model,
-           "k_r": _num(f"{where}.k_r", data.get("k_r", base["k_r"]), 0.0),
-           "k_l": _num(f"{where}.k_l", data.get("k_l", base["k_l"]), 0.0),
+           "k_r": _num(f"{where}.k_r", base["k_r"] if data.get("k_r") is None else data["k_r"], 0.0),  # null: the truth's
+           "k_l": _num(f"{where}.k_l", base["k_l"] if data.get("k_l") is None else data["k_l"], 0.0),
            "noise": data.get("noise", base.get("noise", "normal")),
            "scaling": data.get("scaling", base.get("scaling", "squared"))}  # fmt: skip
     alphas = data.get("alphas", base.get("alphas"))
