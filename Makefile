@@ -53,3 +53,7 @@ slurm-down:
 
 clean:
 	rm -rf data reports .snakemake
+
+# the run keys of the pipeline schema, generated from the key tables next to the config dataclasses
+schema: $(STAMP)
+	$(BIN)/python -m pose_uncertainty.experiments.schema workflow/schemas/config.schema.yaml

@@ -104,7 +104,7 @@ def test_the_encoder_section_is_filled_with_safranek_2022s_values() -> None:
          r"'drive\.max_steering' must be in \(0, π/2\] rad \(allowed: steering up to ±90°.*got 2\.0"),
         ({"type": "ackermann", "max_steering": -0.1}, r"'drive\.max_steering' must be in \(0, π/2\].*got -0\.1"),
         ({"type": "omni3", "radius": -0.15}, r"'drive\.radius' must be > 0 \(allowed: \(0, inf\)\), got -0\.15"),
-        ({"type": "bicycle"}, r"'drive\.type' must be one of \('differential'.*got 'bicycle'"),
+        ({"type": "bicycle"}, r"'drive\.type' must be one of 'differential', 'skid_steer'.*got 'bicycle'"),
         ({"type": "differential", "wheelbase": 0.3},
          r"'drive\.wheelbase' does not apply to a differential drive \(allowed for differential: type, track, errors\)"),
         ({"type": "ackermann", "wheelbase": 0.1, "track": 0.5, "max_steering": 1.2},

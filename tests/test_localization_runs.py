@@ -20,12 +20,12 @@ from pose_uncertainty.core import trajectories as tr
 from pose_uncertainty.core.grids import Grid
 from pose_uncertainty.core.schema import load_schema
 from pose_uncertainty.core.table_io import read_table
+from pose_uncertainty.core.validation import parse_numbers
 from pose_uncertainty.experiments import sweep
 from pose_uncertainty.experiments.localization import (
     LocalizationConfig,
     execute_localization,
     expand_localization,
-    numbers_from_text,
 )
 from pose_uncertainty.localization import ekf as E
 from pose_uncertainty.localization import histogram as HF
@@ -127,7 +127,7 @@ def test_config_needs_a_filter_and_a_sensor() -> None:
 def test_numbers_as_yaml_strings_and_defaults_round_trip() -> None:
     cfg = LocalizationConfig.from_dict(CONFIG)
     assert cfg.truth["k_r"] == 1e-3
-    assert numbers_from_text({"a": ["1e-3", "x", "2"], "b": "-.5E+2"}) == {"a": [1e-3, "x", 2.0], "b": -50.0}
+    assert parse_numbers({"a": ["1e-3", "x", "2"], "b": "-.5E+2"}) == {"a": [1e-3, "x", 2.0], "b": -50.0}
     # every parameter is in to_dict and the logged form rebuilds the same configuration
     full = cfg.to_dict()
     assert LocalizationConfig.from_dict(full) == cfg
@@ -160,7 +160,6 @@ def test_shipped_localization_sets_expand() -> None:
     schema = load_schema(REPO / "workflow/schemas/config.schema.yaml")
     for name in ("config.yaml", "quick.yaml"):
         cfg = yaml.safe_load((REPO / "config" / name).read_text(encoding="utf-8"))
-        cfg["localization"] = numbers_from_text(cfg["localization"])
         sets = expand_localization(sweep.validate_config(cfg, schema))
         assert {"LOC_room", "LOC_global", "LOC_kidnapped"} <= set(sets), name
         for runs in sets.values():

@@ -21,10 +21,6 @@ if workflow.overwrite_configfiles:
     config.clear()
     config.update(_copy.deepcopy(workflow.config_settings.overwrite_config))
 
-# localization: a number written as YAML 1.1 reads it ("1e-3", a string) is a number (before the schema)
-if isinstance(config.get("localization"), dict):
-    config["localization"] = _loc.numbers_from_text(config["localization"])
-
 _SCHEMA = load_schema(workflow.source_path("../schemas/config.schema.yaml"))
 try:
     _validated = _sweep.validate_config(config, _SCHEMA)

@@ -8,6 +8,7 @@ the parameter, the bad value and what is allowed.
 from __future__ import annotations
 
 import re
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -25,6 +26,7 @@ __all__ = [
     "check_positive_int",
     "check_probability",
     "parse_number",
+    "parse_numbers",
 ]
 
 #: a decimal number written as text: ``1e9``, ``5e-4``, ``-2.5E+3``, ``.5``, ``7``
@@ -177,3 +179,24 @@ def parse_number(value: Any, like: Any = None) -> Any:
     ):
         return int(value)
     return value
+
+
+def parse_numbers(value: Any, like: Any = None, *, text_keys: frozenset[str] = frozenset()) -> Any:
+    """:func:`parse_number` through mappings and lists: the one walker of numbers written as text.
+
+    Returns a copy of ``value`` (mappings as dicts, tuples as lists) with every number written
+    as text parsed. ``like`` is a template of the same shape (a key's default): an item of a
+    list is typed by ``like[0]``, a value of a mapping by ``like[key]``, so an integral float
+    whose default is an int becomes an int. The values of the keys in ``text_keys`` (titles,
+    labels, names) stay as written.
+    """
+    if isinstance(value, Mapping):
+        sub = like if isinstance(like, Mapping) else {}
+        return {
+            k: v if k in text_keys else parse_numbers(v, sub.get(k), text_keys=text_keys)
+            for k, v in value.items()
+        }
+    if isinstance(value, list | tuple):
+        item = like[0] if isinstance(like, list | tuple) and like else None
+        return [parse_numbers(v, item, text_keys=text_keys) for v in value]
+    return parse_number(value, like)

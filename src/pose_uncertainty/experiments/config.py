@@ -40,18 +40,24 @@ from ..core import trajectories
 from ..core.grids import Grid
 from ..core.stats import PR_3SIGMA
 from ..core.table_io import jsonable
+from ..core.validation import parse_numbers
+from ..localization.motion import K_WHEEL
 from ..methods import maps, motion_models
+from ..methods.sampling import REGIMES
 from .config_checks import builder_keywords
 from .config_checks import check_keys as _check_keys
 from .config_checks import fail as _fail
 from .config_checks import integer as _int
 from .config_checks import name as _name
-from .config_checks import numbers as _numbers
-from .config_checks import real as _float
-from .drive_config import DriveConfig, check_path
+from .config_keys import FROM_CODE, Key, units
+from .drive_config import DRIVE_KEYS, DriveConfig, check_path
 
 __all__ = [
+    "MAP_KEYS",
     "MAP_SAMPLES",
+    "MONTE_CARLO_KEYS",
+    "RUN_KEYS",
+    "TRAJECTORY_KEYS",
     "TRAJECTORY_UNITS",
     "MapConfig",
     "MonteCarloConfig",
@@ -60,23 +66,90 @@ __all__ = [
 ]
 
 
+
+#: The keys of ``trajectory``: the keyword parameters of the builders of
+#: :data:`pose_uncertainty.core.trajectories.BUILDERS`, whose defaults they take.
+TRAJECTORY_KEYS: tuple[Key, ...] = (
+    Key("name", "choice", "-", "Builder name (required; pose_uncertainty.core.trajectories.BUILDERS).",
+        allowed=tuple(trajectories.BUILDERS)),
+    Key("length", "number", "m", "Line length [m].", FROM_CODE),
+    Key("radius", "number", "m", "Arc/circle radius [m].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("angle", "number", "rad", "Arc or rotation angle [rad] (default: the builder's).", FROM_CODE),
+    Key("laps", "number", "1", "Circle laps [1].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("direction", "choice", "1 (+1 left, -1 right)", "Circle direction (+1 left, -1 right).", FROM_CODE,
+        allowed=(1, -1)),
+    Key("dx", "number", "m", "Target x of right_angles/direct [m].", FROM_CODE),
+    Key("dy", "number", "m", "Target y of right_angles/direct [m].", FROM_CODE),
+    Key("speed", "number", "m/s", "Axle-centre speed [m/s].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("angular_speed", "number", "rad/s", "Rotation-in-place rate [rad/s].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("dt", "number", "s", "Step [s].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("track", "number", "m", "Wheel separation b [m].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("profile", "choice", "- (constant | ramp)", "Speed profile of each segment.", FROM_CODE,
+        allowed=("constant", "ramp")),
+    Key("start", "array", "(m, m, rad)", "Start pose (x [m], y [m], theta [rad]).", FROM_CODE,
+        extra={"items": {"type": "number"}, "minItems": 3, "maxItems": 3}),
+)
+
 #: Units of the trajectory builder parameters (pose_uncertainty.core.trajectories).
-TRAJECTORY_UNITS: dict[str, str] = {
-    "name": "-",
-    "length": "m",
-    "radius": "m",
-    "angle": "rad",
-    "laps": "1",
-    "direction": "1 (+1 left, -1 right)",
-    "dx": "m",
-    "dy": "m",
-    "speed": "m/s",
-    "angular_speed": "rad/s",
-    "dt": "s",
-    "track": "m",
-    "profile": "- (constant | ramp)",
-    "start": "(m, m, rad)",
-}
+TRAJECTORY_UNITS: dict[str, str] = units(TRAJECTORY_KEYS)
+
+#: The keys of ``monte_carlo`` (:class:`MonteCarloConfig`).
+MONTE_CARLO_KEYS: tuple[Key, ...] = (
+    Key("n_particles", "integer", "1", "Number of sampled runs [1]; 0 disables Monte Carlo.", 1000, lo=0),
+    Key("regime", "choice", "- (per_step | per_run)",
+        "per_step (random walk, Method A's model) or per_run (systematic, as Němec 2012).", "per_step",
+        allowed=REGIMES),
+    Key("method", "choice", "- (exact | euler | euler_end | midpoint)",
+        "Forward-kinematics step of the sampler (pose_uncertainty.core.kinematics.METHODS).", "midpoint",
+        allowed=("exact", "euler", "euler_end", "midpoint")),
+    Key("checkpoints", "array", "step index", "Step indices (1..N) at which the whole cloud is also kept [step].",
+        (), extra={"items": {"type": "integer", "minimum": 1}}),
+)
+
+#: The keys of one map of ``maps`` (:class:`MapConfig`); the defaults are its builder's
+#: (:func:`_map_defaults`: ``single_step_map`` for a one-step trajectory, else ``multi_step_map``).
+MAP_KEYS: tuple[Key, ...] = (
+    Key("name", "name", "-", "Map identifier (figure and topic names); default: the model.", FROM_CODE),
+    Key("model", "choice", "- (velocity | odometry)", "Motion model (required).", allowed=("velocity", "odometry")),
+    Key("alphas", "array", "1 (error constants)",
+        "Error constants alpha_1..alpha_6 (velocity) or alpha_1..alpha_4 (odometry) [1]; default 0.05 each.",
+        FROM_CODE, extra={"items": {"type": "number", "minimum": 0}, "minItems": 4, "maxItems": 6}),
+    Key("noise", "choice", "- (normal | triangular)", "Noise density of the model.", FROM_CODE,
+        allowed=("normal", "triangular")),
+    Key("scaling", "choice", "- (squared | abs)",
+        "Variance scaling: alpha*u^2 (squared, the book) or alpha*|u| (abs, the Kulich 2014 lecture).", FROM_CODE,
+        allowed=("squared", "abs")),
+    Key("corrected", "boolean", "- (bool)",
+        "Single-step map. False: Thrun's density as printed (relative); true: the sampler's pose-space density.",
+        FROM_CODE),
+    Key("cell_average", "boolean", "- (bool | null = automatic)",
+        "Single-step map: average the density over each cell (null = automatic).", FROM_CODE, nullable=True),
+    Key("oversample", "integer", "1 (integer factor)",
+        "Multi-step map: compute on cells this many times finer, summed back (for distributions thinner than "
+        "a cell, at about 15-20x the cost for 3) [1].", FROM_CODE, lo=1),
+    Key("diffusion_compensation", "boolean", "- (bool)", "Multi-step map: compensate the numerical diffusion.",
+        FROM_CODE),
+    Key("max_cells", "integer", "1", "Multi-step map: largest number of grid cells [1].", FROM_CODE, lo=1),
+    Key("n_nodes_max", "integer", "1", "Multi-step map: largest number of quadrature nodes [1].", FROM_CODE, lo=1),
+    Key("variance_from", "choice", "- (hypothesis | odometry | null)",
+        "Odometry model: variances from the hypothesis or from the odometry deltas (null = the module default).",
+        FROM_CODE, allowed=("hypothesis", "odometry"), nullable=True),
+    Key("n_sampler", "integer", "1 (draws of the model's own sampler)",
+        "Draws of the model's own sampler along the run's controls, logged with the map and compared with it "
+        "(0 = none) [1].", FROM_CODE, lo=0),
+    Key("log_volume", "boolean", "- (bool: the full (x, y, theta) array in the log)",
+        "Log the full (x, y, theta) array (lossless, nx*ny*ntheta*8 bytes); false: its exact theta-marginal and "
+        "the sha256 of the full array, which replay --verify compares.", FROM_CODE),
+    Key("size", "number", "m",
+        "Side of the square grid [m]: single-step map centred on the noiseless end (the thesis: 1 m); "
+        "multi-step map null = a grid that grows with the spread.", FROM_CODE, nullable=True, lo=0.0, lo_open=True),
+    Key("resolution", "number", "m", "Cell side [m] (the thesis: 1 cm).", FROM_CODE, lo=0.0, lo_open=True),
+    Key("theta_resolution", "number", "rad", "Heading cell width [rad] (default 2 degrees).", FROM_CODE, lo=0.0, lo_open=True),
+)
+
+
+def _key(table: tuple[Key, ...], name: str) -> Key:
+    return next(k for k in table if k.name == name)
 
 
 @dataclass(frozen=True)
@@ -95,26 +168,18 @@ class MonteCarloConfig:
         Step indices (1..N) at which the whole cloud is also kept [step].
     """
 
-    n_particles: int = 1000
-    regime: str = "per_step"
-    method: str = "midpoint"
-    checkpoints: tuple[int, ...] = ()
+    n_particles: int = _key(MONTE_CARLO_KEYS, "n_particles").default
+    regime: str = _key(MONTE_CARLO_KEYS, "regime").default
+    method: str = _key(MONTE_CARLO_KEYS, "method").default
+    checkpoints: tuple[int, ...] = _key(MONTE_CARLO_KEYS, "checkpoints").default
 
-    KEYS = ("n_particles", "regime", "method", "checkpoints")
+    KEYS = tuple(k.name for k in MONTE_CARLO_KEYS)
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> MonteCarloConfig:
         """Validate and build from a mapping; unknown keys raise ValueError naming them."""
         _check_keys("monte_carlo", data, cls.KEYS)
-        n = _int("monte_carlo.n_particles", data.get("n_particles", 1000))
-        regime = data.get("regime", "per_step")
-        if regime not in ("per_step", "per_run"):
-            raise _fail("monte_carlo.regime", "one of 'per_step', 'per_run'", regime)
-        method = data.get("method", "midpoint")
-        methods = ("exact", "euler", "euler_end", "midpoint")
-        if method not in methods:
-            raise _fail("monte_carlo.method", f"one of {methods}", method)
-        cps = data.get("checkpoints", ())
+        n, regime, method, cps = (k.get("monte_carlo", data) for k in MONTE_CARLO_KEYS)
         if not isinstance(cps, list | tuple):
             raise _fail("monte_carlo.checkpoints", "a list of step indices", cps)
         checkpoints = tuple(sorted({_int("monte_carlo.checkpoints[]", c, minimum=1) for c in cps}))
@@ -242,11 +307,10 @@ def _map_params(where: str, model: str, params: dict[str, Any], n_steps: int) ->
             f"unknown config key(s) {', '.join(repr(f'{where}.{k}') for k in unknown)} "
             f"(allowed for a {kind}-step {model} map: name, model, {', '.join(sorted(defaults))})"
         )
-    params = {k: _numbers(v, defaults[k]) for k, v in params.items()}
+    params = {k: parse_numbers(v, defaults[k]) for k, v in params.items()}
     full = jsonable({**defaults, **params})
-    full["n_sampler"] = _int(f"{where}.n_sampler", full["n_sampler"])
-    if not isinstance(full["log_volume"], bool):
-        raise _fail(f"{where}.log_volume", "true or false", full["log_volume"])
+    for key in ("n_sampler", "log_volume"):
+        full[key] = _key(MAP_KEYS, key).check(f"{where}.{key}", full[key])
     try:
         motion_models.check_alphas(full["alphas"], 6 if model == "velocity" else 4)
     except ValueError as exc:
@@ -264,13 +328,46 @@ def _trajectory_params(data: Any) -> tuple[dict[str, Any], int]:
     if name not in trajectories.BUILDERS:
         raise _fail("trajectory.name", f"one of {tuple(trajectories.BUILDERS)}", name)
     defaults, params = builder_keywords("trajectory", trajectories.BUILDERS[name], data)
-    params = {k: _numbers(v, defaults[k]) for k, v in params.items()}
+    params = {k: parse_numbers(v, defaults[k]) for k, v in params.items()}
     full = {"name": name, **jsonable({**defaults, **params})}
     try:  # validated and counted without building it (the cost guard comes first)
         n = trajectories.n_steps(name, **{k: v for k, v in full.items() if k != "name"})
     except ValueError as exc:
         raise ValueError(f"config key 'trajectory' ({name}): {exc}") from None
     return full, n
+
+
+#: The keys of a run configuration (:class:`RunConfig`), in the order of its log.
+RUN_KEYS: tuple[Key, ...] = (
+    Key("name", "name", "-", "Run name; set by the sweep to the run id.", "run"),
+    Key("seed", "integer", "1", "Seed of the run's numpy Generator [1].", 0, lo=0),
+    Key("trajectory", "section", "-",
+        "Trajectory builder (pose_uncertainty.core.trajectories.BUILDERS) and its parameters: lengths [m], "
+        "angles [rad], speed [m/s], angular_speed [rad/s], dt [s], track [m]; a parameter left out takes the "
+        "builder's default.", None, keys=TRAJECTORY_KEYS),
+    Key("k_r", "number", "m (wheel-travel variance per metre of travel)",
+        "Right-wheel error constant k_r [m] (Sigma_Delta = diag(k_r|ds_r|, k_l|ds_l|)).", K_WHEEL, lo=0.0),
+    Key("k_l", "number", "m (wheel-travel variance per metre of travel)", "Left-wheel error constant k_l [m].",
+        K_WHEEL, lo=0.0),
+    Key("cov0", "array", "3x3 over (x [m], y [m], theta [rad]): m^2, m*rad, rad^2",
+        "Initial pose covariance, 3x3 over (x [m], y [m], theta [rad]), symmetric positive semi-definite; "
+        "null = zero.", None, nullable=True),
+    Key("pr", "number", "1 (probability inside the ellipse)",
+        "Probability inside the drawn ellipses [1]; 0.98889 = radius 3.", PR_3SIGMA,
+        lo=0.0, hi=1.0, lo_open=True, hi_open=True, rule="a probability in (0, 1)"),
+    Key("n_ellipses", "integer", "1", "Number of blue ellipses along the path [1].", 10, lo=1),
+    Key("monte_carlo", "section", "-", "Monte Carlo sampling under Method A's noise model.", None,
+        keys=MONTE_CARLO_KEYS),
+    Key("maps", "sections", "-", "Probability maps (Method B) computed for the run.", (),
+        extra={"items": {"required": ["model"]}}, keys=MAP_KEYS),
+    Key("drive", "section", "-",
+        "The robot's drive (Šafránek 2022, section 3.2.2): type, geometry and odometry errors; the trajectory is "
+        "then the geometric path the drive follows (pose_uncertainty.core.drives.follow), and Method A, Monte "
+        "Carlo and the exponential-coordinates Gaussian are the drive's. Null or absent = the differential "
+        "drive of trajectory.track with k_r, k_l (runs logged as before). A geometry key of another type is "
+        "rejected; a drive that cannot follow the path (e.g. a rotation in place with max_steering below 90 "
+        "degrees) is rejected when the config is read.", None, nullable=True, keys=DRIVE_KEYS),
+)
 
 
 @dataclass(frozen=True)
@@ -306,30 +403,18 @@ class RunConfig:
     """
 
     trajectory: dict[str, Any]
-    k_r: float = 5e-4
-    k_l: float = 5e-4
+    k_r: float = _key(RUN_KEYS, "k_r").default
+    k_l: float = _key(RUN_KEYS, "k_l").default
     cov0: tuple[tuple[float, float, float], ...] | None = None
-    pr: float = PR_3SIGMA
-    n_ellipses: int = 10
-    seed: int = 0
+    pr: float = _key(RUN_KEYS, "pr").default
+    n_ellipses: int = _key(RUN_KEYS, "n_ellipses").default
+    seed: int = _key(RUN_KEYS, "seed").default
     monte_carlo: MonteCarloConfig = field(default_factory=MonteCarloConfig)
     maps: tuple[MapConfig, ...] = ()
-    name: str = "run"
+    name: str = _key(RUN_KEYS, "name").default
     drive: DriveConfig | None = None
 
-    KEYS = (
-        "name",
-        "seed",
-        "trajectory",
-        "k_r",
-        "k_l",
-        "cov0",
-        "pr",
-        "n_ellipses",
-        "monte_carlo",
-        "maps",
-        "drive",
-    )
+    KEYS = tuple(k.name for k in RUN_KEYS)
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> RunConfig:
@@ -345,8 +430,7 @@ class RunConfig:
         if "trajectory" not in data:
             raise ValueError("config key 'trajectory' is missing (e.g. {name: straight})")
         traj, n_steps = _trajectory_params(data["trajectory"])
-        k_r = _float("k_r", data.get("k_r", 5e-4), nonneg=True)
-        k_l = _float("k_l", data.get("k_l", 5e-4), nonneg=True)
+        k_r, k_l = _key(RUN_KEYS, "k_r").get("", data), _key(RUN_KEYS, "k_l").get("", data)
         cov0_raw = data.get("cov0")
         cov0 = None
         if cov0_raw is not None:
@@ -359,11 +443,7 @@ class RunConfig:
             if not np.array_equal(arr, arr.T) or np.linalg.eigvalsh(arr).min() < -1e-15:
                 raise _fail("cov0", "symmetric positive semi-definite", cov0_raw)
             cov0 = tuple((float(r[0]), float(r[1]), float(r[2])) for r in arr)
-        pr = _float("pr", data.get("pr", PR_3SIGMA))
-        if not 0.0 < pr < 1.0:
-            raise _fail("pr", "a probability in (0, 1)", data.get("pr"))
-        n_ell = _int("n_ellipses", data.get("n_ellipses", 10), minimum=1)
-        seed = _int("seed", data.get("seed", 0))
+        pr, n_ell, seed = (_key(RUN_KEYS, k).get("", data) for k in ("pr", "n_ellipses", "seed"))
         mc = MonteCarloConfig.from_dict(data.get("monte_carlo", {}))
         late = [c for c in mc.checkpoints if c > n_steps]
         if late:
@@ -379,7 +459,7 @@ class RunConfig:
         names = [m.name for m in maps]
         if len(set(names)) != len(names):
             raise _fail("maps[].name", "unique", names)
-        name = _name("name", data.get("name", "run"))
+        name = _key(RUN_KEYS, "name").get("", data)
         drive = None
         if data.get("drive") is not None:
             drive = DriveConfig.from_dict(data["drive"])
@@ -418,41 +498,8 @@ class RunConfig:
 
     def units(self) -> dict[str, Any]:
         """Unit of every configuration key (``"1"`` = dimensionless, ``"-"`` = not a number)."""
-        units: dict[str, Any] = {
-            "name": "-",
-            "seed": "1",
-            "trajectory": dict(TRAJECTORY_UNITS),
-            "k_r": "m (wheel-travel variance per metre of travel)",
-            "k_l": "m (wheel-travel variance per metre of travel)",
-            "cov0": "3x3 over (x [m], y [m], theta [rad]): m^2, m*rad, rad^2",
-            "pr": "1 (probability inside the ellipse)",
-            "n_ellipses": "1",
-            "monte_carlo": {
-                "n_particles": "1",
-                "regime": "- (per_step | per_run)",
-                "method": "- (exact | euler | euler_end | midpoint)",
-                "checkpoints": "step index",
-            },
-            "maps": {
-                "name": "-",
-                "model": "- (velocity | odometry)",
-                "alphas": "1 (error constants)",
-                "noise": "- (normal | triangular)",
-                "scaling": "- (squared | abs)",
-                "corrected": "- (bool)",
-                "cell_average": "- (bool | null = automatic)",
-                "oversample": "1 (integer factor)",
-                "diffusion_compensation": "- (bool)",
-                "max_cells": "1",
-                "n_nodes_max": "1",
-                "variance_from": "- (hypothesis | odometry | null)",
-                "n_sampler": "1 (draws of the model's own sampler)",
-                "log_volume": "- (bool: the full (x, y, theta) array in the log)",
-                "size": "m",
-                "resolution": "m",
-                "theta_resolution": "rad",
-            },
-        }
+        units_ = units(RUN_KEYS)
+        drive_units = units_.pop("drive")
         if self.drive is not None:  # only when configured (the logged units of other runs are unchanged)
-            units["drive"] = DriveConfig.units()
-        return units
+            units_["drive"] = drive_units
+        return units_

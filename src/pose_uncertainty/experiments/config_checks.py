@@ -19,7 +19,7 @@ import numpy as np
 from ..core import trajectories
 from ..core.validation import NUMBER_HINT, parse_number
 
-__all__ = ["builder_keywords", "check_keys", "fail", "integer", "name", "numbers", "real"]
+__all__ = ["builder_keywords", "check_keys", "fail", "integer", "name", "real"]
 
 _NAME_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$")
 
@@ -70,14 +70,6 @@ def name(key: str, value: Any) -> str:
     if not isinstance(value, str) or not _NAME_RE.match(value):
         raise fail(key, "a name of letters, digits, '_', '.', '-'", value)
     return value
-
-
-def numbers(value: Any, like: Any = None) -> Any:
-    """``parse_number`` through lists (``alphas``, ``start``): numbers written as text → numbers."""
-    if isinstance(value, list | tuple):
-        item = like[0] if isinstance(like, list | tuple) and like else None
-        return [numbers(v, item) for v in value]
-    return parse_number(value, like)
 
 
 def builder_keywords(

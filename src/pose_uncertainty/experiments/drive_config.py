@@ -53,9 +53,10 @@ from ..core.drives import DRIVES, Drive, follow
 from ..core.table_io import jsonable
 from ..methods.drive_noise import DriveErrorModel, IcrSlip, channels
 from ..methods.wheel_noise import WheelErrorSources
-from .config_checks import check_keys, fail, integer, real
+from .config_checks import check_keys, fail, real
+from .config_keys import FROM_CODE, Key, units
 
-__all__ = ["GEOMETRY", "DriveConfig", "DriveErrors", "check_path"]
+__all__ = ["DRIVE_KEYS", "GEOMETRY", "DriveConfig", "DriveErrors", "check_path"]
 
 #: Geometry keys of each drive type (the fields of its class in ``core.drives``).
 GEOMETRY: dict[str, tuple[str, ...]] = {
@@ -63,13 +64,89 @@ GEOMETRY: dict[str, tuple[str, ...]] = {
     for kind, cls in DRIVES.items()
 }
 
-#: Keys of a ``drive`` section (geometry keys apply to some types only).
-KEYS: tuple[str, ...] = ("type", "track", "wheelbase", "max_steering", "chi", "x_icr", "radius",
-                         "wheels", "errors")  # fmt: skip
+_NUMBERS = {"items": {"type": "number", "minimum": 0}}  # one number per channel
 
-_ERROR_KEYS = ("k", "steer_var", "steer_bias", "encoder", "slip")
-_ENCODER_KEYS = tuple(f.name for f in fields(WheelErrorSources))
-_SLIP_KEYS = ("chi_var", "x_icr_var")
+#: The keys of ``drive.errors.encoder``: the fields of WheelErrorSources, whose defaults (the
+#: chassis of Němec 2012) they take.
+ENCODER_KEYS: tuple[Key, ...] = (
+    Key("pulses_per_rev", "integer", "1/rev", "Encoder pulses per wheel revolution [1/rev].", FROM_CODE, lo=1),
+    Key("wheel_diameter", "number", "m", "Wheel diameter [m].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("integration_time", "number", "s", "Time over which pulses are counted [s].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("surface_rel_std", "number", "1 (relative to the speed)",
+        "Surface irregularity, std relative to the speed [1].", FROM_CODE, lo=0.0),
+    Key("additive_std", "number", "m/s", "Additive white speed noise std [m/s].", FROM_CODE, lo=0.0),
+    Key("quantisation", "boolean", "- (bool)", "Include the encoder quantisation.", FROM_CODE),
+)
+
+#: The keys of ``drive.errors.slip``.
+SLIP_KEYS: tuple[Key, ...] = (
+    Key("chi_var", "number", "1 (variance of chi)", "Variance of chi [1].", 0.0, lo=0.0),
+    Key("x_icr_var", "number", "m^2 (variance of x_icr)", "Variance of x_icr [m^2].", 0.0, lo=0.0),
+)
+
+#: The keys of ``drive.errors`` (:class:`DriveErrors`).
+ERROR_KEYS: tuple[Key, ...] = (
+    Key("k", "number", "m (travel variance per metre of each travel channel; null = k_r, k_l)",
+        "Travel variance per metre [m] of every travel channel (wheel, track, steering wheel, omni wheel), one "
+        "number or one per travel channel; null = k_r, k_l (k_r on the right, k_l on the left channel; equal "
+        "k_r, k_l for drives without right and left).", None, lo=0.0, nullable=True,
+        extra={"type": ["number", "array", "null"], **_NUMBERS}),
+    Key("steer_var", "number", "rad^2 (per-step variance of each steering angle)",
+        "Per-step variance [rad^2] of every steering angle (one number or one per angle); must be 0 for a drive "
+        "without steering.", 0.0, lo=0.0, extra={"type": ["number", "array"], **_NUMBERS}),
+    Key("steer_bias", "number", "rad (steering bias, true minus reported)",
+        "Steering-angle bias [rad], true minus reported (one number or one per angle).", 0.0,
+        extra={"type": ["number", "array"], "items": {"type": "number"}}),
+    Key("encoder", "section", "-",
+        "The encoder, surface and additive errors of every travel channel (Němec 2012), in place of k "
+        "(pose_uncertainty.methods.wheel_noise.WheelErrorSources); null = none.", None, nullable=True,
+        keys=ENCODER_KEYS),
+    Key("slip", "section", "-",
+        "Random ICR of a skid_steer drive (its chi and x_icr are the means); null = none.", None, nullable=True,
+        keys=SLIP_KEYS),
+)
+
+#: The keys of a ``drive`` section (:class:`DriveConfig`; geometry keys apply to some types only,
+#: :data:`GEOMETRY`, and a geometry key left out takes the drive class's default).
+DRIVE_KEYS: tuple[Key, ...] = (
+    Key("type", "choice", "- (" + " | ".join(DRIVES) + ")",
+        "Drive type: differential, skid_steer (tracks or skid-steered wheels, ICR model), tricycle, ackermann, "
+        "two_axle (both axles steered), synchro, mdof (independently driven and steered wheels), omni3 (three "
+        "omni wheels).", "differential", allowed=tuple(DRIVES)),
+    Key("track", "number", "m (null = trajectory.track)",
+        "Wheel or track separation b [m] (differential, skid_steer, ackermann's steered axle); null = "
+        "trajectory.track.", None, nullable=True, lo=0.0, lo_open=True),
+    Key("wheelbase", "number", "m",
+        "Wheelbase [m] (tricycle, ackermann - rear axle to steered wheel(s); two_axle - between the axles); "
+        "null = the drive's default, 0.3 m.", None, nullable=True, lo=0.0, lo_open=True),
+    Key("max_steering", "number", "rad",
+        "Largest steering angle [rad] in (0, pi/2] (tricycle, ackermann, two_axle); null = the drive's default, "
+        "pi/3; pi/2 lets a tricycle rotate in place.", None, nullable=True, lo=0.0, hi=math.pi / 2, lo_open=True,
+        rule=f"in (0, π/2] rad (allowed: steering up to ±90° = {math.pi / 2!r} rad)"),
+    Key("chi", "number", "1 (ICR expansion factor)",
+        "ICR expansion factor chi [1] of a skid_steer drive (the tracks' ICRs at +-chi b/2; 1 = no slip); "
+        "null = 1.", None, nullable=True, lo=0.0, lo_open=True),
+    Key("x_icr", "number", "m (longitudinal ICR offset)",
+        "Longitudinal ICR offset [m] of a skid_steer drive (lateral slip -x_icr dtheta per step); null = 0 (a "
+        "path with turns needs 0).", None, nullable=True),
+    Key("radius", "number", "m (omni wheels from the centre)",
+        "Distance R [m] of the three omni wheels from the centre (omni3); null = 0.15 m.", None, nullable=True,
+        lo=0.0, lo_open=True),
+    Key("wheels", "array", "m (body positions [x, y] of the wheels)",
+        "Body positions [x, y] [m] of the wheels of an mdof drive (n >= 2, two distinct); null = the corners of "
+        "a 0.3 m x 0.2 m rectangle.", None, nullable=True,
+        extra={"minItems": 2, "items": {"type": "array", "items": {"type": "number"}, "minItems": 2,
+                                        "maxItems": 2}}),
+    Key("errors", "section", "-", "Odometry error sources of the drive "
+        "(pose_uncertainty.methods.drive_noise.DriveErrorModel).", None, keys=ERROR_KEYS),
+)
+
+#: Keys of a ``drive`` section (geometry keys apply to some types only).
+KEYS: tuple[str, ...] = tuple(k.name for k in DRIVE_KEYS)
+_KEY = {k.name: k for k in DRIVE_KEYS}
+_ERROR_KEYS = tuple(k.name for k in ERROR_KEYS)
+_ENCODER_KEYS = tuple(k.name for k in ENCODER_KEYS)
+_SLIP_KEYS = tuple(k.name for k in SLIP_KEYS)
 
 #: Right and left travel channels, for ``k`` taken from ``k_r``, ``k_l``.
 _RIGHT, _LEFT = ("ds_r", "ds_right"), ("ds_l", "ds_left")
@@ -136,20 +213,12 @@ def _encoder(data: Any) -> dict[str, Any]:
     """``drive.errors.encoder``: every WheelErrorSources field, Šafránek 2022's defaults filled in."""
     check_keys("drive.errors.encoder", data, _ENCODER_KEYS)
     full = {f.name: data.get(f.name, f.default) for f in fields(WheelErrorSources)}
-    where = "drive.errors.encoder."
-    full["pulses_per_rev"] = integer(where + "pulses_per_rev", full["pulses_per_rev"], minimum=1)
-    for key in ("wheel_diameter", "integration_time"):
-        full[key] = real(where + key, full[key], positive=True)
-    for key in ("surface_rel_std", "additive_std"):
-        full[key] = real(where + key, full[key], nonneg=True)
-    if not isinstance(full["quantisation"], bool):
-        raise fail(where + "quantisation", "true or false", full["quantisation"])
-    return full
+    return {k.name: k.check(f"drive.errors.encoder.{k.name}", full[k.name]) for k in ENCODER_KEYS}
 
 
 def _slip(data: Any) -> dict[str, float]:
     check_keys("drive.errors.slip", data, _SLIP_KEYS)
-    return {k: real(f"drive.errors.slip.{k}", data.get(k, 0.0), nonneg=True) for k in _SLIP_KEYS}
+    return {k.name: k.get("drive.errors.slip", data) for k in SLIP_KEYS}
 
 
 def _geometry_value(key: str, value: Any) -> Any:
@@ -157,15 +226,8 @@ def _geometry_value(key: str, value: Any) -> Any:
     where = f"drive.{key}"
     if key == "track" and value is None:
         return None
-    if key in ("track", "wheelbase", "chi", "radius"):
-        return real(where, value, positive=True)
-    if key == "max_steering":
-        v = real(where, value)
-        if not 0.0 < v <= math.pi / 2:
-            raise fail(where, f"in (0, π/2] rad (allowed: steering up to ±90° = {math.pi / 2!r} rad)", value)
-        return v
-    if key == "x_icr":
-        return real(where, value)
+    if key != "wheels":
+        return _KEY[key].check(where, value)
     # wheels: (x, y) body positions [m]
     if not isinstance(value, list | tuple) or len(value) < 2:
         raise fail(where, "a list of n >= 2 wheel positions [x, y] [m]", value)
@@ -202,9 +264,7 @@ class DriveConfig:
         ValueError — one line naming the key (``drive.wheelbase``), the value and what is allowed.
         """
         check_keys("drive", data, KEYS)
-        kind = data.get("type", "differential")
-        if kind not in DRIVES:
-            raise fail("drive.type", f"one of {tuple(DRIVES)}", kind)
+        kind = _KEY["type"].get("drive", data)
         allowed = GEOMETRY[kind]
         extra = sorted(k for k in data if k not in ("type", "errors", *allowed))
         if extra:
@@ -216,7 +276,8 @@ class DriveConfig:
         geometry: dict[str, Any] = {}
         for key in allowed:
             default = None if key == "track" else jsonable(getattr(proto, key))
-            geometry[key] = _geometry_value(key, data.get(key, default))
+            value = data.get(key)  # null = the class's default (the trajectory's track)
+            geometry[key] = _geometry_value(key, default if value is None else value)
         out = cls(type=kind, geometry=geometry, errors=DriveErrors.from_dict(data.get("errors") or {}))
         if geometry.get("track", 0.0) is not None:  # else the trajectory's track: check_path checks it
             out.drive(math.nan)  # the geometry as a whole (e.g. Ackermann's steering limit)
@@ -274,30 +335,7 @@ class DriveConfig:
     @staticmethod
     def units() -> dict[str, Any]:
         """Unit of every key of a ``drive`` section."""
-        return {
-            "type": "- (" + " | ".join(DRIVES) + ")",
-            "track": "m (null = trajectory.track)",
-            "wheelbase": "m",
-            "max_steering": "rad",
-            "chi": "1 (ICR expansion factor)",
-            "x_icr": "m (longitudinal ICR offset)",
-            "radius": "m (omni wheels from the centre)",
-            "wheels": "m (body positions [x, y] of the wheels)",
-            "errors": {
-                "k": "m (travel variance per metre of each travel channel; null = k_r, k_l)",
-                "steer_var": "rad^2 (per-step variance of each steering angle)",
-                "steer_bias": "rad (steering bias, true minus reported)",
-                "encoder": {
-                    "pulses_per_rev": "1/rev",
-                    "wheel_diameter": "m",
-                    "integration_time": "s",
-                    "surface_rel_std": "1 (relative to the speed)",
-                    "additive_std": "m/s",
-                    "quantisation": "- (bool)",
-                },
-                "slip": {"chi_var": "1 (variance of chi)", "x_icr_var": "m^2 (variance of x_icr)"},
-            },
-        }
+        return units(DRIVE_KEYS)
 
 
 def _as_tuple(value: float | tuple[float, ...]) -> tuple[float, ...]:

@@ -65,9 +65,9 @@ from ..analysis import measures
 from ..core import trajectories
 from ..core.provenance import provenance
 from ..core.table_io import jsonable
-from ..core.validation import parse_number
+from ..core.validation import parse_numbers
 from ..localization import ekf, histogram, particle, simulate
-from ..localization.motion import MOTION_MODELS, Motion, velocity_alphas_for_wheels
+from ..localization.motion import K_WHEEL, MOTION_MODELS, Motion, velocity_alphas_for_wheels
 from ..localization.resampling import SCHEMES
 from ..localization.result import ASSOCIATIONS, SCENARIOS, FilterResult, Start
 from ..localization.sensors import BeamSensor, RangeBearingSensor
@@ -91,7 +91,6 @@ __all__ = [
     "execute_localization",
     "expand_localization",
     "is_localization_config",
-    "numbers_from_text",
 ]
 
 #: The value of a localization configuration's ``kind`` key.
@@ -106,15 +105,6 @@ Array = NDArray[np.float64]
 
 
 # ============================================================================= validation helpers
-
-
-def numbers_from_text(value: Any) -> Any:
-    """A copy of a configuration with number-like strings (``"1e-3"``, as YAML 1.1 reads them) as floats."""
-    if isinstance(value, Mapping):
-        return {k: numbers_from_text(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [numbers_from_text(v) for v in value]
-    return parse_number(value)  # the one reading of numbers written as text
 
 
 def is_localization_config(data: Any) -> bool:
@@ -249,7 +239,7 @@ def _world(data: Any) -> dict[str, Any]:
             raise _fail("world.file", "a path", src)
         inline, base = _read_world_file(src)
         out["source"] = src
-        data = {**numbers_from_text(inline), **data}
+        data = {**parse_numbers(inline), **data}
     if "source" in data:
         src_given = str(data.pop("source"))
         out.setdefault("source", src_given)
@@ -311,7 +301,7 @@ def build_world(spec: Mapping[str, Any]) -> World:
 
 def _truth(data: Any) -> dict[str, Any]:
     _check_keys("truth", data, ("k_r", "k_l", "regime", "path"))
-    return {"k_r": _num("truth.k_r", data.get("k_r", 1e-3), 0.0), "k_l": _num("truth.k_l", data.get("k_l", 1e-3), 0.0),
+    return {"k_r": _num("truth.k_r", data.get("k_r", K_WHEEL), 0.0), "k_l": _num("truth.k_l", data.get("k_l", K_WHEEL), 0.0),
             "regime": _choice("truth.regime", data.get("regime", "per_step"), REGIMES),
             "path": _choice("truth.path", data.get("path", "commanded"), simulate.TRUTHS)}  # fmt: skip
 
@@ -359,8 +349,8 @@ def _motion(where: str, data: Any, models: tuple[str, ...], default: dict[str, A
     if model == "velocity" and "alphas" not in data and "alphas" not in base:
         base = {**base, "alphas": default["velocity_alphas"], "scaling": "abs"}
     out = {"model": model,
-           "k_r": _num(f"{where}.k_r", data.get("k_r", base["k_r"]), 0.0),
-           "k_l": _num(f"{where}.k_l", data.get("k_l", base["k_l"]), 0.0),
+           "k_r": _num(f"{where}.k_r", base["k_r"] if data.get("k_r") is None else data["k_r"], 0.0),  # null: the truth's
+           "k_l": _num(f"{where}.k_l", base["k_l"] if data.get("k_l") is None else data["k_l"], 0.0),
            "noise": data.get("noise", base.get("noise", "normal")),
            "scaling": data.get("scaling", base.get("scaling", "squared"))}  # fmt: skip
     alphas = data.get("alphas", base.get("alphas"))
@@ -471,7 +461,7 @@ class LocalizationConfig:
         """
         if not isinstance(data, Mapping):
             raise _fail("config", "a mapping", data)
-        data = numbers_from_text(data)
+        data = parse_numbers(data)
         _check_keys("", data, cls.KEYS)
         if data.get("kind", KIND) != KIND:
             raise _fail("kind", f"{KIND!r}", data.get("kind"))
@@ -786,13 +776,13 @@ def expand_localization(config: Mapping[str, Any]) -> dict[str, list[Run]]:
     section = config.get("localization") or {}
     if not section.get("enabled", True):
         return {}
-    defaults = numbers_from_text(dict(section.get("defaults", {}) or {}))
+    defaults = parse_numbers(dict(section.get("defaults", {}) or {}))
     if "seed" in config and "seed" not in defaults:
         defaults["seed"] = config["seed"]
     out: dict[str, list[Run]] = {}
     for name, spec in (section.get("sets", {}) or {}).items():
         try:
-            out[name] = expand_set(name, numbers_from_text(spec), defaults, normalize=_normalize)
+            out[name] = expand_set(name, parse_numbers(spec), defaults, normalize=_normalize)
         except ConfigError as exc:
             raise ConfigError(str(exc).replace(f"experiment_sets.{name}", f"localization.sets.{name}", 1)) from None
     return out

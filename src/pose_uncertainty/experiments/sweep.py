@@ -37,7 +37,7 @@ from typing import Any
 
 from ..core import trajectories
 from ..core.schema import first_error
-from ..core.validation import parse_number
+from ..core.validation import parse_numbers
 from .config import RunConfig
 
 __all__ = [
@@ -162,7 +162,7 @@ def validate_config(config: Mapping[str, Any], schema: Mapping[str, Any]) -> dic
         runs are not valid run configurations; the message names the key, the
         value and what is allowed.
     """
-    config = coerce_numbers(config, schema)
+    config = coerce_numbers(config)
     problem = first_error(schema, config)
     if problem is not None:
         raise ConfigError(problem)
@@ -172,58 +172,19 @@ def validate_config(config: Mapping[str, Any], schema: Mapping[str, Any]) -> dic
     return filled
 
 
-def _coerce(schema: Mapping[str, Any], value: Any, root: Mapping[str, Any]) -> Any:
-    """``value`` with every string the schema types as a number parsed (``parse_number``)."""
-    schema = _resolve(schema, root)
-    types = schema.get("type", [])
-    types = [types] if isinstance(types, str) else list(types)
-    if isinstance(value, str) and ("number" in types or "integer" in types):
-        return parse_number(value, like=None if "number" in types else 0)
-    if isinstance(value, Mapping):
-        props = schema.get("properties", {})
-        addl = schema.get("additionalProperties")
-        return {
-            k: _coerce(props[k], v, root) if k in props
-            else _coerce(addl, v, root) if isinstance(addl, Mapping)
-            else v
-            for k, v in value.items()
-        }  # fmt: skip
-    if isinstance(value, list) and isinstance(schema.get("items"), Mapping):
-        return [_coerce(schema["items"], v, root) for v in value]
-    return value
+#: Keys whose values are text even when they look like numbers (``labels: ["1", "2"]``).
+TEXT_KEYS: frozenset[str] = frozenset({"title", "description", "source", "labels", "name", "caption"})
 
 
-def _run_key_schema(schema: Mapping[str, Any], dotted: str) -> Mapping[str, Any] | None:
-    """The schema of a dotted run-config key (``trajectory.length``) in ``$defs.run``, or None."""
-    node: Mapping[str, Any] | None = schema.get("$defs", {}).get("run")
-    for part in dotted.split("."):
-        if node is None:
-            return None
-        node = _resolve(node, schema).get("properties", {}).get(part)
-    return node
-
-
-def coerce_numbers(config: Mapping[str, Any], schema: Mapping[str, Any]) -> dict[str, Any]:
+def coerce_numbers(config: Mapping[str, Any]) -> dict[str, Any]:
     """A copy of a pipeline config with numbers written as text (``1e9``, ``5e-4``) parsed.
 
-    YAML 1.1 — PyYAML, hence Snakemake — reads a float without a dot as a string.
-    Every value the schema types as ``number`` or ``integer`` is passed through
-    :func:`pose_uncertainty.core.validation.parse_number`, and so are the values of
-    sweep axes, typed by the run-config key they sweep (``trajectory.length``).
-    Other strings (titles, labels, names) are left alone.
+    YAML 1.1 — PyYAML, hence Snakemake — reads a float without a dot as a string. Every
+    value, the run configurations and sweep axes included, goes through the one walker
+    :func:`pose_uncertainty.core.validation.parse_numbers`; titles, labels and names
+    (:data:`TEXT_KEYS`) stay text.
     """
-    out = _coerce(schema, copy.deepcopy(dict(config)), schema)
-    for spec in (out.get("experiment_sets") or {}).values():
-        if not isinstance(spec, dict):
-            continue
-        for axis in spec.get("sweep") or []:
-            if not isinstance(axis, dict):
-                continue
-            for key, values in axis.items():
-                sub = None if key == "labels" else _run_key_schema(schema, key)
-                if sub is not None and isinstance(values, list):
-                    axis[key] = [_coerce(sub, v, schema) for v in values]
-    return out
+    return dict(parse_numbers(config, text_keys=TEXT_KEYS))
 
 
 def _relevance(error: Any) -> Any:

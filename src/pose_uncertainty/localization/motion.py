@@ -40,6 +40,11 @@ MOTION_MODELS: tuple[str, ...] = ("wheels", "velocity", "odometry")
 Array = NDArray[np.float64]
 
 
+#: The default wheel error constant k_r = k_l [m] (wheel-travel variance per metre of travel):
+#: of a filter's wheel model, of a localization run's truth and of a dead-reckoning run.
+K_WHEEL: float = 5e-4
+
+
 @dataclass(frozen=True)
 class Motion:
     """Motion model and its error constants.
@@ -53,8 +58,8 @@ class Motion:
     """
 
     model: str = "wheels"
-    k_r: float = 5e-4
-    k_l: float = 5e-4
+    k_r: float = K_WHEEL
+    k_l: float = K_WHEEL
     alphas: tuple[float, ...] | None = None
     noise: str = "normal"
     scaling: str = "squared"
