@@ -13,15 +13,16 @@ The helpers below the registry are those every kind's summary and comparison sha
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import json
 import math
 import os
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
@@ -46,45 +47,43 @@ __all__ = [
     "summary_head",
     "summary_measures",
     "verify_log",
+    "verify_recomputed",
     "verify_run",
 ]
 
 
-class LogFormat(Protocol):
-    """A kind of log: what it writes, how it reads back, summarises and verifies.
+@dataclass(frozen=True)
+class LogFormat:
+    """A kind of log: how it writes, reads back, summarises and verifies a result.
 
-    ``format`` and ``version`` are the ``format`` and ``format_version`` of its metadata record.
+    Attributes
+    ----------
+    format, version : str
+        The ``format`` and ``format_version`` of its metadata record.
+    write : callable
+        ``write(path, result, *, include_timings=False) -> Path``: atomically; the same result
+        gives the same bytes.
+    log_bytes : callable
+        ``log_bytes(result, *, include_timings=False) -> bytes``: what ``write`` would write.
+    assemble : callable
+        ``assemble(container) -> log``: the log object of a validated container of this kind.
+    summary : callable
+        ``summary(log) -> str``: human-readable.
+    verify : callable
+        ``verify(log) -> Comparison``: recompute a complete log and compare every record.
     """
 
-    @property
-    def format(self) -> str: ...
-
-    @property
-    def version(self) -> str: ...
-
-    def write(self, path: str | os.PathLike[str], result: Any, *, include_timings: bool = False) -> Path:
-        """Write ``result`` atomically to ``path``; the same result gives the same bytes."""
-        ...
-
-    def log_bytes(self, result: Any, *, include_timings: bool = False) -> bytes:
-        """The bytes :meth:`write` would write."""
-        ...
+    format: str
+    version: str
+    write: Callable[..., Path]
+    log_bytes: Callable[..., bytes]
+    assemble: Callable[[Container], Any]
+    summary: Callable[[Any], str]
+    verify: Callable[[Any], Comparison]
 
     def read(self, path: str | os.PathLike[str], *, recover: bool = False) -> Any:
-        """Read and validate a log of this kind."""
-        ...
-
-    def assemble(self, container: Container) -> Any:
-        """Build the log object from a validated container whose metadata names this kind."""
-        ...
-
-    def summary(self, log: Any) -> str:
-        """Human-readable summary of a log."""
-        ...
-
-    def verify(self, log: Any) -> Comparison:
-        """Recompute a complete log from its configuration and seed and compare every record."""
-        ...
+        """Read and validate a log of this kind (:func:`read_log`)."""
+        return read_log(path, recover=recover, kind=self)
 
 
 #: The log kinds, by the ``format`` of their metadata record (each module registers its own).
@@ -210,6 +209,18 @@ def verify_run(log: Any) -> Comparison:
     if kind is None:
         raise RunLogError(f"{log.path}: not a pose-uncertainty run log (format {log.metadata.get('format')!r})")
     return kind.verify(log)
+
+
+def verify_recomputed(log: Any, fresh: Any, log_bytes: Callable[..., bytes]) -> Comparison:
+    """Compare ``log`` with ``fresh``, its recomputation, logged by ``log_bytes`` as ``log`` was.
+
+    The fresh log is written with the logged provenance and timings, so that on the machine
+    that made the log the bytes are identical (:func:`verify_log`). A partial log is a mismatch.
+    """
+    if log.partial:
+        return Comparison(status=MISMATCH, mismatches=["the log is partial; a partial log cannot be verified"])
+    same = dataclasses.replace(fresh, provenance=dict(log.provenance), timings=dict(log.timings))
+    return verify_log(log, log_bytes(same, include_timings=bool(log.timings)))
 
 
 def verify_log(log: Any, fresh_bytes: bytes) -> Comparison:

@@ -61,17 +61,17 @@ from ..methods.covariance import ellipse_polyline
 from . import foxglove as fg
 from .formats import (
     LogFile,
+    LogFormat,
     check_version,
     compare_dicts,
     compare_measures,
     diff,
     file_fields,
-    read_log,
     register,
     step_at,
     summary_head,
     summary_measures,
-    verify_log,
+    verify_recomputed,
 )
 from .mcap_io import (
     Container,
@@ -83,7 +83,7 @@ from .mcap_io import (
     stream_bytes,
     write_atomically,
 )
-from .reproducibility import MISMATCH, Comparison
+from .reproducibility import Comparison
 
 __all__ = [
     "FORMAT",
@@ -214,7 +214,7 @@ def _filter_step(log: LogWriter, name: str, tr: FilterTrack, ell: Array, k: int,
         log.put(f"{base}/grid", fg.grid_msg(tr.grids[k], x0, y0, h, h, tk), tk)
 
 
-def _put_end(log: LogWriter, res: LocalizationResult, t_end: int, include_timings: bool) -> None:
+def _put_series_and_measures(log: LogWriter, res: LocalizationResult, t_end: int, include_timings: bool) -> None:
     """What belongs to the end of the run: each filter's series, the metrics, the timings."""
     for name, tr in res.filters.items():
         arrays = dict(tr.series)
@@ -240,7 +240,7 @@ def _write_localization_stream(stream: Any, res: LocalizationResult, include_tim
         _measurements(log, res, beam_angles, k, tk)
         for name, tr in res.filters.items():
             _filter_step(log, name, tr, ellipses[name], k, float(res.times[k]), tk)
-    _put_end(log, res, t_ns[-1], include_timings)
+    _put_series_and_measures(log, res, t_ns[-1], include_timings)
     log.finish()
 
 
@@ -324,7 +324,7 @@ def _track(rec: Records, name: str, step_of_ns: dict[int, int]) -> FilterTrack:
     return FilterTrack(name, mean, cov, series, particles, grids, geometry)
 
 
-def _assemble(c: Container) -> LocalizationLog:
+def _read_localization(c: Container) -> LocalizationLog:
     """Build a :class:`LocalizationLog` from the validated container of a localization run's log."""
     check_version(c, LOCALIZATION_LOG, "localization log")
     meta = c.metadata
@@ -413,43 +413,11 @@ def verify_localization(log: LocalizationLog) -> Comparison:
 
     The fresh log is written with the logged provenance and timings; every record of the two
     logs is compared within the reproducibility contract
-    (:func:`~pose_uncertainty.records.formats.verify_log`).
+    (:func:`~pose_uncertainty.records.formats.verify_recomputed`).
     """
-    if log.partial:
-        return Comparison(status=MISMATCH, mismatches=["the log is partial; a partial log cannot be verified"])
-    fresh = execute_localization(log.config)
-    same = LocalizationResult(**{f: getattr(fresh, f) for f in LocalizationResult.__dataclass_fields__
-                                 if f not in ("provenance", "timings")},
-                              provenance=dict(log.provenance), timings=dict(log.timings))  # fmt: skip
-    return verify_log(log, localization_log_bytes(same, include_timings=bool(log.timings)))
-
-
-@dataclass(frozen=True)
-class _LocalizationLogFormat:
-    """The localization run log as a :class:`~pose_uncertainty.records.formats.LogFormat`."""
-
-    format: str = FORMAT
-    version: str = FORMAT_VERSION
-
-    def write(self, path: str | os.PathLike[str], result: LocalizationResult, *,
-              include_timings: bool = False) -> Path:  # fmt: skip
-        return write_localization(path, result, include_timings=include_timings)
-
-    def log_bytes(self, result: LocalizationResult, *, include_timings: bool = False) -> bytes:
-        return localization_log_bytes(result, include_timings=include_timings)
-
-    def read(self, path: str | os.PathLike[str], *, recover: bool = False) -> LocalizationLog:
-        return read_log(path, recover=recover, kind=self)  # type: ignore[no-any-return]
-
-    def assemble(self, container: Container) -> LocalizationLog:
-        return _assemble(container)
-
-    def summary(self, log: LocalizationLog) -> str:
-        return format_localization_summary(log)
-
-    def verify(self, log: LocalizationLog) -> Comparison:
-        return verify_localization(log)
+    return verify_recomputed(log, execute_localization(log.config), localization_log_bytes)
 
 
 #: The localization run log's write / read / summary / verify.
-LOCALIZATION_LOG = register(_LocalizationLogFormat())
+LOCALIZATION_LOG = register(LogFormat(FORMAT, FORMAT_VERSION, write_localization, localization_log_bytes,
+                                      _read_localization, format_localization_summary, verify_localization))

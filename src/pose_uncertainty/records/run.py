@@ -76,18 +76,19 @@ from ..methods.maps import ProbabilityMap
 from . import foxglove as fg
 from .formats import (
     LogFile,
+    LogFormat,
     check_version,
     compare_measures,
     diff,
     file_fields,
     open_run,
-    read_log,
     recomputable,
     register,
     step_at,
     summary_head,
     summary_measures,
     verify_log,
+    verify_recomputed,
     verify_run,
 )
 from .mcap_io import (
@@ -429,7 +430,7 @@ def _read_map(rec: Records, name: str) -> ProbabilityMap | None:
     )  # fmt: skip
 
 
-def _assemble(c: Container) -> RunLog:
+def _read_run(c: Container) -> RunLog:
     """Build a :class:`RunLog` from the validated container of a dead-reckoning run's log."""
     check_version(c, RUN_LOG, "run log")
     meta = c.metadata
@@ -515,37 +516,8 @@ def compare_results(logged: RunResult, fresh: RunResult) -> list[str]:
 
 def _verify(log: RunLog) -> Comparison:
     """Recompute a complete run log from its config and seed and compare every record of the two logs."""
-    fresh = execute(log.config)
-    fields = {f: getattr(fresh, f) for f in RunResult.__dataclass_fields__}
-    same = RunResult(**{**fields, "provenance": dict(log.provenance), "timings": dict(log.timings)})
-    return verify_log(log, log_bytes(same, include_timings=bool(log.timings)))
-
-
-@dataclass(frozen=True)
-class _RunLogFormat:
-    """The dead-reckoning run log as a :class:`~pose_uncertainty.records.formats.LogFormat`."""
-
-    format: str = FORMAT
-    version: str = FORMAT_VERSION
-
-    def write(self, path: str | os.PathLike[str], result: RunResult, *, include_timings: bool = False) -> Path:
-        return write_run(path, result, include_timings=include_timings)
-
-    def log_bytes(self, result: RunResult, *, include_timings: bool = False) -> bytes:
-        return log_bytes(result, include_timings=include_timings)
-
-    def read(self, path: str | os.PathLike[str], *, recover: bool = False) -> RunLog:
-        return read_log(path, recover=recover, kind=self)  # type: ignore[no-any-return]
-
-    def assemble(self, container: Container) -> RunLog:
-        return _assemble(container)
-
-    def summary(self, log: RunLog) -> str:
-        return format_summary(log)
-
-    def verify(self, log: RunLog) -> Comparison:
-        return _verify(log)
+    return verify_recomputed(log, execute(log.config), log_bytes)
 
 
 #: The dead-reckoning run log's write / read / summary / verify.
-RUN_LOG = register(_RunLogFormat())
+RUN_LOG = register(LogFormat(FORMAT, FORMAT_VERSION, write_run, log_bytes, _read_run, format_summary, _verify))
