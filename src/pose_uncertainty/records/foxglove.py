@@ -39,6 +39,8 @@ __all__ = [
     "LINE_LIST",
     "LINE_LOOP",
     "LINE_STRIP",
+    "LOCALIZATION_MESSAGES",
+    "RUNLOG_MESSAGES",
     "WORLD",
     "Float64Array",
     "Metrics",
