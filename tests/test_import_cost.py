@@ -48,12 +48,14 @@ def test_the_check_sees_a_heavy_import():
 
 def test_a_localization_log_kind_is_found_without_importing_its_module_first():
     code = (
-        "from pose_uncertainty.records import run as runlog; before = dict(runlog.LOG_KINDS); "
-        "kind = runlog.log_kind('pose-uncertainty-localization'); "
-        "print(len(before), kind is not None, runlog.log_kind(runlog.FORMAT) is None)"
+        "import sys; from pose_uncertainty.records import formats, run as runlog; before = sorted(formats.FORMATS); "
+        "loaded = 'pose_uncertainty.records.localization' in sys.modules; "
+        "kind = formats.log_format('pose-uncertainty-localization'); "
+        "print(before == [runlog.FORMAT], loaded, kind is formats.FORMATS['pose-uncertainty-localization'], "
+        "formats.log_format(runlog.FORMAT) is runlog.RUN_LOG)"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
-    assert out == ["0", "True", "True"]
+    assert out == ["True", "False", "True", "True"]
 
 
 def test_a_monte_carlo_run_without_maps_runs_without_scipy_special(tmp_path):

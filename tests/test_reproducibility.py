@@ -32,7 +32,8 @@ from mcap.writer import Writer as McapWriter
 from pose_uncertainty.cli import main
 from pose_uncertainty.experiments.run import RunConfig, execute
 from pose_uncertainty.records import reproducibility as rp
-from pose_uncertainty.records.run import _scan, log_bytes, open_run, write_run
+from pose_uncertainty.records.mcap_io import scan
+from pose_uncertainty.records.run import log_bytes, open_run, write_run
 
 HERE = Path(__file__).resolve().parent
 REFERENCES = HERE / "data" / "default_runs"
@@ -167,7 +168,7 @@ def _rewrite(src: Path, dst: Path, *, metadata: dict[str, str] | None = None, to
     from mcap.records import Channel, Header, Message, Schema
     from mcap_protobuf.decoder import DecoderFactory
 
-    records, problem = _scan(src.read_bytes())
+    records, problem = scan(src.read_bytes())
     assert problem is None
     schemas = {r.id: r for r in records if isinstance(r, Schema)}
     channels = {r.id: r for r in records if isinstance(r, Channel)}

@@ -17,6 +17,7 @@ from pose_uncertainty.experiments.run import RunConfig, RunResult, execute
 from pose_uncertainty.methods import covariance
 from pose_uncertainty.methods.maps import ProbabilityMap
 from pose_uncertainty.present import figures
+from pose_uncertainty.records import mcap_io
 from pose_uncertainty.records import run as runlog
 from pose_uncertainty.records.run import PartialLogWarning, RunLogError, open_run, write_run
 
@@ -225,15 +226,15 @@ def test_write_is_atomic(
     dest = tmp_path / "run.mcap"
     dest.write_bytes(b"previous content")
     calls = {"n": 0}
-    real_put = runlog._Log.put
+    real_put = mcap_io.LogWriter.put
 
-    def failing_put(self: runlog._Log, topic: str, msg: object, t_ns: int) -> None:
+    def failing_put(self: mcap_io.LogWriter, topic: str, msg: object, t_ns: int) -> None:
         calls["n"] += 1
         if calls["n"] > 200:
             raise KeyboardInterrupt("simulated interruption")
         real_put(self, topic, msg, t_ns)
 
-    monkeypatch.setattr(runlog._Log, "put", failing_put)
+    monkeypatch.setattr(mcap_io.LogWriter, "put", failing_put)
     with pytest.raises(KeyboardInterrupt):
         write_run(dest, result)
     assert dest.read_bytes() == b"previous content"
@@ -242,11 +243,11 @@ def test_write_is_atomic(
 
 KILL_SCRIPT = """
 import os, signal, sys
-from pose_uncertainty.records import run as runlog
+from pose_uncertainty.records import mcap_io, run as runlog
 from pose_uncertainty.experiments.run import RunConfig, execute
 
 result = execute(RunConfig.from_dict({config!r}))
-real_put, count = runlog._Log.put, [0]
+real_put, count = mcap_io.LogWriter.put, [0]
 
 def put(self, topic, msg, t_ns):
     count[0] += 1
@@ -255,7 +256,7 @@ def put(self, topic, msg, t_ns):
         os.kill(os.getpid(), signal.SIGKILL)
     real_put(self, topic, msg, t_ns)
 
-runlog._Log.put = put
+mcap_io.LogWriter.put = put
 runlog.write_run(sys.argv[1], result)
 """
 

@@ -73,6 +73,7 @@ from mcap.records import Channel, Header, Message, Metadata, Schema
 from mcap_protobuf.decoder import DecoderFactory
 
 from ..core.provenance import MACHINE_KEYS
+from .mcap_io import scan
 
 __all__ = [
     "FIXED_DEPTH",
@@ -317,9 +318,7 @@ def _short(v: Any) -> str:
 
 
 def _records(data: bytes) -> list[Any]:
-    from .run import _scan  # the CRC-validating scanner of every log kind
-
-    records, problem = _scan(data)
+    records, problem = scan(data)
     if problem is not None:
         raise ValueError(problem)
     return records
