@@ -13,7 +13,12 @@ import math
 import pytest
 
 from pose_uncertainty.core.stats import COVERAGE_LEVELS
-from pose_uncertainty.pipeline.claims import VERDICTS, ClaimDataError, evaluate_claim, evaluate_claims
+from pose_uncertainty.pipeline.claims import (
+    VERDICTS,
+    ClaimDataError,
+    evaluate_claim,
+    evaluate_claims,
+)
 from pose_uncertainty.pipeline.method_guide import method_guide
 
 

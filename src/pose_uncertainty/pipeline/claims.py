@@ -705,11 +705,11 @@ def bent_cloud_fk_track(rows: Rows, c: Claim) -> None:
     ok_fk = fk < se
     ok_b = maj[b_big] < maj[b_small]
     _judge_parts(c, [
-        (ok_bent, f"Bent: {'yes' if ok_bent else 'no, not measurably at 1 m'} ({sum(bent.values())} of {len(bent)} "
-                  "clouds beyond noise);"),
-        (ok_fk, f"independent of the FK method: {'yes, within what 1000 runs can resolve' if ok_fk else 'no'} "
-                f"(midpoint equals the exact arc to {100 * diffs.get('midpoint', 0.0):.1g} %; the Euler variants are "
-                "first-order and differ by O(Δt) at the 10 ms step);"),
+        (ok_bent, (f"Bent: {'yes' if ok_bent else 'no, not measurably at 1 m'} ({sum(bent.values())} of "
+                   f"{len(bent)} clouds beyond noise);")),
+        (ok_fk, (f"independent of the FK method: {'yes, within what 1000 runs can resolve' if ok_fk else 'no'} "
+                 f"(midpoint equals the exact arc to {100 * diffs.get('midpoint', 0.0):.1g} %; the Euler variants are "
+                 "first-order and differ by O(Δt) at the 10 ms step);")),
         (ok_b, f"wider track, shorter major axis: {'yes' if ok_b else 'no'}."),
     ])  # fmt: skip
     c.figure = _fig(s.name, None, "cloud_polar")
