@@ -7,6 +7,14 @@
 only in part or under conditions), or ``not measured`` (the sets it needs are not
 in the config) — the reason, and the figure that shows it.
 
+Each claim is a function registered with :func:`claim` (its number, its text and what
+the source showed) that finds its runs by their logged parameters — the ``param.*``
+columns of the set's table, floats to a relative tolerance (:data:`PARAM_RTOL`) — never
+by run id, so renaming a run label in the config changes no verdict. A set that is in the
+config but holds no run with the parameters a claim reads raises :class:`ClaimDataError`
+(one line: the claim, the set, the parameters); the claims job fails with it rather than
+report the claim "not measured".
+
 Every number a claim uses is a logged measure of a run, read from the per-set
 tables (:mod:`pose_uncertainty.pipeline.tables`; names and definitions in
 :mod:`pose_uncertainty.analysis.measures`); a claim only combines them across runs
@@ -35,7 +43,10 @@ from ..core.table_io import read_table
 from .evidence import Rows, coverage_tolerance
 from .method_guide import method_guide, unscented_summary
 
-__all__ = ["VERDICTS", "Claim", "ClaimDataError", "claim", "evaluate_claim", "evaluate_claims", "method_guide", "unscented_summary", "write_claims"]
+__all__ = [
+    "PARAM_RTOL", "VERDICTS", "Claim", "ClaimDataError", "claim", "evaluate_claim", "evaluate_claims", "method_guide",
+    "unscented_summary", "write_claims",
+]  # fmt: skip
 
 VERDICTS: tuple[str, ...] = ("confirmed", "refuted", "qualified", "not measured")
 
