@@ -156,3 +156,11 @@ def test_the_report_prints_the_logged_parameters_not_the_manifests(tmp_path: Pat
     assert '"track": 0.5' not in details
     assert "0.0123" not in details
     assert "seed 5" in details
+
+
+def test_a_swept_list_of_maps_is_shown_with_its_swept_keys_and_logged_values() -> None:
+    from pose_uncertainty.present.report import _with_row
+
+    row = {"run": "a12", "seed": 7, "param.maps": '[{"name": "velocity", "alphas": [0.005, 0.05], "size": 2.0}]'}
+    run = {"id": "a12", "swept": {"maps": [{"name": "velocity", "alphas": [0.5, 0.5]}]}}
+    assert _with_row(run, row)["swept"] == {"maps": [{"name": "velocity", "alphas": [0.005, 0.05]}]}

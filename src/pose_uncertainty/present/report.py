@@ -201,9 +201,12 @@ def _at(params: Mapping[str, Any], dotted: str) -> Any:
 
 
 def _shaped(shape: Any, value: Any) -> Any:
-    """``value`` cut to the keys of ``shape`` where both are mappings (a swept sub-mapping), else ``value``."""
+    """``value`` cut to the keys of ``shape`` where both are mappings (a swept sub-mapping), element by element
+    where both are lists of one length (a swept list of maps), else ``value`` itself."""
     if isinstance(shape, Mapping) and isinstance(value, Mapping):
         return {k: _shaped(v, value.get(k)) for k, v in shape.items()}
+    if isinstance(shape, list | tuple) and isinstance(value, list) and len(shape) == len(value):
+        return [_shaped(a, b) for a, b in zip(shape, value, strict=True)]
     return value
 
 
