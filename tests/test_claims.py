@@ -7,23 +7,29 @@ numbers of the real pipeline are pinned in tests/test_one_source.py (golden file
 
 from __future__ import annotations
 
+import json
 import math
 
 import pytest
 
 from pose_uncertainty.core.stats import COVERAGE_LEVELS
-from pose_uncertainty.pipeline.claims import VERDICTS, evaluate_claims
+from pose_uncertainty.pipeline.claims import (
+    VERDICTS,
+    ClaimDataError,
+    evaluate_claim,
+    evaluate_claims,
+)
 from pose_uncertainty.pipeline.method_guide import method_guide
 
 
 def _verdict(rows: dict, number: int) -> str:
-    claim = next(c for c in evaluate_claims(rows) if c.number == number)
+    claim = evaluate_claim(rows, number)
     assert claim.verdict in VERDICTS
     return claim.verdict
 
 
 def _claim(rows: dict, number: int):
-    return next(c for c in evaluate_claims(rows) if c.number == number)
+    return evaluate_claim(rows, number)
 
 
 # --- 1: across grows faster than along -----------------------------------------------------
@@ -45,8 +51,8 @@ def test_claim1_branches():
 
 
 def _shape(areas: dict, majors: dict):
-    return {"A1_shape": [{"run": k, "A_ellipse_area": areas[k], "A_ellipse_major": majors[k], "path_length": 1.0}
-                         for k in areas]}
+    return {"A1_shape": [{"run": k, "param.trajectory.name": k, "A_ellipse_area": areas[k],
+                          "A_ellipse_major": majors[k], "path_length": 1.0} for k in areas]}
 
 
 def test_claim2_branches():
@@ -55,7 +61,10 @@ def test_claim2_branches():
     assert _verdict(_shape(ordered, ordered), 2) == "confirmed"
     assert _verdict(_shape(ordered, reversed_), 2) == "qualified"
     assert _verdict(_shape(reversed_, reversed_), 2) == "refuted"
-    assert _verdict({"A1_shape": _shape(ordered, ordered)["A1_shape"][:2]}, 2) == "not measured"
+    assert _verdict({}, 2) == "not measured"
+    # the set is there but a path is missing: the claims job fails, naming what it looked for
+    with pytest.raises(ClaimDataError, match=r"^claim 2 .*A1_shape has no run with trajectory.name = 'right_angles'$"):
+        evaluate_claims({"A1_shape": _shape(ordered, ordered)["A1_shape"][:2]})
 
 
 # --- 3: the speed profile has no effect ----------------------------------------------------
@@ -65,7 +74,8 @@ def _profile(ramp_factor: float):
     rows = []
     for traj in ("straight", "circle", "rotation"):
         for prof, f in (("constant", 1.0), ("ramp", ramp_factor)):
-            rows.append({"run": f"{traj}_{prof}", **{k: f * v for k, v in (
+            rows.append({"run": f"{traj}_{prof}", "param.trajectory.name": traj, "param.trajectory.profile": prof,
+                         **{k: f * v for k, v in (
                 ("A_sigma_along", 0.01), ("A_sigma_across", 0.02), ("A_sigma_theta", 0.1),
                 ("A_ellipse_major", 0.05), ("A_ellipse_minor", 0.03))}})
     return {"A2_profile": rows}
@@ -82,8 +92,11 @@ def test_claim3_branches():
 
 def _parameters(major_small: float, tilt_r: float, tilt_l: float, across=(0.3, 0.2, 0.1)):
     def row(run, major=0.1, angle=0.0, sa=0.2):
-        return {"run": run, "A_ellipse_major": major, "A_ellipse_angle": angle, "A_sigma_across": sa,
-                "A_sigma_along": 0.01}
+        k_r, k_l, b = {"k5e-4_b0.2": (5e-4, 5e-4, 0.2), "k5e-5_b0.2": (5e-5, 5e-5, 0.2), "kr9e-4_kl1e-4_b0.2": (9e-4, 1e-4, 0.2),
+                       "kr1e-4_kl9e-4_b0.2": (1e-4, 9e-4, 0.2), "k5e-4_b0.1": (5e-4, 5e-4, 0.1),
+                       "k5e-4_b0.5": (5e-4, 5e-4, 0.5)}[run]  # fmt: skip
+        return {"run": run, "param.k_r": k_r, "param.k_l": k_l, "param.trajectory.track": b, "A_ellipse_major": major,
+                "A_ellipse_angle": angle, "A_sigma_across": sa, "A_sigma_along": 0.01}
     return {"A3_parameters": [
         row("k5e-4_b0.2", sa=across[1]), row("k5e-5_b0.2", major=major_small),
         row("kr9e-4_kl1e-4_b0.2", angle=math.radians(tilt_r)), row("kr1e-4_kl9e-4_b0.2", angle=math.radians(tilt_l)),
@@ -100,7 +113,7 @@ def test_claim4_branches():
 
 
 def _cloud(cov3: float, cov1: float, ks: float, bend: float, n: int = 20000):
-    return {"A4_distribution": [{"run": "per_step", "MC_n": n, "MC_coverage_3s": cov3, "MC_coverage_1s": cov1,
+    return {"A4_distribution": [{"run": "per_step", "param.monte_carlo.regime": "per_step", "MC_n": n, "MC_coverage_3s": cov3, "MC_coverage_1s": cov1,
                                  "MC_ks_gauss": ks, "MC_ks_crit": 1.358 / math.sqrt(n), "MC_bend": bend,
                                  "MC_bend_crit": 2 / math.sqrt(n), "A_sigma_theta": 0.1}]}
 
@@ -121,7 +134,7 @@ def test_claim5_branches():
 
 
 def _rotation(offset: float, angle: float, corrected: float | None):
-    row = {"run": "rotation", "map_velocity_region_area": 1e-3, "map_velocity_peak_offset": offset,
+    row = {"run": "rotation", "param.trajectory.name": "rotation", "map_velocity_region_area": 1e-3, "map_velocity_peak_offset": offset,
            "map_velocity_peak_angle": angle}
     if corrected is not None:
         row["map_velocity_corrected_peak_offset"] = corrected
@@ -159,7 +172,8 @@ def test_claim7_branches():
 def _speed(vel: tuple, odo: tuple, vel_abs: tuple | None):
     rows = []
     for i, (v, o) in enumerate(zip(vel, odo, strict=True)):
-        r = {"run": f"straight_v{i}", "map_velocity_region_area": v, "map_odometry_region_area": o}
+        r = {"run": f"straight_v{i}", "param.trajectory.name": "straight", "map_velocity_region_area": v,
+             "map_odometry_region_area": o}
         if vel_abs is not None:
             r["map_velocity_abs_region_area"] = vel_abs[i]
         rows.append(r)
@@ -186,8 +200,10 @@ def test_claim11_branches():
 
 def _alpha(a12: tuple, a34: tuple, a56: tuple):
     def row(run, al, ac):
-        return {"run": run, "map_velocity_region_area": 1.0, "map_velocity_sigma_along": al,
-                "map_velocity_sigma_across": ac}
+        reduced = {"base": (), "a12": (0, 1), "a34": (2, 3), "a56": (4, 5)}[run]
+        alphas = [0.005 if i in reduced else 0.05 for i in range(6)]
+        return {"run": run, "param.maps": json.dumps([{"name": "velocity", "model": "velocity", "alphas": alphas}]),
+                "map_velocity_region_area": 1.0, "map_velocity_sigma_along": al, "map_velocity_sigma_across": ac}
     return {"B4_alpha": [row("base", 1.0, 1.0), row("a12", *a12), row("a34", *a34), row("a56", *a56)]}
 
 
@@ -203,7 +219,8 @@ def test_claim9_branches():
 def _b1(ratios: dict, peak_offset: float):
     rows = []
     for run, ratio in ratios.items():
-        rows.append({"run": run, "map_velocity_region_area": 1.0, "map_odometry_region_area": ratio,
+        rows.append({"run": run, "param.trajectory.name": run, "map_velocity_region_area": 1.0,
+                     "map_odometry_region_area": ratio,
                      "map_odometry_peak_offset": peak_offset})
     return {"B1_trajectory": rows}
 

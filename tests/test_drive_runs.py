@@ -360,7 +360,7 @@ def test_report_section_formats_the_logged_drive_measures(drive_logs, tmp_path: 
     paths = [p for _, p in drive_logs.values()]
     table = tables.collect_table("D", paths, None, tmp_path / "D.csv")
     fig = render_set_figure("drives", paths, tmp_path / "drives.png", "D")
-    runs = [{"id": r.config.name, "log": str(p), "swept": {}, "config": r.config.to_dict(), "figures": {}}
+    runs = [{"id": r.config.name, "log": str(p), "swept": {}, "figures": {}}
             for r, p in drive_logs.values()]  # fmt: skip
     manifest = {"sets": [{"name": "D", "title": "D", "source": "", "description": "", "table": str(table),
                           "figures": {"drives": str(fig)}, "runs": runs}], "config": {}}  # fmt: skip

@@ -50,10 +50,6 @@ ALLOWED: dict[str, str] = {
     "experiments/localization.py:<module> ~ experiments/run.py:<module>": "the two result dataclasses' fields",
     "methods/intervals.py:interval_dead_reckoning ~ methods/zonotopes.py:zonotope_dead_reckoning":
         _PAIR + " (interval vs zonotope set arithmetic)",
-    "pipeline/claims.py:_c10 ~ pipeline/claims.py:_c4": "claims read alike by design (one per claim)",
-    "pipeline/claims.py:_c10 ~ pipeline/claims.py:_c9": "claims read alike by design (one per claim)",
-    "pipeline/claims.py:_c4 ~ pipeline/claims.py:_c9": "claims read alike by design (one per claim)",
-    "pipeline/method_guide.py:_guide_bend ~ pipeline/method_guide.py:_guide_expcoords": "guides read alike by design",
     "analysis/accuracy.py:coverage_ellipse ~ analysis/accuracy.py:coverage_ellipsoid": _PAIR + " (2-D vs 3-D)",
     "analysis/studies/gaussian_methods.py:accuracy_vs_distance_study ~ analysis/studies/growth.py:growth_laws_study": "studies read alike by design",
     "analysis/studies/gaussian_methods.py:accuracy_vs_distance_study ~ analysis/studies/growth.py:polar_vs_cartesian_study":

@@ -331,8 +331,7 @@ def test_the_report_flags_logs_made_on_other_arithmetic(tmp_path: Path) -> None:
 
     def report(paths: list[Path], name: str) -> str:
         table = tables.collect_table("S", paths, None, tmp_path / f"{name}.csv")
-        runs = [{"id": open_run(p).config.name, "log": str(p), "swept": {}, "config": open_run(p).config.to_dict(),
-                 "figures": {}} for p in paths]  # fmt: skip
+        runs = [{"id": open_run(p).config.name, "log": str(p), "swept": {}, "figures": {}} for p in paths]
         manifest = {"sets": [{"name": "S", "title": "S", "source": "", "description": "", "table": str(table),
                               "figures": {}, "runs": runs}], "config": {}}  # fmt: skip
         html = build_report(manifest, {"S": table}, write_claims({"S": table}, tmp_path / f"{name}.claims.json"),

@@ -181,8 +181,7 @@ def report_manifest():
                     {
                         "id": r.id,
                         "log": r.path,
-                        "swept": r.swept,
-                        "config": r.config,
+                        "swept": r.swept,  # which keys the set sweeps (the report prints their logged values)
                         "figures": run_figures(s, r),
                     }
                     for r in RUNS[s]

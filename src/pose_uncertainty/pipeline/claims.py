@@ -7,6 +7,14 @@
 only in part or under conditions), or ``not measured`` (the sets it needs are not
 in the config) — the reason, and the figure that shows it.
 
+Each claim is a function registered with :func:`claim` (its number, its text and what
+the source showed) that finds its runs by their logged parameters — the ``param.*``
+columns of the set's table, floats to a relative tolerance (:data:`PARAM_RTOL`) — never
+by run id, so renaming a run label in the config changes no verdict. A set that is in the
+config but holds no run with the parameters a claim reads raises :class:`ClaimDataError`
+(one line: the claim, the set, the parameters); the claims job fails with it rather than
+report the claim "not measured".
+
 Every number a claim uses is a logged measure of a run, read from the per-set
 tables (:mod:`pose_uncertainty.pipeline.tables`; names and definitions in
 :mod:`pose_uncertainty.analysis.measures`); a claim only combines them across runs
@@ -35,7 +43,10 @@ from ..core.table_io import read_table
 from .evidence import Rows, coverage_tolerance
 from .method_guide import method_guide, unscented_summary
 
-__all__ = ["VERDICTS", "Claim", "evaluate_claims", "method_guide", "unscented_summary", "write_claims"]
+__all__ = [
+    "PARAM_RTOL", "VERDICTS", "Claim", "ClaimDataError", "claim", "evaluate_claim", "evaluate_claims", "method_guide",
+    "unscented_summary", "write_claims",
+]  # fmt: skip
 
 VERDICTS: tuple[str, ...] = ("confirmed", "refuted", "qualified", "not measured")
 
@@ -68,21 +79,90 @@ class Claim:
 
 
 class _Missing(Exception):
-    """The data a claim needs is not in the tables."""
+    """The experiment set a claim needs is not in the config (or holds too little): "not measured"."""
 
 
-def _set(rows: Rows, *names: str) -> tuple[str, Sequence[Mapping[str, Any]]]:
-    for n in names:
-        if rows.get(n):
-            return n, rows[n]
-    raise _Missing(f"needs the experiment set {' or '.join(names)}, which the config does not hold")
+class ClaimDataError(ValueError):
+    """A claim's experiment set is in the config but lacks the runs the claim reads: the claims job fails.
+
+    The message is one line naming the claim, the set and the logged parameters it looked for.
+    """
 
 
-def _run(table: Sequence[Mapping[str, Any]], run: str) -> Mapping[str, Any]:
-    for r in table:
-        if r.get("run") == run:
-            return r
-    raise _Missing(f"needs the run {run!r}")
+class _NoRun(Exception):
+    """The set is there but no run (or more than one) has the parameters a claim asks for."""
+
+
+#: Relative tolerance of a float parameter match (a logged value against the one a claim asks for).
+PARAM_RTOL: float = 1e-9
+
+
+def _param_matches(got: Any, want: Any) -> bool:
+    """A logged parameter ``got`` (a table cell) equals ``want``: floats to :data:`PARAM_RTOL`, else exactly."""
+    if isinstance(want, int | float) and not isinstance(want, bool):
+        if not isinstance(got, int | float) or isinstance(got, bool):
+            return False
+        return math.isclose(float(got), float(want), rel_tol=PARAM_RTOL, abs_tol=0.0)
+    return bool(got == want)
+
+
+def _describe(where: Mapping[str, Any]) -> str:
+    return ", ".join(f"{k} = {v!r}" if isinstance(v, str) else f"{k} = {v:g}" for k, v in where.items())
+
+
+class _Set:
+    """One experiment set's rows, selected by the runs' logged parameters (the table's ``param.*`` columns).
+
+    Run ids are labels of the config and never select a run: renaming one changes no verdict.
+    """
+
+    def __init__(self, name: str, rows: Sequence[Mapping[str, Any]]) -> None:
+        self.name, self.rows = name, rows
+
+    def pick(self, keep: Callable[[Mapping[str, Any]], bool], wanted: str, at_least: int = 1) -> list[Mapping[str, Any]]:
+        """Every row ``keep`` accepts, in table order; :class:`_NoRun` naming ``wanted`` if fewer than ``at_least``."""
+        out = [r for r in self.rows if keep(r)]
+        if len(out) < at_least:
+            have = f"only {len(out)} run{'s' if len(out) != 1 else ''}" if out else "no run"
+            need = f" (the claim compares {at_least} or more)" if at_least > 1 else ""
+            raise _NoRun(f"the set {self.name} has {have} with {wanted}{need}")
+        return out
+
+    def pick_one(self, keep: Callable[[Mapping[str, Any]], bool], wanted: str) -> Mapping[str, Any]:
+        """The one row ``keep`` accepts; :class:`_NoRun` naming ``wanted`` if there is none or several."""
+        found = self.pick(keep, wanted)
+        if len(found) > 1:
+            raise _NoRun(f"the set {self.name} has {len(found)} runs with {wanted} ({_ids(found)}); "
+                         "the claim reads one")  # fmt: skip
+        return found[0]
+
+    def matching(self, params: Mapping[str, Any]) -> list[Mapping[str, Any]]:
+        """The rows whose logged parameters ``param.<key>`` equal ``params`` (floats to :data:`PARAM_RTOL`)."""
+        return [r for r in self.rows if _has_params(r, params)]
+
+    def where(self, params: Mapping[str, Any], at_least: int = 1) -> list[Mapping[str, Any]]:
+        """:meth:`matching`, with :class:`_NoRun` naming the parameters if fewer than ``at_least`` rows match."""
+        return self.pick(lambda r: _has_params(r, params), _describe(params), at_least)
+
+    def one(self, params: Mapping[str, Any]) -> Mapping[str, Any]:
+        """The one row with the logged parameters ``params``; :class:`_NoRun` naming them if none or several."""
+        return self.pick_one(lambda r: _has_params(r, params), _describe(params))
+
+
+def _has_params(row: Mapping[str, Any], params: Mapping[str, Any]) -> bool:
+    return all(_param_matches(row.get(f"param.{k}"), v) for k, v in params.items())
+
+
+def _ids(runs: Sequence[Mapping[str, Any]]) -> str:
+    """The runs' ids (their ``run`` column), comma-separated."""
+    return ", ".join(str(r["run"]) for r in runs)
+
+
+def _set(rows: Rows, name: str) -> _Set:
+    """The experiment set ``name``; :class:`_Missing` (the claim is "not measured") when the config lacks it."""
+    if not rows.get(name):
+        raise _Missing(f"needs the experiment set {name}, which the config does not hold")
+    return _Set(name, rows[name])
 
 
 def _get(row: Mapping[str, Any], key: str) -> float:
@@ -97,12 +177,9 @@ def _verdict_of_parts(parts: Sequence[bool]) -> str:
     return "confirmed" if all(parts) else ("refuted" if not any(parts) else "qualified")
 
 
-
-
-
-
-def _fig(set_name: str, run: str | None, kind: str) -> dict[str, Any]:
-    return {"set": set_name, "run": run, "kind": kind}
+def _fig(set_name: str, row: Mapping[str, Any] | None, kind: str) -> dict[str, Any]:
+    """The figure a claim links to: a run's (its id from the selected row's ``run`` column) or the set's."""
+    return {"set": set_name, "run": None if row is None else str(row["run"]), "kind": kind}
 
 
 def _slope(x: Any, y: Any) -> float:
@@ -110,19 +187,45 @@ def _slope(x: Any, y: Any) -> float:
     return fit_growth(x, y)["power_exponent"]
 
 
+_ClaimFn = Callable[[Rows, Claim], None]
+
+#: The claims by number: (text, source, function), filled by :func:`claim`.
+_REGISTRY: dict[int, tuple[str, str, _ClaimFn]] = {}
+
+
+def claim(number: int, *, text: str, source: str) -> Callable[[_ClaimFn], _ClaimFn]:
+    """Register the decorated function as the evaluation of claim ``number`` (its text and what the source showed).
+
+    The function takes the per-set tables and the :class:`Claim` to fill in (measured,
+    verdict, reason, figure, numbers); it raises :class:`_Missing` when a set it needs is not
+    in the config and :class:`_NoRun` when the set lacks the runs it reads.
+    """
+
+    def register(fn: _ClaimFn) -> _ClaimFn:
+        if number in _REGISTRY:
+            raise ValueError(f"claim {number} is registered twice ({_REGISTRY[number][2].__name__}, {fn.__name__})")
+        _REGISTRY[number] = (text, source, fn)
+        return fn
+
+    return register
+
+
 # --- the claims ---------------------------------------------------------------------------
 
 
-def _c1(rows: Rows, c: Claim) -> None:
-    name, t = _set(rows, "L_straight")
-    pts = sorted((_get(r, "path_length"), _get(r, "A_sigma_along"), _get(r, "A_sigma_across")) for r in t)
+@claim(1, text="Straight line: uncertainty across the path grows much faster than along it.",
+       source="Němec 2012 §3.1: the ellipses on the straight line widen across the path much more than along it.")
+def across_outgrows_along(rows: Rows, c: Claim) -> None:
+    """Log-log slopes of Method A's (and Monte Carlo's) σ_across and σ_along over the lengths of L_straight."""
+    s = _set(rows, "L_straight")
+    pts = sorted((_get(r, "path_length"), _get(r, "A_sigma_along"), _get(r, "A_sigma_across")) for r in s.rows)
     if len(pts) < 3:
         raise _Missing("needs at least three lengths in L_straight")
     L, al, ac = (np.array(v) for v in zip(*pts, strict=True))
     s_al, s_ac = _slope(L, al), _slope(L, ac)
     i1 = int(np.argmin(abs(L - 1.0)))
     extra = ""
-    mc = [(_get(r, "path_length"), r.get("MC_sigma_along"), r.get("MC_sigma_across")) for r in t]
+    mc = [(_get(r, "path_length"), r.get("MC_sigma_along"), r.get("MC_sigma_across")) for r in s.rows]
     mc = sorted(m for m in mc if m[1] and m[2])
     if len(mc) >= 3:
         Lm, mal, mac = (np.array(v, float) for v in zip(*mc, strict=True))
@@ -143,15 +246,19 @@ def _c1(rows: Rows, c: Claim) -> None:
     else:
         c.verdict = "refuted"
         c.reason = "The across-track spread does not grow faster than the along-track spread."
-    c.figure = _fig(name, None, "growth")
+    c.figure = _fig(s.name, None, "growth")
 
 
-def _c2(rows: Rows, c: Claim) -> None:
-    name, t = _set(rows, "A1_shape")
+@claim(2, text="Of the three ways to (2, 2, 0°), direct < two quarter circles < right angles.",
+       source="Němec 2012 §3.1: final ellipses of the three paths compared by eye.")
+def three_ways_ordered(rows: Rows, c: Claim) -> None:
+    """The final ellipse's area and major axis on the paths ``direct``, ``s_curve``, ``right_angles`` (A1_shape)."""
+    s = _set(rows, "A1_shape")
     ids = ("direct", "s_curve", "right_angles")
-    area = {i: _get(_run(t, i), "A_ellipse_area") for i in ids}
-    major = {i: _get(_run(t, i), "A_ellipse_major") for i in ids}
-    length = {i: _get(_run(t, i), "path_length") for i in ids}
+    run = {i: s.one({"trajectory.name": i}) for i in ids}
+    area = {i: _get(run[i], "A_ellipse_area") for i in ids}
+    major = {i: _get(run[i], "A_ellipse_major") for i in ids}
+    length = {i: _get(run[i], "path_length") for i in ids}
     c.numbers.update({f"area_{i}": area[i] for i in ids})
     c.measured = "; ".join(
         f"{i}: path {length[i]:.3g} m, ellipse area {area[i] * 1e4:.3g} cm², major semi-axis {major[i]:.3g} m"
@@ -172,15 +279,18 @@ def _c2(rows: Rows, c: Claim) -> None:
     else:
         c.verdict = "refuted"
         c.reason = f"Measured order by area: {' < '.join(order_area)}; by major axis: {' < '.join(order_major)}."
-    c.figure = _fig(name, order_area[-1], "trajectory")
+    c.figure = _fig(s.name, run[order_area[-1]], "trajectory")
 
 
-def _c3(rows: Rows, c: Claim) -> None:
-    name, t = _set(rows, "A2_profile")
+@claim(3, text="The speed profile has no effect on Method A's final covariance.",
+       source="Němec 2012 §3.2: constant and ramp profiles give the same final ellipse.")
+def profile_has_no_effect(rows: Rows, c: Claim) -> None:
+    """Constant against ramp profile (A2_profile): the largest relative difference of the final σ's and axes."""
+    s = _set(rows, "A2_profile")
     keys = ("A_sigma_along", "A_sigma_across", "A_sigma_theta", "A_ellipse_major", "A_ellipse_minor")
     parts, worst = [], 0.0
     for traj in ("straight", "circle", "rotation"):
-        a, b = _run(t, f"{traj}_constant"), _run(t, f"{traj}_ramp")
+        a, b = (s.one({"trajectory.name": traj, "trajectory.profile": p}) for p in ("constant", "ramp"))
         rel = max(abs(_get(a, k) - _get(b, k)) / max(abs(_get(a, k)), 1e-300) for k in keys)
         worst = max(worst, rel)
         parts.append(f"{traj}: largest relative difference {rel:.2g}")
@@ -195,47 +305,62 @@ def _c3(rows: Rows, c: Claim) -> None:
     else:
         c.verdict = "refuted"
         c.reason = f"The profile changes the final covariance by up to {100 * worst:.2g} %."
-    c.figure = _fig(name, "circle_ramp", "trajectory")
+    c.figure = _fig(s.name, s.one({"trajectory.name": "circle", "trajectory.profile": "ramp"}), "trajectory")
 
 
-def _c4(rows: Rows, c: Claim) -> None:
-    name, t = _set(rows, "A3_parameters")
-    big, small = _run(t, "k5e-4_b0.2"), _run(t, "k5e-5_b0.2")
+def _tilt(angle: float) -> float:
+    """Tilt [°] of an ellipse's major axis away from the path direction (x), in (−180°, 180°]."""
+    return math.degrees(math.atan2(math.sin(angle), math.cos(angle)))
+
+
+def _judge_parts(c: Claim, parts: Sequence[tuple[bool, str]], why: str = "") -> None:
+    """Verdict of a claim made of parts (:func:`_verdict_of_parts`); the reason lists each part's answer."""
+    c.verdict = _verdict_of_parts([ok for ok, _ in parts])
+    c.reason = " ".join(text for _, text in parts) + why
+
+
+@claim(4, text="Larger k → larger ellipse; unequal k_r, k_l tilt it; a wider track shrinks the across-track spread.",
+       source="Němec 2012 §3.3: ellipses for the parameter variations on the straight line.")
+def robot_parameters(rows: Rows, c: Claim) -> None:
+    """Six (k_r, k_l, b) points of A3_parameters: ellipse size against k, tilt against k_r ≠ k_l, σ_across against b."""
+    s = _set(rows, "A3_parameters")
+
+    def at(k_r: float, k_l: float, track: float) -> Mapping[str, Any]:
+        return s.one({"k_r": k_r, "k_l": k_l, "trajectory.track": track})
+
+    big, small = at(5e-4, 5e-4, 0.2), at(5e-5, 5e-5, 0.2)
     ratio = _get(big, "A_ellipse_major") / _get(small, "A_ellipse_major")
-    u1, u2 = _run(t, "kr9e-4_kl1e-4_b0.2"), _run(t, "kr1e-4_kl9e-4_b0.2")
-    eq = _get(big, "A_ellipse_angle")
-    a1, a2 = _get(u1, "A_ellipse_angle"), _get(u2, "A_ellipse_angle")
-    # tilt of the major axis away from the path direction (x), modulo π
-    def tilt(a: float) -> float:
-        return math.degrees(math.atan2(math.sin(a), math.cos(a)))
-    across = {b: _get(_run(t, f"k5e-4_b{b}"), "A_sigma_across") for b in ("0.1", "0.2", "0.5")}
-    along = {b: _get(_run(t, f"k5e-4_b{b}"), "A_sigma_along") for b in ("0.1", "0.2", "0.5")}
-    c.numbers.update(major_ratio=ratio, tilt_equal=tilt(eq), tilt_r=tilt(a1), tilt_l=tilt(a2),
-                     **{f"across_b{b}": v for b, v in across.items()})
+    u1 = at(9e-4, 1e-4, 0.2)
+    eq, a1, a2 = (_tilt(_get(r, "A_ellipse_angle")) for r in (big, u1, at(1e-4, 9e-4, 0.2)))
+    by_track = {b: at(5e-4, 5e-4, b) for b in (0.1, 0.2, 0.5)}
+    across = {b: _get(r, "A_sigma_across") for b, r in by_track.items()}
+    along = {b: _get(r, "A_sigma_along") for b, r in by_track.items()}
+    c.numbers.update(major_ratio=ratio, tilt_equal=eq, tilt_r=a1, tilt_l=a2,
+                     **{f"across_b{b:g}": v for b, v in across.items()})  # fmt: skip
     c.measured = (
         f"k 5e-4 vs 5e-5: major axis ratio {ratio:.3f} (√10 = {math.sqrt(10):.3f}). "
-        f"Major-axis direction: equal k {tilt(eq):.1f}°, (k_r, k_l) = (9e-4, 1e-4) {tilt(a1):.1f}°, "
-        f"swapped {tilt(a2):.1f}°. σ_across at b = 0.1/0.2/0.5 m: "
-        + "/".join(f"{across[b] * 100:.3g}" for b in across) + " cm; σ_along "
-        + "/".join(f"{along[b] * 100:.3g}" for b in along) + " cm."
+        f"Major-axis direction: equal k {eq:.1f}°, (k_r, k_l) = (9e-4, 1e-4) {a1:.1f}°, "
+        f"swapped {a2:.1f}°. σ_across at b = 0.1/0.2/0.5 m: "
+        + "/".join(f"{v * 100:.3g}" for v in across.values()) + " cm; σ_along "
+        + "/".join(f"{v * 100:.3g}" for v in along.values()) + " cm."
     )
     ok_k = ratio > 1.0
-    ok_tilt = abs(tilt(a1) - tilt(eq)) > 0.5 and abs(tilt(a2) - tilt(eq)) > 0.5 and tilt(a1) * tilt(a2) <= 0
-    ok_b = across["0.1"] > across["0.2"] > across["0.5"]
-    good = [ok_k, ok_tilt, ok_b]
-    c.verdict = _verdict_of_parts(good)
-    c.reason = (
-        f"Larger k → larger ellipse: {'yes' if ok_k else 'no'} (the axes scale with √k). "
-        f"Unequal k tilt it: {'yes, in opposite directions when swapped' if ok_tilt else 'no measurable tilt'}. "
-        f"Wider track → smaller across-track spread: {'yes' if ok_b else 'no'} (σ_θ ∝ 1/b); "
-        "the along-track spread does not depend on b."
-    )
-    c.figure = _fig(name, "kr9e-4_kl1e-4_b0.2", "trajectory")
+    ok_tilt = abs(a1 - eq) > 0.5 and abs(a2 - eq) > 0.5 and a1 * a2 <= 0
+    ok_b = across[0.1] > across[0.2] > across[0.5]
+    _judge_parts(c, [
+        (ok_k, f"Larger k → larger ellipse: {'yes' if ok_k else 'no'} (the axes scale with √k)."),
+        (ok_tilt, f"Unequal k tilt it: {'yes, in opposite directions when swapped' if ok_tilt else 'no measurable tilt'}."),
+        (ok_b, f"Wider track → smaller across-track spread: {'yes' if ok_b else 'no'} (σ_θ ∝ 1/b);"),
+    ], " the along-track spread does not depend on b.")  # fmt: skip
+    c.figure = _fig(s.name, u1, "trajectory")
 
 
-def _c5(rows: Rows, c: Claim) -> None:
-    name, t = _set(rows, "A4_distribution")
-    r = _run(t, "per_step")
+@claim(5, text="The Method A particle cloud on the circle looks Gaussian.",
+       source="Němec 2012 §3.4: a particle cloud drawn over the ellipse on the circle.")
+def circle_cloud_gaussian(rows: Rows, c: Claim) -> None:
+    """The per-step Monte Carlo cloud of A4_distribution: coverage of the 39.35 % / 98.89 % ellipses, KS, bend."""
+    s = _set(rows, "A4_distribution")
+    r = s.one({"monte_carlo.regime": "per_step"})
     n = _get(r, "MC_n")
     cov3, lvl3 = _get(r, "MC_coverage_3s"), COVERAGE_LEVELS["3s"]
     cov1, lvl1 = _get(r, "MC_coverage_1s"), COVERAGE_LEVELS["1s"]
@@ -264,19 +389,23 @@ def _c5(rows: Rows, c: Claim) -> None:
     else:
         c.verdict = "refuted"
         c.reason = "The cloud's coverage and shape differ from the Gaussian of Method A beyond sampling error."
-    c.figure = _fig(name, "per_step", "cloud")
+    c.figure = _fig(s.name, r, "cloud")
 
 
-def _map_row(t: Sequence[Mapping[str, Any]], run: str, model: str) -> Mapping[str, Any]:
-    r = _run(t, run)
-    if f"map_{model}_region_area" not in r or r.get(f"map_{model}_region_area") is None:
-        raise _Missing(f"needs the {model} map of run {run!r}")
+def _with_map(r: Mapping[str, Any], model: str) -> Mapping[str, Any]:
+    """The row ``r``, checked to hold the map ``model`` (its 98.89 % region area); :class:`_Missing` if not."""
+    if r.get(f"map_{model}_region_area") is None:
+        raise _Missing(f"needs the {model} map of run {r.get('run')!r}")
     return r
 
 
-def _c6(rows: Rows, c: Claim) -> None:
-    name, t = _set(rows, "B1_trajectory")
-    r = _map_row(t, "rotation", "velocity")
+@claim(6, text=("Velocity model, rotation in place: the most probable position is not the start but two points "
+                "~2 cm away on the line through the start at 0.5 rad."),
+       source="Němec 2012 §4.1.1: the rotation map has two dark spots beside the start.")
+def rotation_peak_off_start(rows: Rows, c: Claim) -> None:
+    """The velocity map's peak of the rotation in place (B1_trajectory), and the corrected map's where logged."""
+    s = _set(rows, "B1_trajectory")
+    r = _with_map(s.one({"trajectory.name": "rotation"}), "velocity")
     off, ang = _get(r, "map_velocity_peak_offset"), _get(r, "map_velocity_peak_angle")
     line = math.atan2(math.sin(ang), math.cos(ang))
     line_mod = line % math.pi
@@ -321,10 +450,13 @@ def _c6(rows: Rows, c: Claim) -> None:
             "corrected map in this set we cannot say where the pose density itself peaks."
             if reproduced else "The map's most probable cell is not where the thesis puts it."
         )
-    c.figure = _fig(name, "rotation", "map_velocity")
+    c.figure = _fig(s.name, r, "map_velocity")
 
 
-def _c7(rows: Rows, c: Claim) -> None:
+@claim(7, text="Uncertainty grows \u201cexponentially\u201d with distance (both models).",
+       source="Němec 2012 §3–4: the maps and ellipses grow quickly with distance, called exponential.")
+def growth_not_exponential(rows: Rows, c: Claim) -> None:
+    """Power law against exponential fits of the growth with distance (L_straight, L_circle, B2_distance)."""
     parts, fits = [], []
     for sname, col in (("L_straight", "A_sigma_across"), ("L_straight", "A_sigma_along"), ("L_circle", "A_ellipse_major")):
         if not rows.get(sname):
@@ -342,7 +474,7 @@ def _c7(rows: Rows, c: Claim) -> None:
         if rows.get("B2_distance"):
             pts = sorted(
                 (_get(r, "duration"), float(r[f"map_{model}_region_area"])) for r in rows["B2_distance"]
-                if str(r.get("run", "")).startswith("straight") and r.get(f"map_{model}_region_area")
+                if r.get("param.trajectory.name") == "straight" and r.get(f"map_{model}_region_area")
             )
             if len(pts) >= 3:
                 f = fit_growth(*zip(*pts, strict=True))
@@ -369,32 +501,32 @@ def _c7(rows: Rows, c: Claim) -> None:
     c.figure = _fig("L_straight" if rows.get("L_straight") else "L_circle", None, "growth")
 
 
-def _spread(t: Sequence[Mapping[str, Any]], runs: Sequence[str], model: str) -> tuple[float, list[float]]:
-    areas = [_get(_map_row(t, r, model), f"map_{model}_region_area") for r in runs]
+def _spread(runs: Sequence[Mapping[str, Any]], model: str) -> tuple[float, list[float]]:
+    """Relative spread (largest − smallest)/smallest of the runs' 98.89 % region areas of the map ``model``."""
+    areas = [_get(_with_map(r, model), f"map_{model}_region_area") for r in runs]
     return (max(areas) - min(areas)) / max(min(areas), 1e-300), areas
 
 
-def _speed_runs(t: Sequence[Mapping[str, Any]], prefix: str) -> list[str]:
-    return [str(r["run"]) for r in t if str(r.get("run", "")).startswith(prefix)]
-
-
-def _c8(rows: Rows, c: Claim) -> None:
-    name, t = _set(rows, "B3_speed")
+@claim(8, text="Velocity model: the speed at which a displacement is driven has no effect.",
+       source="Němec 2012 §4.1.3: straight 1 m and rotation 1 rad at three speeds give the same maps.")
+def velocity_speed_no_effect(rows: Rows, c: Claim) -> None:
+    """Spread of the velocity maps' region areas over the speeds of B3_speed (and with the decks' |v| variances)."""
+    s = _set(rows, "B3_speed")
+    straight = s.where({"trajectory.name": "straight"})
     parts, worst = [], 0.0
-    for prefix in ("straight", "rotation"):
-        runs = _speed_runs(t, prefix)
+    for path in ("straight", "rotation"):
+        runs = s.matching({"trajectory.name": path})
         if len(runs) < 2:
             continue
-        rel, areas = _spread(t, runs, "velocity")
+        rel, areas = _spread(runs, "velocity")
         worst = max(worst, rel)
-        parts.append(f"{prefix}: 98.89 % region areas " + ", ".join(f"{a * 1e4:.4g}" for a in areas)
-                     + f" cm² at {', '.join(runs)} (spread {100 * rel:.2g} %)")
+        parts.append(f"{path}: 98.89 % region areas " + ", ".join(f"{a * 1e4:.4g}" for a in areas)
+                     + f" cm² at {_ids(runs)} (spread {100 * rel:.2g} %)")
     if not parts:
-        raise _Missing("needs straight_* or rotation_* runs with velocity maps in B3_speed")
+        raise _NoRun(f"the set {s.name} has no two runs with trajectory.name = 'straight' or 'rotation'")
     abs_rel = None
-    runs = _speed_runs(t, "straight")
-    if runs and all(r.get("map_velocity_abs_region_area") for r in t if str(r["run"]) in runs):
-        abs_rel, abs_areas = _spread(t, runs, "velocity_abs")
+    if all(r.get("map_velocity_abs_region_area") for r in straight):
+        abs_rel, abs_areas = _spread(straight, "velocity_abs")
         parts.append("with the decks' variances α|v| + α|ω|, straight: " + ", ".join(f"{a * 1e4:.4g}" for a in abs_areas)
                      + f" cm² (largest/smallest {max(abs_areas) / min(abs_areas):.3g}; 2 m x 2 m maps, the "
                      "slowest one truncated by the window)")
@@ -417,17 +549,47 @@ def _c8(rows: Rows, c: Claim) -> None:
             "With variances α V² + α ω² (the book's squared form) the spread of V̂Δt is √α·VΔt = √α·distance: "
             "the speed cancels."
         )
-    c.figure = _fig(name, _speed_runs(t, "straight")[0], "map_velocity")
+    c.figure = _fig(s.name, straight[0], "map_velocity")
 
 
-def _c9(rows: Rows, c: Claim) -> None:
-    name, t = _set(rows, "B4_alpha")
-    base = _map_row(t, "base", "velocity")
+def _velocity_alphas(r: Mapping[str, Any]) -> tuple[float, ...] | None:
+    """The logged α1 … α6 of the run's map named ``velocity`` (``param.maps``, JSON); None without one."""
+    maps = r.get("param.maps")
+    found = [m for m in json.loads(maps) if m.get("name") == "velocity"] if isinstance(maps, str) else []
+    return tuple(float(a) for a in found[0]["alphas"]) if found else None
+
+
+def _alphas_reduced(pair: tuple[int, ...], level: float) -> Callable[[Mapping[str, Any]], bool]:
+    """Whether a run's velocity map has the α's of ``pair`` (0-based) below ``level`` and every other α at it."""
+
+    def keep(r: Mapping[str, Any]) -> bool:
+        a = _velocity_alphas(r)
+        return a is not None and len(a) == 6 and all(
+            a[i] < level if i in pair else _param_matches(a[i], level) for i in range(6))  # fmt: skip
+
+    return keep
+
+
+#: The pairs of velocity-model constants claim 9 reduces, by name (0-based indices of α1 … α6).
+_ALPHA_PAIRS: dict[str, tuple[int, int]] = {"a12": (0, 1), "a34": (2, 3), "a56": (4, 5)}
+
+
+@claim(9, text=("Velocity model: α1, α2 set the along-track size, α3, α4 the across-track size, α5, α6 do not "
+                "change the (x, y) map."),
+       source="Němec 2012 §4.1.4: maps with reduced α groups.")
+def velocity_alpha_roles(rows: Rows, c: Claim) -> None:
+    """The velocity map's σ along and across with each pair of α's reduced, relative to all α's equal (B4_alpha)."""
+    s = _set(rows, "B4_alpha")
+    base = _with_map(s.pick_one(lambda r: len(set(_velocity_alphas(r) or (0.0, 1.0))) == 1,
+                                "a velocity map (param.maps) with α1 … α6 equal"), "velocity")  # fmt: skip
+    level = (_velocity_alphas(base) or (math.nan,))[0]
     b_al, b_ac = _get(base, "map_velocity_sigma_along"), _get(base, "map_velocity_sigma_across")
-    res = {}
-    for run in ("a12", "a34", "a56"):
-        r = _map_row(t, run, "velocity")
-        res[run] = (_get(r, "map_velocity_sigma_along") / b_al, _get(r, "map_velocity_sigma_across") / b_ac)
+    res, reduced = {}, {}
+    for name, (i, j) in _ALPHA_PAIRS.items():
+        r = reduced[name] = _with_map(s.pick_one(
+            _alphas_reduced((i, j), level),
+            f"a velocity map (param.maps) with α{i + 1}, α{j + 1} below {level:g} and the other α's at it"), "velocity")
+        res[name] = (_get(r, "map_velocity_sigma_along") / b_al, _get(r, "map_velocity_sigma_across") / b_ac)
     c.numbers.update({f"{k}_along": v[0] for k, v in res.items()})
     c.numbers.update({f"{k}_across": v[1] for k, v in res.items()})
     c.measured = "Map σ relative to all α = 0.05 (along / across): " + "; ".join(
@@ -435,102 +597,109 @@ def _c9(rows: Rows, c: Claim) -> None:
     ok12 = res["a12"][0] < 0.9 and res["a12"][0] < res["a12"][1]
     ok34 = res["a34"][1] < 0.9 and res["a34"][1] < res["a34"][0]
     ok56 = abs(res["a56"][0] - 1) < 0.02 and abs(res["a56"][1] - 1) < 0.02
-    good = [ok12, ok34, ok56]
-    c.verdict = _verdict_of_parts(good)
-    c.reason = (
-        f"α1,α2 mainly along: {'yes' if ok12 else 'no'}; α3,α4 mainly across: {'yes' if ok34 else 'no'}; "
-        f"α5,α6 leave the (x, y) map unchanged: {'yes' if ok56 else 'no'} (γ only turns the final heading)."
-    )
-    c.figure = _fig(name, "a34", "map_velocity")
+    _judge_parts(c, [
+        (ok12, f"α1,α2 mainly along: {'yes' if ok12 else 'no'};"),
+        (ok34, f"α3,α4 mainly across: {'yes' if ok34 else 'no'};"),
+        (ok56, f"α5,α6 leave the (x, y) map unchanged: {'yes' if ok56 else 'no'} (γ only turns the final heading)."),
+    ])  # fmt: skip
+    c.figure = _fig(s.name, reduced["a34"], "map_velocity")
 
 
-def _c10(rows: Rows, c: Claim) -> None:
-    name, t = _set(rows, "B1_trajectory")
+@claim(10, text=("Odometry model: larger than the velocity model for straight and arc motion, much smaller for "
+                 "rotation in place; its peak is off the noiseless end point."),
+       source="Němec 2012 §4.2.1: odometry and velocity maps side by side.")
+def odometry_against_velocity(rows: Rows, c: Claim) -> None:
+    """Odometry against velocity map areas on the straight line, the arc and the rotation (B1_trajectory)."""
+    s = _set(rows, "B1_trajectory")
     parts, ratios = [], {}
-    first = t[0] if t else {}
+    first = s.rows[0]
     wide = first.get("map_odometry_wide_region_area") is not None and first.get("map_velocity_wide_region_area") is not None
     odo, vel = ("odometry_wide", "velocity_wide") if wide else ("odometry", "velocity")
-    for run in ("straight", "arc", "rotation"):
-        r = _map_row(t, run, odo)
-        _map_row(t, run, vel)
-        _map_row(t, run, "odometry")
-        ratios[run] = _get(r, f"map_{odo}_region_area") / _get(r, f"map_{vel}_region_area")
-        parts.append(f"{run}: odometry/velocity 98.89 % region area {ratios[run]:.3g}, odometry peak "
+    run = {k: s.one({"trajectory.name": k}) for k in ("straight", "arc", "rotation")}
+    for k, r in run.items():
+        for model in (odo, vel, "odometry"):
+            _with_map(r, model)
+        ratios[k] = _get(r, f"map_{odo}_region_area") / _get(r, f"map_{vel}_region_area")
+        parts.append(f"{k}: odometry/velocity 98.89 % region area {ratios[k]:.3g}, odometry peak "
                      f"{_get(r, 'map_odometry_peak_offset') * 100:.2f} cm off the noiseless end point")
+    peak = {k: _get(r, "map_odometry_peak_offset") for k, r in run.items()}
     c.numbers.update({f"ratio_{k}": v for k, v in ratios.items()})
-    c.numbers.update({f"odometry_peak_offset_{k}": _get(_run(t, k), "map_odometry_peak_offset") for k in ratios})
+    c.numbers.update({f"odometry_peak_offset_{k}": v for k, v in peak.items()})
     c.measured = (f"Areas from the {'2 m x 2 m' if wide else 'thesis (1 m x 1 m)'} maps; " + "; ".join(parts)
                   + ". Peak offsets are measured on the thesis (1 m x 1 m, 1 cm) odometry map from the map's "
                   "centre, the noiseless exact-arc end pose (logged measure map_odometry_peak_offset).")
     larger = ratios["straight"] > 1 and ratios["arc"] > 1
     smaller = ratios["rotation"] < 0.5
-    off = max(_get(_run(t, r), "map_odometry_peak_offset") for r in ratios) > 0.005
-    good = [larger, smaller, off]
-    c.verdict = _verdict_of_parts(good)
-    c.reason = (
-        f"Larger for straight and arc: {'yes' if larger else 'no'}; much smaller for rotation: "
-        f"{'yes' if smaller else 'no'}; peak off the end point: {'yes' if off else 'no'}. "
-        "In place, the odometry model's translation noise scales with δtrans (zero) and its rotation noise "
-        "only turns the heading, so the (x, y) map collapses onto the start."
-    )
-    c.figure = _fig(name, "arc", "map_odometry")
+    off = max(peak.values()) > 0.005
+    _judge_parts(c, [
+        (larger, f"Larger for straight and arc: {'yes' if larger else 'no'};"),
+        (smaller, f"much smaller for rotation: {'yes' if smaller else 'no'};"),
+        (off, f"peak off the end point: {'yes' if off else 'no'}."),
+    ], " In place, the odometry model's translation noise scales with δtrans (zero) and its rotation noise "
+       "only turns the heading, so the (x, y) map collapses onto the start.")  # fmt: skip
+    c.figure = _fig(s.name, run["arc"], "map_odometry")
 
 
-def _c11(rows: Rows, c: Claim) -> None:
-    name, t = _set(rows, "B3_speed")
-    runs = _speed_runs(t, "straight")
-    if len(runs) < 2:
-        raise _Missing("needs straight_* runs with odometry maps in B3_speed")
-    rel, areas = _spread(t, runs, "odometry")
+@claim(11, text="Odometry model: speed does have an effect.",
+       source="Němec 2012 §4.2.3: odometry maps at three speeds.")
+def odometry_speed_effect(rows: Rows, c: Claim) -> None:
+    """Spread of the odometry maps' region areas over the speeds of the straight runs of B3_speed."""
+    s = _set(rows, "B3_speed")
+    runs = s.where({"trajectory.name": "straight"}, at_least=2)
+    rel, areas = _spread(runs, "odometry")
     c.numbers["rel_spread"] = rel
     c.measured = ("Odometry-model 98.89 % region areas " + ", ".join(f"{a * 1e4:.3g}" for a in areas)
-                  + f" cm² at {', '.join(runs)} (spread {100 * rel:.2g} %).")
+                  + f" cm² at {_ids(runs)} (spread {100 * rel:.2g} %).")
     c.verdict = "refuted" if rel < 0.05 else "confirmed"
     c.reason = (
         "The odometry model sees only the odometry poses (δrot1, δtrans, δrot2), which are the same "
         "whatever the speed: the speed cannot have an effect." if c.verdict == "refuted" else
         "The map changes with speed."
     )
-    c.figure = _fig(name, runs[0], "map_odometry")
+    c.figure = _fig(s.name, runs[0], "map_odometry")
 
 
-def _c12(rows: Rows, c: Claim) -> None:
-    name, t = _set(rows, "S001_seed001")
+@claim(12, text=("(Šafránek 2022) The end-pose cloud is a bent ellipse, not an ellipse; results do not depend on "
+                 "the FK method; a wider track shortens the major axis."),
+       source=("Šafránek 2022 §4.2–4.3: Cartesian and polar views of 1000 end poses, three FK methods, tracks "
+               "100 and 200 mm."))
+def bent_cloud_fk_track(rows: Rows, c: Claim) -> None:
+    """Bend of the per-run clouds, FK methods against the exact arc, major axis against the track (S001_seed001)."""
+    s = _set(rows, "S001_seed001")
 
     def p(r: Mapping[str, Any], key: str) -> Any:
         return r.get(f"param.{key}")
 
-    per_run = [r for r in t if p(r, "monte_carlo.regime") == "per_run"]
-    mid = [r for r in per_run if p(r, "monte_carlo.method") == "midpoint"]
-    if not mid:
-        raise _Missing("needs runs with monte_carlo.regime = per_run and method = midpoint in S001_seed001")
+    mid = s.where({"monte_carlo.regime": "per_run", "monte_carlo.method": "midpoint"})
     bends = {str(r["run"]): (_get(r, "MC_bend"), _get(r, "MC_bend_crit")) for r in mid}
     bent = {k: abs(b) > crit for k, (b, crit) in bends.items()}
     # FK method: each method's Monte Carlo major semi-axis relative to the exact arc's, per
     # (path, track, regime); all methods share the seed, so the difference is the method's own
     exact: dict[tuple[Any, ...], float] = {}
-    for r in t:
+    for r in s.rows:
         if p(r, "monte_carlo.method") == "exact":
             exact[(p(r, "trajectory.name"), p(r, "trajectory.track"), p(r, "monte_carlo.regime"))] = _get(
                 r, "MC_ellipse_major")
     diffs: dict[str, float] = {}
-    for r in t:
+    for r in s.rows:
         key = (p(r, "trajectory.name"), p(r, "trajectory.track"), p(r, "monte_carlo.regime"))
         method = str(p(r, "monte_carlo.method"))
         if key in exact and method != "exact":
             d = abs(_get(r, "MC_ellipse_major") / exact[key] - 1.0)
             diffs[method] = max(diffs.get(method, 0.0), d)
     if not diffs:
-        raise _Missing("needs the exact FK method and at least one other per path and track in S001_seed001")
+        raise _NoRun(f"the set {s.name} has no run with monte_carlo.method = 'exact' beside another method at the "
+                     "same trajectory.name, trajectory.track and monte_carlo.regime")  # fmt: skip
     fk = max(diffs.values())
-    n = min(_get(r, "MC_n") for r in t)
+    n = min(_get(r, "MC_n") for r in s.rows)
     se = 1.0 / math.sqrt(2.0 * (n - 1.0))  # standard error of a sample standard deviation, relative
     maj: dict[float, float] = {}
     for r in mid:
         if p(r, "trajectory.name") == "straight":
             maj[float(p(r, "trajectory.track"))] = _get(r, "MC_ellipse_major")
     if len(maj) < 2:
-        raise _Missing("needs straight per-run midpoint runs at two tracks in S001_seed001")
+        raise _NoRun(f"the set {s.name} has no runs with monte_carlo.regime = 'per_run', monte_carlo.method = "
+                     "'midpoint', trajectory.name = 'straight' at two values of trajectory.track")  # fmt: skip
     b_small, b_big = min(maj), max(maj)
     c.numbers.update(fk_max_rel_diff=fk, fk_sampling_se=se, major_small_track=maj[b_small],
                      major_large_track=maj[b_big], max_bend=max(abs(b) for b, _ in bends.values()))
@@ -546,72 +715,56 @@ def _c12(rows: Rows, c: Claim) -> None:
     ok_bent = any(bent.values())
     ok_fk = fk < se
     ok_b = maj[b_big] < maj[b_small]
-    good = [ok_bent, ok_fk, ok_b]
-    c.verdict = _verdict_of_parts(good)
-    c.reason = (
-        f"Bent: {'yes' if ok_bent else 'no, not measurably at 1 m'} ({sum(bent.values())} of {len(bent)} clouds "
-        f"beyond noise); independent of the FK method: {'yes, within what 1000 runs can resolve' if ok_fk else 'no'} "
-        f"(midpoint equals the exact arc to {100 * diffs.get('midpoint', 0.0):.1g} %; the Euler variants are "
-        "first-order and differ by O(Δt) at the 10 ms step); "
-        f"wider track, shorter major axis: {'yes' if ok_b else 'no'}."
-    )
-    c.figure = _fig(name, None, "cloud_polar")
+    _judge_parts(c, [
+        (ok_bent, (f"Bent: {'yes' if ok_bent else 'no, not measurably at 1 m'} ({sum(bent.values())} of "
+                   f"{len(bent)} clouds beyond noise);")),
+        (ok_fk, (f"independent of the FK method: {'yes, within what 1000 runs can resolve' if ok_fk else 'no'} "
+                 f"(midpoint equals the exact arc to {100 * diffs.get('midpoint', 0.0):.1g} %; the Euler variants are "
+                 "first-order and differ by O(Δt) at the 10 ms step);")),
+        (ok_b, f"wider track, shorter major axis: {'yes' if ok_b else 'no'}."),
+    ])  # fmt: skip
+    c.figure = _fig(s.name, None, "cloud_polar")
 
 
-_CLAIMS: list[tuple[int, str, str, Callable[[Rows, Claim], None]]] = [
-    (1, "Straight line: uncertainty across the path grows much faster than along it.",
-     "Němec 2012 §3.1: the ellipses on the straight line widen across the path much more than along it.", _c1),
-    (2, "Of the three ways to (2, 2, 0°), direct < two quarter circles < right angles.",
-     "Němec 2012 §3.1: final ellipses of the three paths compared by eye.", _c2),
-    (3, "The speed profile has no effect on Method A's final covariance.",
-     "Němec 2012 §3.2: constant and ramp profiles give the same final ellipse.", _c3),
-    (4, "Larger k → larger ellipse; unequal k_r, k_l tilt it; a wider track shrinks the across-track spread.",
-     "Němec 2012 §3.3: ellipses for the parameter variations on the straight line.", _c4),
-    (5, "The Method A particle cloud on the circle looks Gaussian.",
-     "Němec 2012 §3.4: a particle cloud drawn over the ellipse on the circle.", _c5),
-    (6, ("Velocity model, rotation in place: the most probable position is not the start but two points "
-         "~2 cm away on the line through the start at 0.5 rad."),
-     "Němec 2012 §4.1.1: the rotation map has two dark spots beside the start.", _c6),
-    (7, "Uncertainty grows \u201cexponentially\u201d with distance (both models).",
-     "Němec 2012 §3–4: the maps and ellipses grow quickly with distance, called exponential.", _c7),
-    (8, "Velocity model: the speed at which a displacement is driven has no effect.",
-     "Němec 2012 §4.1.3: straight 1 m and rotation 1 rad at three speeds give the same maps.", _c8),
-    (9, ("Velocity model: α1, α2 set the along-track size, α3, α4 the across-track size, α5, α6 do not "
-         "change the (x, y) map."), "Němec 2012 §4.1.4: maps with reduced α groups.", _c9),
-    (10, ("Odometry model: larger than the velocity model for straight and arc motion, much smaller for "
-          "rotation in place; its peak is off the noiseless end point."),
-     "Němec 2012 §4.2.1: odometry and velocity maps side by side.", _c10),
-    (11, "Odometry model: speed does have an effect.", "Němec 2012 §4.2.3: odometry maps at three speeds.", _c11),
-    (12, ("(Šafránek 2022) The end-pose cloud is a bent ellipse, not an ellipse; results do not depend on the FK "
-          "method; a wider track shortens the major axis."),
-     "Šafránek 2022 §4.2–4.3: Cartesian and polar views of 1000 end poses, three FK methods, tracks 100 and 200 mm.", _c12),
-]
-
-
-def evaluate_claims(rows: Rows) -> list[Claim]:
-    """Evaluate every claim of the theses from the per-set tables.
+def evaluate_claim(rows: Rows, number: int) -> Claim:
+    """Evaluate claim ``number`` from the per-set tables.
 
     Parameters
     ----------
     rows : mapping of set name to its rows (dicts from :func:`pose_uncertainty.core.table_io.read_table`)
+    number : int — the claim's number (1–12)
 
     Returns
     -------
-    list of Claim, in the order of their numbers; a claim whose sets are missing has verdict ``"not measured"``
-    and says which set it needs.
+    Claim — with verdict ``"not measured"`` (and the set it needs as the reason) when an
+    experiment set it reads is not in the tables
+
+    Raises
+    ------
+    ClaimDataError
+        The set is there but holds no run with the logged parameters the claim reads (one
+        line: the claim, the set, the parameters).
     """
-    out = []
-    for number, text, source, fn in _CLAIMS:
-        c = Claim(number=number, claim=text, source=source)
-        try:
-            fn(rows, c)
-        except _Missing as exc:
-            c.verdict = "not measured"
-            c.reason = str(exc)
-            c.measured = "–"
-            c.figure = None
-        out.append(c)
-    return out
+    text, source, fn = _REGISTRY[number]
+    c = Claim(number=number, claim=text, source=source)
+    try:
+        fn(rows, c)
+    except _Missing as exc:
+        c.verdict, c.reason, c.measured, c.figure = "not measured", str(exc), "–", None
+    except _NoRun as exc:
+        raise ClaimDataError(f"claim {number} ({fn.__name__}): {exc}") from None
+    return c
+
+
+def evaluate_claims(rows: Rows) -> list[Claim]:
+    """Evaluate every claim of the theses from the per-set tables (:func:`evaluate_claim` of each, by number).
+
+    Returns
+    -------
+    list of Claim, in the order of their numbers; :class:`ClaimDataError` when a set a claim reads is there
+    but lacks the runs it needs.
+    """
+    return [evaluate_claim(rows, number) for number in sorted(_REGISTRY)]
 
 
 def write_claims(tables: Mapping[str, str | os.PathLike[str]], out: str | os.PathLike[str]) -> Path:

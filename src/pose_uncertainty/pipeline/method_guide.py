@@ -21,11 +21,15 @@ from .evidence import Rows, coverage_tolerance, value_or_none
 __all__ = ["LONG_SETS", "method_guide", "unscented_summary"]
 
 
+def _logged(all_rows: Sequence[Mapping[str, Any]], *keys: str) -> list[Mapping[str, Any]]:
+    """The rows that have every measure ``keys`` logged (none missing or NaN), in order."""
+    return [r for r in all_rows if all(value_or_none(r, k) is not None for k in keys)]
+
+
 def _guide_covariance(all_rows: Sequence[Mapping[str, Any]]) -> dict[str, Any] | None:
     """When Method A's ellipse holds: runs ordered by the bend ratio, the coverage rule of the claims."""
     level = COVERAGE_LEVELS["3s"]
-    runs = [r for r in all_rows if r.get("param.monte_carlo.regime") == "per_step"
-            and value_or_none(r, "MC_coverage_3s") is not None and value_or_none(r, "A_bend_ratio") is not None]  # fmt: skip
+    runs = [r for r in _logged(all_rows, "MC_coverage_3s", "A_bend_ratio") if r.get("param.monte_carlo.regime") == "per_step"]
     if not runs:
         return None
     runs.sort(key=lambda r: float(r["A_bend_ratio"]))
@@ -59,37 +63,46 @@ def _guide_covariance(all_rows: Sequence[Mapping[str, Any]]) -> dict[str, Any] |
     }  # fmt: skip
 
 
+def _largest(all_rows: Sequence[Mapping[str, Any]], key: str, *also: str) -> tuple[int, Mapping[str, Any]] | None:
+    """Among the rows with ``key`` (and ``also``) logged: how many, and the one of largest ``|key|`` (None if none)."""
+    rows = _logged(all_rows, key, *also)
+    return (len(rows), max(rows, key=lambda r: abs(r[key]))) if rows else None
+
+
+def _case(r: Mapping[str, Any]) -> str:
+    """Where a guide's extreme case is: ``run <id>, σ_θ = <Method A's end σ_θ> rad``."""
+    return f"run {r['run']}, σ_θ = {r.get('A_sigma_theta', math.nan):.3g} rad"
+
+
 def _guide_bend(all_rows: Sequence[Mapping[str, Any]]) -> dict[str, Any] | None:
-    bends = [r for r in all_rows if value_or_none(r, "MC_bend") is not None]
-    if not bends:
+    found = _largest(all_rows, "MC_bend")
+    if found is None:
         return None
-    b = max(bends, key=lambda r: abs(r["MC_bend"]))
+    b = found[1]
     return {
         "advice": "Monte Carlo when the cloud bends (large heading uncertainty, systematic errors): a single "
                   "ellipse then misstates the shape.",
-        "evidence": f"Largest bend statistic {b['MC_bend']:.3g} (run {b['run']}, σ_θ = "
-                    f"{b.get('A_sigma_theta', math.nan):.3g} rad; 0 for an ellipse, noise level "
+        "evidence": f"Largest bend statistic {b['MC_bend']:.3g} ({_case(b)}; 0 for an ellipse, noise level "
                     f"±{b.get('MC_bend_crit', math.nan):.2g}).",
         "numbers": {"run": b["run"], "bend": b["MC_bend"]},
     }  # fmt: skip
 
 
 def _guide_expcoords(all_rows: Sequence[Mapping[str, Any]]) -> dict[str, Any] | None:
-    pairs = [r for r in all_rows if value_or_none(r, "accuracy_cartesian_hellinger") is not None
-             and value_or_none(r, "accuracy_expcoords_hellinger") is not None]  # fmt: skip
-    if not pairs:
+    found = _largest(all_rows, "accuracy_cartesian_hellinger", "accuracy_expcoords_hellinger")
+    if found is None:
         return None
-    better = sum(r["accuracy_expcoords_hellinger"] < r["accuracy_cartesian_hellinger"] for r in pairs)
-    bad = max(pairs, key=lambda r: r["accuracy_cartesian_hellinger"])
+    n, bad = found
+    better = sum(r["accuracy_expcoords_hellinger"] < r["accuracy_cartesian_hellinger"]
+                 for r in _logged(all_rows, "accuracy_cartesian_hellinger", "accuracy_expcoords_hellinger"))  # fmt: skip
     return {
         "advice": "Method A in exponential coordinates (the banana-shaped Gaussian) instead of the Cartesian "
                   "ellipse when the heading uncertainty is large: same cost, closer to the truth.",
         "evidence": f"Hellinger distance to the Monte Carlo cloud lower in exponential coordinates in {better} of "
-                    f"{len(pairs)} runs; worst Cartesian case {bad['accuracy_cartesian_hellinger']:.3f} against "
-                    f"{bad['accuracy_expcoords_hellinger']:.3f} (run {bad['run']}, σ_θ = "
-                    f"{bad.get('A_sigma_theta', math.nan):.3g} rad; the sampling floor there is "
+                    f"{n} runs; worst Cartesian case {bad['accuracy_cartesian_hellinger']:.3f} against "
+                    f"{bad['accuracy_expcoords_hellinger']:.3f} ({_case(bad)}; the sampling floor there is "
                     f"{bad.get('accuracy_monte_carlo_hellinger_floor', math.nan):.2g}).",
-        "numbers": {"n_better": better, "n_runs": len(pairs), "worst_run": bad["run"]},
+        "numbers": {"n_better": better, "n_runs": n, "worst_run": bad["run"]},
     }  # fmt: skip
 
 

@@ -4,7 +4,8 @@ Every column of a row comes from one logged source of its run:
 
 * ``set``, ``run``, ``seed``, ``n_steps`` — the run's identity (config and data);
 * ``param.<key>`` — the logged run configuration (nested keys joined by dots,
-  lists as JSON; ``param.drive.*`` for a run with a drive section);
+  lists as JSON, so ``param.maps`` is the list of the run's maps; ``param.drive.*`` for a run
+  with a drive section);
 * ``provenance.<key>`` — the log's provenance (package version, git commit,
   environment.lock sha256, ...);
 * ``<measure>`` — every metric logged on ``/metrics`` under its own name, e.g.
@@ -61,7 +62,7 @@ def run_row(
         _flat("param.world.random_landmarks", world["random_landmarks"], row)
         keys: tuple[str, ...] = LOCALIZATION_PARAMS
     else:  # ``drive`` only when the run configures one
-        keys = ("trajectory", "k_r", "k_l", "cov0", "pr", "n_ellipses", "monte_carlo", "drive")
+        keys = ("trajectory", "k_r", "k_l", "cov0", "pr", "n_ellipses", "monte_carlo", "maps", "drive")
     for key in keys:
         if key in cfg:
             _flat(f"param.{key}", cfg[key], row)

@@ -13,6 +13,8 @@
   times (:func:`pose_uncertainty.pipeline.summary.summarize_pipeline`);
 * the runs with a drive section, arranged by drive and path for the section "Beyond the
   differential drive" (their table rows as they are);
+* every run's parameters as it logged them: the ``param.*`` columns and ``seed`` of its table
+  row (:func:`logged_params`), never the workflow's copy of the config;
 * the figures (inlined as ``data:`` URIs: no network request, works offline; each PNG
   re-encoded as lossless WebP, the same pixels in about 20 % fewer bytes) and the speed
   benchmarks' result files when ``make bench`` has written them.
@@ -43,7 +45,7 @@ from ..core.provenance import MACHINE_KEYS
 from ..core.stats import COVERAGE_LEVELS
 from ..core.table_io import read_table
 
-__all__ = ["build_report", "read_speed_results"]
+__all__ = ["build_report", "logged_params", "read_speed_results"]
 
 
 def _data_uri(path: str | os.PathLike[str], encoded: Mapping[str, bytes] | None = None) -> str:
@@ -163,12 +165,65 @@ def _environment() -> jinja2.Environment:
     return env
 
 
+def logged_params(row: Mapping[str, Any]) -> dict[str, Any]:
+    """A run's logged configuration, nested, from its table row (the ``param.*`` columns and ``seed``).
+
+    ``param.trajectory.track`` becomes ``{"trajectory": {"track": ...}}``; a list (logged as
+    JSON in its cell, e.g. ``param.maps``) is decoded; an empty cell (a key this run does not
+    have) is left out.
+
+    Parameters
+    ----------
+    row : mapping — one row of a per-set table (:func:`pose_uncertainty.pipeline.tables.run_row`)
+
+    Returns
+    -------
+    dict — the parameters as the run logged them
+    """
+    out: dict[str, Any] = {} if row.get("seed") is None else {"seed": row["seed"]}
+    for column, value in row.items():
+        if not column.startswith("param.") or value is None:
+            continue
+        *parents, leaf = column[len("param."):].split(".")
+        node = out
+        for part in parents:
+            node = node.setdefault(part, {})
+        node[leaf] = json.loads(value) if isinstance(value, str) and value.startswith("[") else value
+    return out
+
+
+def _at(params: Mapping[str, Any], dotted: str) -> Any:
+    """The logged value of the dotted key (None if the run did not log it)."""
+    node: Any = params
+    for part in dotted.split("."):
+        node = node.get(part) if isinstance(node, Mapping) else None
+    return node
+
+
+def _shaped(shape: Any, value: Any) -> Any:
+    """``value`` cut to the keys of ``shape`` where both are mappings (a swept sub-mapping), element by element
+    where both are lists of one length (a swept list of maps), else ``value`` itself."""
+    if isinstance(shape, Mapping) and isinstance(value, Mapping):
+        return {k: _shaped(v, value.get(k)) for k, v in shape.items()}
+    if isinstance(shape, list | tuple) and isinstance(value, list) and len(shape) == len(value):
+        return [_shaped(a, b) for a, b in zip(shape, value, strict=True)]
+    return value
+
+
+def _with_row(run: Mapping[str, Any], row: Mapping[str, Any]) -> dict[str, Any]:
+    """A manifest run with its table row (``m``), its logged parameters (``params``) and the logged values of
+    the keys its set sweeps (``swept``: the manifest names the keys; every value printed is the log's)."""
+    params = logged_params(row)
+    swept = {k: _shaped(v, _at(params, k)) for k, v in dict(run.get("swept", {})).items()}
+    return {**run, "m": row, "params": params, "swept": swept}
+
+
 def _sets(manifest: Mapping[str, Any], tables: Mapping[str, str | os.PathLike[str]]) -> list[dict[str, Any]]:
-    """The manifest's sets with each run's table row attached (``m``) and its map names."""
+    """The manifest's sets with each run's table row attached (:func:`_with_row`) and its map names."""
     sets = []
     for s in manifest["sets"]:
         rows = {r["run"]: r for r in read_table(tables[s["name"]])} if s["name"] in tables else {}
-        runs = [{**r, "m": rows.get(r["id"], {}), "maps": [k[4:] for k in r["figures"] if k.startswith("map_")]}
+        runs = [{**_with_row(r, rows.get(r["id"], {})), "maps": [k[4:] for k in r["figures"] if k.startswith("map_")]}
                 for r in s["runs"]]  # fmt: skip
         sets.append({**s, "runs": runs})
     return sets
@@ -188,10 +243,10 @@ def _drive_runs(sets: list[dict[str, Any]]) -> dict[str, Any]:
     figs: dict[str, str] = {}
     for s in sets:
         for r in s["runs"]:
-            drive = r["config"].get("drive")
+            drive = r["params"].get("drive")
             if not drive:
                 continue
-            path = r["config"]["trajectory"]["name"]
+            path = r["params"]["trajectory"]["name"]
             paths += [] if path in paths else [path]
             names += [] if s["name"] in names else [s["name"]]
             run = {"set": s["name"], "id": r["id"], "path": path, "drive": drive, "m": r["m"]}
@@ -211,7 +266,7 @@ def _localization(
     for s in manifest["sets"]:
         path = tables.get(f"localization/{s['name']}", tables.get(s["name"]))
         rows = {r["run"]: r for r in read_table(path)} if path is not None else {}
-        sets.append({**s, "runs": [{**r, "m": rows.get(r["id"], {})} for r in s["runs"]]})
+        sets.append({**s, "runs": [_with_row(r, rows.get(r["id"], {})) for r in s["runs"]]})
     lead = sets[0]["runs"][0] if sets[0]["runs"] else None
     return {"sets": sets, "lead": lead}
 
@@ -236,7 +291,9 @@ def build_report(
     Parameters
     ----------
     manifest : mapping — ``{"sets": [{name, title, source, description, figures, runs: [{id,
-        log, swept, config, figures}]}], "config": {...}}`` (built by the workflow)
+        log, swept, figures}]}], "config": {...}}`` (built by the workflow; ``swept`` names the keys a
+        run's set sweeps — every parameter value the report prints is read from the run's table row,
+        :func:`logged_params`; ``config`` is the pipeline config shown verbatim)
     tables : mapping of set name to its CSV (:func:`pose_uncertainty.pipeline.tables.collect_table`)
     claims_path : path — ``{"claims", "guide"}`` JSON (:func:`pose_uncertainty.pipeline.claims.write_claims`)
     pipeline_path : path — provenance, seeds and rule times (:func:`pose_uncertainty.pipeline.summary.summarize_pipeline`)
