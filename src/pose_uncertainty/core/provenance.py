@@ -333,9 +333,10 @@ def imports_of(path: str | os.PathLike[str], package: str = "pose_uncertainty") 
 def import_closure(*modules: str, root: str | os.PathLike[str] | None = None) -> tuple[str, ...]:
     """The package modules that importing ``modules`` can execute: their static import closure.
 
-    Starting from ``modules`` (dotted names of one top-level package), every file is parsed
-    (never imported) and every ``import`` / ``from ... import`` in it is followed, wherever it
-    stands (module level or inside a function: a lazy import runs when the function does),
+    Starting from ``modules`` (dotted names of one top-level package), the import statements
+    of every file are parsed (nothing is imported) and each ``import`` / ``from ... import`` is
+    followed, wherever it stands (module level or inside a function: a lazy import runs when
+    the function does),
     relative imports resolved; a dotted string constant naming a module of the package is
     followed too (``importlib.import_module``). Importing ``a.b.c`` runs ``a/__init__.py`` and
     ``a/b/__init__.py`` first, so every module brings its parent packages. Modules outside
