@@ -9,6 +9,10 @@ STAMP  := $(VENV)/.installed
 CORES  ?= all
 # holds a flock for the whole run, clears what a killed run left (workflow/run-locked.sh)
 LOCKED := workflow/run-locked.sh
+# Every pipeline job is a new interpreter that imports the package: its bytecode is compiled once
+# here, so that no job compiles ~30 000 lines again (0.15 s a job where PYTHONDONTWRITEBYTECODE is
+# set, as in many containers); ms when the files are up to date.
+COMPILE := $(BIN)/python -m compileall -q src
 
 .PHONY: report test quick bench bench-regenerate lint venv lock clean slurm-up slurm-down
 
@@ -21,12 +25,15 @@ $(STAMP): environment.lock pyproject.toml
 	@touch $@
 
 report: $(STAMP)
+	$(COMPILE)
 	$(LOCKED) $(BIN)/snakemake --profile workflow/profiles/default --cores $(CORES)
 
 quick: $(STAMP)
+	$(COMPILE)
 	$(LOCKED) $(BIN)/snakemake --profile workflow/profiles/default --cores $(CORES) --configfile config/quick.yaml
 
 test: $(STAMP)
+	$(COMPILE)
 	$(BIN)/python -m pytest
 
 lint: $(STAMP)

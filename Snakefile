@@ -6,30 +6,16 @@ from snakemake.utils import min_version
 
 min_version("8.0")
 
-# Every job inherits this: the runs allocate and free numpy temporaries of a few MB at each step,
-# which glibc by default hands back to the system (mmap/munmap, heap trimming) and then faults in
-# again; measured 10–30 % of a dead-reckoning run's time. With these thresholds they stay in the
-# heap. The numbers do not change (log bytes compared with and without; replay --verify in the tests).
-os.environ.setdefault(
-    "GLIBC_TUNABLES",
-    "glibc.malloc.mmap_threshold=33554432:glibc.malloc.trim_threshold=268435456:glibc.malloc.top_pad=67108864",
-)
-
-# Every job is a new interpreter that imports the package: compile its bytecode once here, so
-# that no job compiles ~20 000 lines again (0.15 s a job when PYTHONDONTWRITEBYTECODE is set,
-# as in many containers; the files are up to date after the first run and this takes ms).
-import compileall as _compileall
-import pose_uncertainty as _package
-
-_compileall.compile_dir(os.path.dirname(_package.__file__), quiet=1)
-
-# Snakemake's scheduling loop woke once a second per finished job (workflow/scheduler.py): fixed.
+# Snakemake's scheduling loop woke once a second per finished job: fixed by workflow/scheduler.py on the
+# Snakemake it was verified on (POSE_UNCERTAINTY_SCHEDULER_PATCH=0 leaves Snakemake as it is).
 import importlib.util as _importlib_util
 
 _spec = _importlib_util.spec_from_file_location("pose_uncertainty_scheduler", os.path.join(workflow.basedir, "workflow", "scheduler.py"))
 _scheduler = _importlib_util.module_from_spec(_spec)
 _spec.loader.exec_module(_scheduler)
-_scheduler.install()
+from snakemake.logging import logger as _logger
+
+_logger.info(_scheduler.install()[1])
 
 
 configfile: "config/config.yaml"

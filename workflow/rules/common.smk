@@ -1,16 +1,16 @@
 # Config validation (JSON Schema 2020-12, before any rule reads the config) and input functions.
+import functools as _functools
 import json as _json
 import shlex as _shlex
 import sys as _sys
 from pathlib import Path
-from importlib import resources as _resources
 
 from pose_uncertainty.experiments import sweep as _sweep
 from pose_uncertainty.experiments import localization as _loc
 from pose_uncertainty.experiments import study as _study
-from pose_uncertainty.core.provenance import source_sha256
+from pose_uncertainty.core.provenance import closure_sha256, imports_of
 from pose_uncertainty.core.schema import load_schema
-from pose_uncertainty.present.pipeline_figures import STUDY_FIGURES as _STUDY_FIGURES
+from pose_uncertainty.present.study_figures import STUDY_FIGURE_KEYS as _STUDY_FIGURE_KEYS
 
 # A config file given on the command line (--configfile config/quick.yaml) REPLACES
 # config/config.yaml instead of deep-merging into it (whose sets would otherwise leak in);
@@ -29,9 +29,6 @@ except _sweep.ConfigError as _exc:
 config.clear()
 config.update(_validated)  # in place: every default filled in
 
-# the report template ships with the package: a change to it rebuilds the report
-REPORT_TEMPLATE = str(_resources.files("pose_uncertainty.present") / "templates" / "comparison.html.j2")
-
 RUNS = _sweep.expand_all(config)  # {set: [Run, ...]}
 
 # the studies: name -> (kind, every parameter), validated like the runs
@@ -43,12 +40,23 @@ try:
 except ValueError as _exc:
     raise WorkflowError(f"invalid config: {_exc}") from None
 
-# The source of the layers each rule runs (a rule param): Snakemake reruns a rule when its code
-# changes, so no log, table or figure can be older than the code that makes it.
-SOURCE_RUNS = source_sha256("core", "methods", "localization", "analysis", "experiments", "records", "pipeline")
-SOURCE_CLAIMS = source_sha256("core", "methods", "localization", "analysis", "pipeline")
-SOURCE_PRESENT = source_sha256("core", "methods", "localization", "analysis", "experiments", "records", "pipeline",
-                               "present")
+# The source each rule runs (its param `source`): the hash of the import closure of the package modules
+# it executes (pose_uncertainty.core.provenance.closure_sha256). Snakemake reruns a rule when that code
+# changes, and only then: no log, table or figure is older than the code that makes it, and rewording a
+# claim reruns the claims and the report, not the runs. The workflow scripts themselves are tracked by
+# Snakemake (rerun trigger `code`: a script newer than its rule's outputs reruns the rule).
+SOURCE_JOB = closure_sha256("pose_uncertainty.cli.job")  # the JOB commands: runs, localization runs, studies
+
+# the report's template ships with the package (present/templates); the report rule hashes it with its code
+REPORT_TEMPLATE = "pose_uncertainty/present/templates/comparison.html.j2"
+
+
+@_functools.cache
+def script_source(script, data=()):
+    """The `source` param of a script rule: the closure hash of what workflow/scripts/<script>.py imports
+    from the package, with the package ``data`` files (paths relative to the package's parent)."""
+    return closure_sha256(*imports_of(Path(workflow.basedir, "workflow", "scripts", f"{script}.py")), data=data)
+
 RUN_BY_ID = {(s, r.id): r for s, runs in RUNS.items() for r in runs}
 SETS = list(RUNS)
 
@@ -62,7 +70,14 @@ wildcard_constraints:
 
 # The computing jobs (runs, localization runs, studies) are shell commands of this module, which
 # imports only what the job needs (a script: job imports Snakemake first, 0.1 s each).
-JOB = f"{_shlex.quote(_sys.executable)} -m pose_uncertainty.cli.job"
+# GLIBC_TUNABLES: the runs allocate and free numpy temporaries of a few MB at each step, which glibc
+# by default hands back to the system (mmap/munmap, heap trimming) and then faults in again; measured
+# 10–30 % of a dead-reckoning run's time. With these thresholds they stay in the heap. The numbers do
+# not change (log bytes compared with and without; replay --verify in the tests). glibc reads it when
+# the interpreter starts, so it is part of the command: every computing job gets it, local or on
+# SLURM; a GLIBC_TUNABLES already in the environment is kept.
+GLIBC_TUNABLES = "glibc.malloc.mmap_threshold=33554432:glibc.malloc.trim_threshold=268435456:glibc.malloc.top_pad=67108864"
+JOB = f'GLIBC_TUNABLES="${{GLIBC_TUNABLES:-{GLIBC_TUNABLES}}}" {_shlex.quote(_sys.executable)} -m pose_uncertainty.cli.job'
 
 
 def as_json(param):
@@ -134,11 +149,11 @@ def study_kind(wildcards):
 
 def studies_figures(wildcards=None):
     """Figures of the studies sections, by report key: the first study of each kind with a figure
-    (pose_uncertainty.present.pipeline_figures.STUDY_FIGURES: the exp.-coordinates figure, UMBmark's)."""
+    (pose_uncertainty.present.study_figures.STUDY_FIGURE_KEYS: the exp.-coordinates figure, UMBmark's)."""
     out = {}
     for name, (kind, _) in STUDIES.items():
-        if kind in _STUDY_FIGURES:
-            out.setdefault(_STUDY_FIGURES[kind][0], f"reports/figures/studies/{name}.png")
+        if kind in _STUDY_FIGURE_KEYS:
+            out.setdefault(_STUDY_FIGURE_KEYS[kind], f"reports/figures/studies/{name}.png")
     return out
 
 

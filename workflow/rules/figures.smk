@@ -16,7 +16,7 @@ rule render_run_figures:
             labels={"run": "{run}", "figure": "{name}"},
         ),
     params:
-        source=SOURCE_PRESENT,
+        source=script_source("render_run_figures"),
         kinds=lambda w: {r.id: list(run_figures(w.set, r)) for r in RUNS[w.set]},
     log:
         "logs/render_run_figures/{set}.log",
@@ -38,7 +38,7 @@ rule render_growth_figure:
             labels={"figure": "growth with distance"},
         ),
     params:
-        source=SOURCE_PRESENT,
+        source=script_source("render_set_figure"),
         kind="growth",
         title=lambda w: config["experiment_sets"][w.set]["title"],
     log:
@@ -61,7 +61,7 @@ rule render_cloud_polar_figure:
             labels={"figure": "Cartesian and polar views"},
         ),
     params:
-        source=SOURCE_PRESENT,
+        source=script_source("render_set_figure"),
         kind="cloud_polar",
         title=lambda w: config["experiment_sets"][w.set]["title"],
     log:
@@ -84,7 +84,7 @@ rule render_drives_figure:
             labels={"figure": "sigma along and across per drive"},
         ),
     params:
-        source=SOURCE_PRESENT,
+        source=script_source("render_set_figure"),
         kind="drives",
         title=lambda w: config["experiment_sets"][w.set]["title"],
     log:

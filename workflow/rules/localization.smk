@@ -1,6 +1,6 @@
 # Localization runs (config key `localization.sets`): one run → one MCAP log (byte-reproducible) and its
 # timings; the runs' figures drawn from the logs by one job per set (one interpreter start-up per set); one table per set; the set figures. The code that computes a
-# run is a rule param (SOURCE_RUNS, SOURCE_PRESENT), so a code change reruns what it affects.
+# run is a rule param (`source`: the import closure of the code each rule runs), so a code change reruns what it affects.
 
 
 rule simulate_localization:
@@ -9,7 +9,7 @@ rule simulate_localization:
         timings="data/localization/{set}/{run}.timings.json",
     params:
         config=as_json(localization_config),
-        source=SOURCE_RUNS,
+        source=SOURCE_JOB,
     log:
         "logs/simulate_localization/{set}/{run}.log",
     benchmark:
@@ -31,7 +31,7 @@ rule render_localization_figures:
             labels={"run": "{run}", "figure": "{name}"},
         ),
     params:
-        source=SOURCE_PRESENT,
+        source=script_source("render_localization_figures"),
         kinds=list(LOC_RUN_FIGURES),
     log:
         "logs/render_localization_figures/{set}.log",
@@ -56,7 +56,7 @@ rule render_localization_set_figure:
     wildcard_constraints:
         kind="accuracy_time|success",
     params:
-        source=SOURCE_PRESENT,
+        source=script_source("render_localization_set_figure"),
         title=lambda w: config["localization"]["sets"][w.set]["title"],
     log:
         "logs/render_localization_set_figure/{set}/{kind}.log",
@@ -79,7 +79,7 @@ rule collect_localization_metrics:
             labels={"table": "{set}"},
         ),
     params:
-        source=SOURCE_RUNS,
+        source=script_source("collect_metrics"),
     log:
         "logs/collect_localization_metrics/{set}.log",
     benchmark:

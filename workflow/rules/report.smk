@@ -11,7 +11,7 @@ rule evaluate_claims:
     params:
         sets=SETS,
         loc_sets=localization_table_names(),
-        source=SOURCE_CLAIMS,
+        source=script_source("evaluate_claims"),
     log:
         "logs/evaluate_claims.log",
     benchmark:
@@ -31,7 +31,7 @@ rule summarize_pipeline:
     params:
         sets=SETS,
         loc_sets=localization_table_names(),
-        source=SOURCE_RUNS,
+        source=script_source("summarize_pipeline"),
     log:
         "logs/summarize_pipeline.log",
     script:
@@ -44,7 +44,6 @@ rule build_report:
         claims=rules.evaluate_claims.output[0],
         pipeline=rules.summarize_pipeline.output[0],
         figures=all_figures,
-        template=REPORT_TEMPLATE,
         studies=studies_json,
         studies_figures=lambda w: list(studies_figures().values()),
         loc_tables=localization_tables,
@@ -59,7 +58,7 @@ rule build_report:
         title=config["report"]["title"],
         studies_figures=studies_figures(),
         loc_sets=LOC_SETS,
-        source=SOURCE_PRESENT,
+        source=script_source("build_report", data=(REPORT_TEMPLATE,)),
     # the last job, alone: it encodes the figures on the machine's cores (OMP_NUM_THREADS = its
     # threads; Snakemake scales them down to --cores; a cluster run has no --cores: a local rule)
     threads: min(8, os.cpu_count() or 1)

@@ -9,7 +9,7 @@ rule simulate_run:
     params:
         config=as_json(run_config),
         # the code that computes a run: a change to it reruns every simulation (the logs record it)
-        source=SOURCE_RUNS,
+        source=SOURCE_JOB,
     resources:
         # what the run estimates it needs (a cluster job's --mem and --time)
         mem_mb=lambda wc: _cost.job_resources(run_config(wc))["mem_mb"],

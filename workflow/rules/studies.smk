@@ -7,7 +7,7 @@ rule run_study:
         "data/studies/{study}.json",
     params:
         spec=as_json(study_config),
-        source=SOURCE_RUNS,
+        source=SOURCE_JOB,
     log:
         "logs/run_study/{study}.log",
     benchmark:
@@ -22,7 +22,7 @@ rule collect_studies:
     output:
         "reports/studies.json",
     params:
-        source=SOURCE_RUNS,
+        source=script_source("collect_studies"),
     log:
         "logs/collect_studies.log",
     script:
@@ -43,7 +43,7 @@ rule render_study_figure:
         ),
     params:
         kind=study_kind,
-        source=SOURCE_PRESENT,
+        source=script_source("render_study_figure"),
     log:
         "logs/render_study_figure/{study}.log",
     benchmark:

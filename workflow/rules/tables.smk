@@ -14,7 +14,7 @@ rule collect_metrics:
             labels={"table": "per-run measures"},
         ),
     params:
-        source=SOURCE_RUNS,
+        source=script_source("collect_metrics"),
     log:
         "logs/collect_metrics/{set}.log",
     benchmark:

@@ -34,6 +34,7 @@ from ..experiments.study import read_study
 from ..methods.covariance import ellipse_polyline
 from ..records.run import open_run
 from . import figures
+from .study_figures import STUDY_FIGURE_KEYS
 
 __all__ = [
     "STUDY_FIGURES",
@@ -395,13 +396,13 @@ def umbmark_figure(data: Mapping[str, Any]) -> Figure:
     return fig
 
 
+_FIGURE_OF_STUDY = {"expcoords_regions": expcoords_figure, "umbmark": umbmark_figure}
+
 #: The figure of a study by the study's kind (a key of pose_uncertainty.analysis.studies.STUDIES):
-#: the key the report shows it under (``build_report``'s ``studies_figures``) and the function
-#: drawing it from the study's logged results.
-STUDY_FIGURES: dict[str, tuple[str, Any]] = {
-    "expcoords_regions": ("expcoords", expcoords_figure),
-    "umbmark": ("umbmark", umbmark_figure),
-}
+#: the key the report shows it under (:data:`pose_uncertainty.present.study_figures.STUDY_FIGURE_KEYS`,
+#: which the workflow reads without importing matplotlib) and the function drawing it from the
+#: study's logged results.
+STUDY_FIGURES: dict[str, tuple[str, Any]] = {kind: (key, _FIGURE_OF_STUDY[kind]) for kind, key in STUDY_FIGURE_KEYS.items()}
 
 
 def render_study_figure(study_log: str | os.PathLike[str], out: str | os.PathLike[str]) -> Path:
