@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from ..core.atomic import check_destination
 from ..experiments.config import RunConfig
 from ..experiments.localization import (
     LocalizationConfig,
@@ -36,11 +37,19 @@ def add_parser(sub: Any) -> None:
         help="also log wall-clock timings (topic /timings); the file is then not byte-reproducible",
     )
     p.add_argument("--figures", metavar="DIR", help="also render the run's figures into DIR")
+    p.add_argument(
+        "--follow-symlink",
+        action="store_true",
+        help="if OUT is a symbolic link, write to its target (a regular file or a new path) "
+        "instead of refusing",
+    )
     p.set_defaults(func=cmd_run)
 
 
 def cmd_run(args: argparse.Namespace) -> int:
     """``run``: config file → execute → write log (→ figures)."""
+    # refuse a special file or an unchosen link at OUT before the run costs anything
+    args.output = check_destination(args.output, follow_symlinks=args.follow_symlink)
     data = load_config_file(args.config)
     if is_localization_config(data):  # kind: localization
         return _run_localization(args, data)
