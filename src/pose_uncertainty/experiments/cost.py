@@ -73,7 +73,9 @@ __all__ = [
     "Driver",
     "Limits",
     "check",
+    "check_localization",
     "estimate",
+    "estimate_localization",
     "job_resources",
     "limits",
     "mem_available",
@@ -506,3 +508,129 @@ def job_resources(config: RunConfig | Mapping[str, Any]) -> dict[str, int]:
     mem_mb = math.ceil(cost.mem_bytes * 1.25 / 1e6) + _JOB_OVERHEAD_MB
     runtime = max(10, math.ceil(3.0 * cost.seconds / 60.0) + 5)
     return {"mem_mb": int(mem_mb), "runtime": int(runtime)}
+
+
+# --- localization runs -----------------------------------------------------------------------
+#
+# A localization run (``pose_uncertainty.experiments.localization.execute_localization``) runs
+# each configured filter on R simulated runs of K = N + 1 steps, one after the other; a filter's
+# working memory is freed between runs. Coefficients measured on this project's 2-core machine
+# (2026-12-02; the room of ``config/worlds/room.yaml``, 40 steps, a fresh process's peak RSS):
+#
+# ==============  ===========================================  =====================================
+# filter          memory                                       time per step and run
+# ==============  ===========================================  =====================================
+# EKF             (steps only)                                 4 ms
+# histogram       40 B × cells (+ 8 B × nx·ny per logged grid)  20 ms + 0.6 µs × cells (nx·ny·ntheta)
+# particle        150 B × n                                    1 ms + 1.5 µs × n
+# ==============  ===========================================  =====================================
+#
+# (histogram: 0.10 s/step at 72,000 cells, 1.27 s at 2.3 M, 38 B a cell; particle: 0.14 s/step at
+# n = 100,000, 90 B a particle.) Simulating a step costs 1 ms; steps' own records 2 kB and 200 µs
+# (as a dead-reckoning run's).
+_LOC_SIM_S = 1e-3
+_EKF_STEP_S = 4e-3
+_HIST_CELL_BYTES, _HIST_STEP_S, _HIST_CELL_S = 40.0, 20e-3, 0.6e-6
+_PART_BYTES, _PART_STEP_S, _PART_S = 150.0, 1e-3, 1.5e-6
+
+
+def _histogram_cells(world: Any, resolution: float | None, ntheta: int) -> tuple[int, int, int]:
+    """(nx, ny, ntheta) of the histogram filter's grid, as ``localization.histogram.pose_grid_for``
+    makes it, without making it."""
+    g = world.grid
+    if g is not None and (resolution is None or math.isclose(resolution, g.resolution)):
+        nx, ny = g.shape
+        return int(nx), int(ny), int(ntheta)
+    h = 0.1 if resolution is None else float(resolution)
+    x0, x1, y0, y1 = world.bounds
+    return max(1, math.ceil((x1 - x0) / h)), max(1, math.ceil((y1 - y0) / h)), int(ntheta)
+
+
+def estimate_localization(config: Any) -> Cost:
+    """Peak memory and time of a localization run, from its parameters alone.
+
+    Parameters
+    ----------
+    config : LocalizationConfig (:mod:`pose_uncertainty.experiments.localization`, validated)
+
+    Returns
+    -------
+    Cost
+        As :func:`estimate`: ``mem_bytes`` [bytes], ``seconds`` [s] (order of magnitude) and the
+        drivers: the interpreter, the steps (R runs × K steps simulated and recorded), and one
+        driver per filter (``filter histogram``: cells = nx·ny·ntheta of its grid; ``filter
+        particle``: n particles). Filters run one after the other: the peak holds the largest
+        filter's memory, not their sum.
+    """
+    traj = config.build_trajectory()
+    k_steps = int(traj.n_steps) + 1
+    repeat = int(config.repeat)
+    runs_text = f"repeat {repeat} × K = {k_steps:,} steps"
+    drivers = [
+        Driver("interpreter", "Python, numpy, scipy, mcap", _BASE_BYTES, _BASE_S),
+        Driver("steps", f"{runs_text} (trajectory {config.trajectory['name']}, dt {config.trajectory.get('dt', '')})",
+               _STEP_BYTES * k_steps, (_STEP_S + _LOC_SIM_S * repeat) * k_steps),
+    ]  # fmt: skip
+    filters: list[Driver] = []
+    f = config.filters
+    if "ekf" in f:
+        filters.append(Driver("filter ekf", runs_text, 0.0, _EKF_STEP_S * repeat * k_steps))
+    if "histogram" in f:
+        h = f["histogram"]
+        nx, ny, nt = _histogram_cells(config.build_world(), h["resolution"], h["ntheta"])
+        cells = float(nx) * ny * nt
+        every = int(config.log.get("grid_every", 0) or 0)
+        logged = 8.0 * nx * ny * (k_steps // every + 2) if every > 0 else 0.0
+        res = "the world's cells" if h["resolution"] is None else f"resolution {h['resolution']:g}"
+        filters.append(Driver(
+            "filter histogram",
+            f"filters.histogram {res}, ntheta {nt}: {nx:,} × {ny:,} × {nt} = {cells:,.0f} cells; {runs_text}",
+            _HIST_CELL_BYTES * cells + logged, (_HIST_STEP_S + _HIST_CELL_S * cells) * repeat * k_steps, cells,
+        ))  # fmt: skip
+    if "particle" in f:
+        n = float(f["particle"]["n_particles"])
+        filters.append(Driver("filter particle", f"filters.particle.n_particles {n:,.0f}; {runs_text}",
+                              _PART_BYTES * n, (_PART_STEP_S + _PART_S * n) * repeat * k_steps))  # fmt: skip
+    drivers += filters
+    mem = sum(d.mem_bytes for d in drivers[:2]) + max((d.mem_bytes for d in filters), default=0.0)
+    secs = sum(d.seconds for d in drivers)
+    return Cost(mem_bytes=int(min(mem, 2**62)), seconds=float(min(secs, 1e30)), drivers=tuple(drivers))
+
+
+def _refuse_over(label: str, cost: Cost, lim: Limits) -> None:
+    """:class:`CostError` (one line, as :func:`check`'s) if ``cost`` exceeds a limit of ``lim``."""
+    if lim.mem_bytes is not None and cost.mem_bytes > lim.mem_bytes:
+        drivers = "; ".join(f"{d.name} {fmt_bytes(d.mem_bytes)} ({d.params})" for d in cost.top("mem_bytes"))
+        raise CostError(
+            f"{label} would need about {fmt_bytes(cost.mem_bytes)} of memory, over the "
+            f"limit of {fmt_bytes(lim.mem_bytes)} ({lim.mem_source}; set {ENV_MAX_MEMORY}, e.g. "
+            f"=64G or =none, to change it); it is driven by {drivers}"
+        )
+    if lim.seconds is not None and cost.seconds > lim.seconds:
+        drivers = "; ".join(f"{d.name} {fmt_seconds(d.seconds)} ({d.params})" for d in cost.top("seconds"))
+        raise CostError(
+            f"{label} would take about {fmt_seconds(cost.seconds)}, over the limit of "
+            f"{fmt_seconds(lim.seconds)} ({lim.seconds_source}; set {ENV_MAX_SECONDS}, e.g. =6h "
+            f"or =none, to change it); it is driven by {drivers}"
+        )
+
+
+def check_localization(config: Any, limit: Limits | None = None) -> Cost:
+    """The guard of :func:`check` for a localization run (:func:`estimate_localization`).
+
+    Refuses a run over a limit with one line (the estimate, the limit, the drivers); announces
+    a run estimated over :data:`ANNOUNCE_SECONDS` on stderr before it starts.
+
+    Returns
+    -------
+    Cost — the estimate, when within the limits
+
+    Raises
+    ------
+    CostError
+    """
+    cost = estimate_localization(config)
+    _refuse_over(f"localization run {config.name!r}", cost, limits() if limit is None else limit)
+    if cost.seconds > ANNOUNCE_SECONDS:
+        print(f"localization run {config.name!r}: estimated {cost.summary()}", file=sys.stderr, flush=True)
+    return cost
