@@ -431,3 +431,28 @@ def test_another_library_version_says_what_was_not_compared(tmp_path: Path, good
     assert "identical" not in out.stdout.split("verify:")[1].split("\n")[0], out.stdout
     assert "not compared: the header's library (written by pose-uncertainty/0.0.9" in out.stdout, out.stdout
     assert "  compared: /covariance" in out.stdout, out.stdout
+
+
+# --- the cost guard of studies ----------------------------------------------------------------
+
+
+def test_a_study_of_absurd_size_is_refused_in_one_line(tmp_path: Path) -> None:
+    res = _job(["run-study", "huge", json.dumps({"study": "accuracy_case", "n": 1e12}), "out.json"], tmp_path)
+    assert res.returncode == 2, res.stderr
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1, res.stderr
+    assert lines[0].startswith("error: study 'huge' would need about"), lines[0]
+    assert "n 1,000,000,000,000" in lines[0]
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("trajectory", [{"name": "straight", "length": 5.0, "dt": 0.01, "track": 0.2},
+                                        {"name": "circle", "radius": 1.0, "laps": 3, "dt": 0.01, "track": 0.2}])
+def test_a_studys_steps_are_those_of_its_trajectory(trajectory: dict) -> None:
+    from pose_uncertainty.core import trajectories
+    from pose_uncertainty.experiments.study import study_params
+
+    kind, params = study_params("g", {"study": "growth_laws", "trajectory": trajectory, "n_particles": 1000})
+    (sampling,) = [d for d in cost.estimate_study("g", kind, params).drivers if d.name == "sampling"]
+    built = trajectories.build(trajectory["name"], **{k: v for k, v in trajectory.items() if k != "name"})
+    assert f"N = {built.n_steps:,} steps × 20 evaluation(s)" in sampling.params

@@ -74,8 +74,10 @@ __all__ = [
     "Limits",
     "check",
     "check_localization",
+    "check_study",
     "estimate",
     "estimate_localization",
+    "estimate_study",
     "job_resources",
     "limits",
     "mem_available",
@@ -634,3 +636,71 @@ def check_localization(config: Any, limit: Limits | None = None) -> Cost:
     if cost.seconds > ANNOUNCE_SECONDS:
         print(f"localization run {config.name!r}: estimated {cost.summary()}", file=sys.stderr, flush=True)
     return cost
+
+
+# --- studies ---------------------------------------------------------------------------------
+#
+# A study (``pose_uncertainty.analysis.studies``) is dominated by its sampling: n poses carried
+# over N steps, for each of E evaluations (growth-law points, checkpoints, cases). Only that is
+# modelled, with the Monte Carlo coefficients above (140 B a pose, 100 ns a pose-step): a bound
+# that refuses a study of absurd size with the same one line as a run, not a calibrated estimate.
+_STUDY_DEFAULT_STEPS = 1000
+
+
+def _study_steps(params: Mapping[str, Any]) -> int:
+    """The steps N a study's parameters imply (its trajectory, ``duration / dt``, ``n_steps``, ``dts``)."""
+    tp = params.get("trajectory")
+    if isinstance(tp, Mapping) and "name" in tp:
+        return trajectories.n_steps(str(tp["name"]), **{k: v for k, v in tp.items() if k != "name"})
+    cases = params.get("cases")
+    if isinstance(cases, list | tuple) and cases:
+        return max(_study_steps({**params, "cases": None, **dict(c)}) for c in cases if isinstance(c, Mapping))
+    if "n_steps" in params:
+        v = params["n_steps"]
+        return int(sum(v)) if isinstance(v, list | tuple) else int(v)
+    duration = float(params.get("duration", params.get("length", 0.0)) or 0.0)
+    dts = params.get("dts", params.get("dt"))
+    dts = dts if isinstance(dts, list | tuple) else [dts]
+    if duration > 0 and all(isinstance(d, int | float) and d > 0 for d in dts):
+        return int(sum(math.ceil(duration / float(d)) for d in dts))
+    return _STUDY_DEFAULT_STEPS
+
+
+def estimate_study(name: str, kind: str, params: Mapping[str, Any]) -> Cost:
+    """A bound on a study's memory and time from its sampling size (see the comment above).
+
+    Parameters
+    ----------
+    name : the study's name; kind : its kind; params : every parameter (``study_params``)
+
+    Returns
+    -------
+    Cost — drivers ``interpreter`` and ``sampling`` (n poses × N steps × E evaluations)
+    """
+    n = float(params.get("n", params.get("n_particles", 1)) or 1)
+    steps = _study_steps(params)
+    evals = float(params.get("n_points", 0) or 0) + float(params.get("n_checkpoints", 0) or 0)
+    cases = params.get("cases")
+    evals = max(1.0, evals, float(len(cases)) if isinstance(cases, list | tuple) else 1.0)
+    which = "n" if "n" in params else "n_particles"
+    drivers = (
+        Driver("interpreter", "Python, numpy, scipy", _BASE_BYTES, _BASE_S),
+        Driver("sampling", f"study {name!r} ({kind}): {which} {n:,.0f} × N = {steps:,} steps × {evals:g} evaluation(s)",
+               _PARTICLE_BYTES * n, _MC_S["per_step"] * n * steps * evals),
+    )  # fmt: skip
+    return Cost(mem_bytes=int(min(sum(d.mem_bytes for d in drivers), 2**62)),
+                seconds=float(min(sum(d.seconds for d in drivers), 1e30)), drivers=drivers)  # fmt: skip
+
+
+def check_study(name: str, kind: str, params: Mapping[str, Any], limit: Limits | None = None) -> Cost:
+    """The guard of :func:`check` for a study (:func:`estimate_study`): one line over a limit.
+
+    Raises
+    ------
+    CostError
+    """
+    c = estimate_study(name, kind, params)
+    _refuse_over(f"study {name!r}", c, limits() if limit is None else limit)
+    if c.seconds > ANNOUNCE_SECONDS:
+        print(f"study {name!r}: estimated {c.summary()}", file=sys.stderr, flush=True)
+    return c
