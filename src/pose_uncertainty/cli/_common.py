@@ -14,6 +14,7 @@ from typing import Any
 import yaml
 
 from ..core.atomic import OutputError, Terminated, termination_as_exception
+from ..core.validation import first_line
 
 __all__ = [
     "EXIT_INPUT",
@@ -21,6 +22,7 @@ __all__ = [
     "EXIT_MISMATCH",
     "EXIT_OK",
     "CommandError",
+    "add_follow_symlink",
     "load_config_file",
     "one_line_errors",
 ]
@@ -34,9 +36,11 @@ class CommandError(Exception):
     """A user-facing error: printed as one line, exit status 2."""
 
 
-def _first_line(exc: BaseException) -> str:
-    text = str(exc).strip()
-    return text.splitlines()[0] if text else type(exc).__name__
+def add_follow_symlink(parser: Any) -> None:
+    """The explicit choice to write through a symbolic link at OUT (``--follow-symlink``)."""
+    parser.add_argument("--follow-symlink", action="store_true",
+                        help="if OUT is a symbolic link, write to its target (a regular file or a new path) "
+                        "instead of refusing")  # fmt: skip
 
 
 def _os_error_line(exc: OSError) -> str:
@@ -44,7 +48,7 @@ def _os_error_line(exc: OSError) -> str:
     if isinstance(exc, OutputError):
         return str(exc)
     where = f"{exc.filename}: " if exc.filename else ""
-    what = exc.strerror or _first_line(exc)
+    what = exc.strerror or first_line(exc)
     code = errno.errorcode.get(exc.errno or 0)
     return f"{where}{what}{f' ({code})' if code and code not in what else ''}"
 
@@ -75,7 +79,7 @@ def one_line_errors(func: Callable[[], int], *, debug: bool = False) -> int:
         with termination_as_exception():
             return int(func())
     except (CommandError, ValueError) as exc:
-        return fail(_first_line(exc), EXIT_INPUT)
+        return fail(first_line(exc), EXIT_INPUT)
     except BrokenPipeError:  # e.g. `pose-uncertainty replay RUN.mcap | head`
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return EXIT_OK
@@ -90,7 +94,7 @@ def one_line_errors(func: Callable[[], int], *, debug: bool = False) -> int:
         return fail(f"{exc} (signal {exc.signum}); nothing half-written was left", 128 + exc.signum)
     except Exception as exc:  # noqa: BLE001 - the last resort: one line, not a traceback
         hint = "" if debug else "; --debug shows the traceback"
-        return fail(f"internal error: {type(exc).__name__}: {_first_line(exc)}{hint}", EXIT_INTERNAL)
+        return fail(f"internal error: {type(exc).__name__}: {first_line(exc)}{hint}", EXIT_INTERNAL)
 
 
 def load_config_file(path: str | Path) -> dict[str, Any]:

@@ -65,10 +65,10 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one job; returns the exit status (see the module docstring)."""
     args = _parser().parse_args(argv)
-    return one_line_errors(lambda: _run(args), debug=args.debug)
+    return one_line_errors(lambda: _dispatch(args), debug=args.debug)
 
 
-def _run(args: argparse.Namespace) -> int:
+def _dispatch(args: argparse.Namespace) -> int:
     from ..pipeline import jobs
 
     if args.kind == "simulate-run":

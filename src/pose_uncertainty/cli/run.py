@@ -18,7 +18,7 @@ from ..present.figures import render_figures
 from ..present.localization import render_localization_figures
 from ..records.localization import write_localization
 from ..records.run import write_run
-from ._common import EXIT_OK, CommandError, load_config_file
+from ._common import EXIT_OK, CommandError, add_follow_symlink, load_config_file
 
 __all__ = ["add_parser", "cmd_run"]
 
@@ -37,12 +37,7 @@ def add_parser(sub: Any) -> None:
         help="also log wall-clock timings (topic /timings); the file is then not byte-reproducible",
     )
     p.add_argument("--figures", metavar="DIR", help="also render the run's figures into DIR")
-    p.add_argument(
-        "--follow-symlink",
-        action="store_true",
-        help="if OUT is a symbolic link, write to its target (a regular file or a new path) "
-        "instead of refusing",
-    )
+    add_follow_symlink(p)
     p.set_defaults(func=cmd_run)
 
 

@@ -469,29 +469,7 @@ def check(config: RunConfig | Mapping[str, Any], limit: Limits | None = None) ->
         and the parameters that drive the estimate.
     """
     cfg = _config(config)
-    cost = estimate(cfg)
-    lim = limits() if limit is None else limit
-    if lim.mem_bytes is not None and cost.mem_bytes > lim.mem_bytes:
-        drivers = "; ".join(
-            f"{d.name} {fmt_bytes(d.mem_bytes)} ({d.params})" for d in cost.top("mem_bytes")
-        )
-        raise CostError(
-            f"run {cfg.name!r} would need about {fmt_bytes(cost.mem_bytes)} of memory, over the "
-            f"limit of {fmt_bytes(lim.mem_bytes)} ({lim.mem_source}; set {ENV_MAX_MEMORY}, e.g. "
-            f"=64G or =none, to change it); it is driven by {drivers}"
-        )
-    if lim.seconds is not None and cost.seconds > lim.seconds:
-        drivers = "; ".join(
-            f"{d.name} {fmt_seconds(d.seconds)} ({d.params})" for d in cost.top("seconds")
-        )
-        raise CostError(
-            f"run {cfg.name!r} would take about {fmt_seconds(cost.seconds)}, over the limit of "
-            f"{fmt_seconds(lim.seconds)} ({lim.seconds_source}; set {ENV_MAX_SECONDS}, e.g. =6h "
-            f"or =none, to change it); it is driven by {drivers}"
-        )
-    if cost.seconds > ANNOUNCE_SECONDS:
-        print(f"run {cfg.name!r}: estimated {cost.summary()}", file=sys.stderr, flush=True)
-    return cost
+    return _guard(f"run {cfg.name!r}", estimate(cfg), limits() if limit is None else limit)
 
 
 #: a cluster job runs snakemake itself before the run (and its script's own interpreter)
@@ -536,18 +514,6 @@ _HIST_CELL_BYTES, _HIST_STEP_S, _HIST_CELL_S = 40.0, 20e-3, 0.6e-6
 _PART_BYTES, _PART_STEP_S, _PART_S = 150.0, 1e-3, 1.5e-6
 
 
-def _histogram_cells(world: Any, resolution: float | None, ntheta: int) -> tuple[int, int, int]:
-    """(nx, ny, ntheta) of the histogram filter's grid, as ``localization.histogram.pose_grid_for``
-    makes it, without making it."""
-    g = world.grid
-    if g is not None and (resolution is None or math.isclose(resolution, g.resolution)):
-        nx, ny = g.shape
-        return int(nx), int(ny), int(ntheta)
-    h = 0.1 if resolution is None else float(resolution)
-    x0, x1, y0, y1 = world.bounds
-    return max(1, math.ceil((x1 - x0) / h)), max(1, math.ceil((y1 - y0) / h)), int(ntheta)
-
-
 def estimate_localization(config: Any) -> Cost:
     """Peak memory and time of a localization run, from its parameters alone.
 
@@ -564,6 +530,8 @@ def estimate_localization(config: Any) -> Cost:
         particle``: n particles). Filters run one after the other: the peak holds the largest
         filter's memory, not their sum.
     """
+    from ..localization.histogram import pose_grid_for  # (a localization run imports it anyway)
+
     traj = config.build_trajectory()
     k_steps = int(traj.n_steps) + 1
     repeat = int(config.repeat)
@@ -579,7 +547,9 @@ def estimate_localization(config: Any) -> Cost:
         filters.append(Driver("filter ekf", runs_text, 0.0, _EKF_STEP_S * repeat * k_steps))
     if "histogram" in f:
         h = f["histogram"]
-        nx, ny, nt = _histogram_cells(config.build_world(), h["resolution"], h["ntheta"])
+        # the filter's own grid: a Grid holds its counts, not its cells (nothing of their size is made)
+        g = pose_grid_for(config.build_world(), h["resolution"], h["ntheta"])
+        nx, ny, nt = g.nx, g.ny, g.ntheta
         cells = float(nx) * ny * nt
         every = int(config.log.get("grid_every", 0) or 0)
         logged = 8.0 * nx * ny * (k_steps // every + 2) if every > 0 else 0.0
@@ -599,22 +569,23 @@ def estimate_localization(config: Any) -> Cost:
     return Cost(mem_bytes=int(min(mem, 2**62)), seconds=float(min(secs, 1e30)), drivers=tuple(drivers))
 
 
-def _refuse_over(label: str, cost: Cost, lim: Limits) -> None:
-    """:class:`CostError` (one line, as :func:`check`'s) if ``cost`` exceeds a limit of ``lim``."""
-    if lim.mem_bytes is not None and cost.mem_bytes > lim.mem_bytes:
-        drivers = "; ".join(f"{d.name} {fmt_bytes(d.mem_bytes)} ({d.params})" for d in cost.top("mem_bytes"))
-        raise CostError(
-            f"{label} would need about {fmt_bytes(cost.mem_bytes)} of memory, over the "
-            f"limit of {fmt_bytes(lim.mem_bytes)} ({lim.mem_source}; set {ENV_MAX_MEMORY}, e.g. "
-            f"=64G or =none, to change it); it is driven by {drivers}"
-        )
-    if lim.seconds is not None and cost.seconds > lim.seconds:
-        drivers = "; ".join(f"{d.name} {fmt_seconds(d.seconds)} ({d.params})" for d in cost.top("seconds"))
-        raise CostError(
-            f"{label} would take about {fmt_seconds(cost.seconds)}, over the limit of "
-            f"{fmt_seconds(lim.seconds)} ({lim.seconds_source}; set {ENV_MAX_SECONDS}, e.g. =6h "
-            f"or =none, to change it); it is driven by {drivers}"
-        )
+def _guard(label: str, cost: Cost, lim: Limits) -> Cost:
+    """Refuse ``cost`` over a limit of ``lim`` (:class:`CostError`, one line: the estimate, the limit and
+    where it comes from, the drivers), or announce it on stderr when it is long; return it."""
+    for what, over, size, env, example in (
+        ("mem_bytes", f"need about {fmt_bytes(cost.mem_bytes)} of memory", fmt_bytes, ENV_MAX_MEMORY, "=64G"),
+        ("seconds", f"take about {fmt_seconds(cost.seconds)}", fmt_seconds, ENV_MAX_SECONDS, "=6h"),
+    ):
+        limit, source = (lim.mem_bytes, lim.mem_source) if what == "mem_bytes" else (lim.seconds, lim.seconds_source)
+        if limit is not None and getattr(cost, what) > limit:
+            drivers = "; ".join(f"{d.name} {size(getattr(d, what))} ({d.params})" for d in cost.top(what))
+            raise CostError(
+                f"{label} would {over}, over the limit of {size(limit)} ({source}; set {env}, e.g. "
+                f"{example} or =none, to change it); it is driven by {drivers}"
+            )
+    if cost.seconds > ANNOUNCE_SECONDS:
+        print(f"{label}: estimated {cost.summary()}", file=sys.stderr, flush=True)
+    return cost
 
 
 def check_localization(config: Any, limit: Limits | None = None) -> Cost:
@@ -631,11 +602,7 @@ def check_localization(config: Any, limit: Limits | None = None) -> Cost:
     ------
     CostError
     """
-    cost = estimate_localization(config)
-    _refuse_over(f"localization run {config.name!r}", cost, limits() if limit is None else limit)
-    if cost.seconds > ANNOUNCE_SECONDS:
-        print(f"localization run {config.name!r}: estimated {cost.summary()}", file=sys.stderr, flush=True)
-    return cost
+    return _guard(f"localization run {config.name!r}", estimate_localization(config), limits() if limit is None else limit)
 
 
 # --- studies ---------------------------------------------------------------------------------
@@ -699,8 +666,4 @@ def check_study(name: str, kind: str, params: Mapping[str, Any], limit: Limits |
     ------
     CostError
     """
-    c = estimate_study(name, kind, params)
-    _refuse_over(f"study {name!r}", c, limits() if limit is None else limit)
-    if c.seconds > ANNOUNCE_SECONDS:
-        print(f"study {name!r}: estimated {c.summary()}", file=sys.stderr, flush=True)
-    return c
+    return _guard(f"study {name!r}", estimate_study(name, kind, params), limits() if limit is None else limit)
