@@ -46,7 +46,6 @@ ALLOWED: dict[str, str] = {
     "analysis/calibration.py:fit_alphas_odometry ~ analysis/calibration.py:fit_alphas_velocity": _PAIR,
     "core/kinematics.py:integrate ~ core/kinematics.py:integrate_twist": _PAIR + " (wheel steps vs twists)",
     "core/kinematics.py:step ~ core/kinematics.py:step_twist": _PAIR + " (wheel steps vs twists)",
-    "experiments/cost.py:check ~ experiments/cost.py:check": "two local check() closures of the cost drivers",
     "experiments/localization.py:<module> ~ experiments/run.py:<module>": "the two result dataclasses' fields",
     "methods/intervals.py:interval_dead_reckoning ~ methods/zonotopes.py:zonotope_dead_reckoning":
         _PAIR + " (interval vs zonotope set arithmetic)",

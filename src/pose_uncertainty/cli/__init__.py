@@ -10,9 +10,14 @@ Commands
 ``robot calibrate BAG [--robot ROBOT.yaml] -o OUTDIR``
     Calibrate a robot from a ROS bag: constants, nav2 and ros2_control parameters.
 
-Exit status: 0 success; 1 ``--verify`` found a mismatch; 2 bad input (usage,
-unreadable/invalid config or log). Errors are one line on stderr, never a
-traceback.
+Exit status: 0 success; 1 ``--verify`` found a mismatch (or a defect of the program); 2 bad
+input (usage, unreadable/invalid config or log, a run over the cost guard's limits) or an I/O
+error (naming the file); 130 SIGINT, 143 SIGTERM, 129 SIGHUP (a write in progress leaves
+nothing behind). Errors are one line on stderr, never a traceback (``--debug`` adds it).
+
+Outputs (``-o``, ``--figures``, ``--to-rosbag``) replace only a regular file or a new path: a
+directory, FIFO, socket or device node is refused, and so is a symbolic link unless
+``--follow-symlink`` (``run``) writes to its regular target.
 
 New commands register themselves in :data:`COMMANDS` by the name of their module
 (a module of this package with ``add_parser``), imported when the parser is built, so that
@@ -24,13 +29,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import os
 import sys
 from collections.abc import Sequence
 
 from .. import __version__
-from ..records.run import RunLogError
-from ._common import EXIT_INPUT, EXIT_OK, CommandError, load_config_file
+from ._common import CommandError, load_config_file, one_line_errors
 
 __all__ = ["COMMANDS", "CommandError", "build_parser", "load_config_file", "main"]
 
@@ -54,6 +57,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Pose uncertainty of a differential-drive robot: runs, logs and replays.",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    parser.add_argument("--debug", action="store_true", help="print the full traceback after an error's line")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for module in COMMANDS.values():
         importlib.import_module(f"{__name__}.{module}").add_parser(sub)
@@ -61,27 +65,14 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``pose-uncertainty`` console script; returns the exit status."""
+    """Entry point of the ``pose-uncertainty`` console script; returns the exit status.
+
+    Every error is one line on stderr (:func:`._common.one_line_errors`); ``--debug`` adds the
+    traceback.
+    """
     parser = build_parser()
     args = parser.parse_args(argv)
-    try:
-        return int(args.func(args))
-    except (CommandError, RunLogError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return EXIT_INPUT
-    except ValueError as exc:  # bad parameters surfaced by the computation
-        print(f"error: {exc}", file=sys.stderr)
-        return EXIT_INPUT
-    except BrokenPipeError:  # e.g. `pose-uncertainty replay RUN.mcap | head`
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return EXIT_OK
-    except OSError as exc:
-        where = f"{exc.filename}: " if exc.filename else ""
-        print(f"error: {where}{exc.strerror or exc}", file=sys.stderr)
-        return EXIT_INPUT
-    except KeyboardInterrupt:
-        print("error: interrupted", file=sys.stderr)
-        return 130
+    return one_line_errors(lambda: args.func(args), debug=args.debug)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -15,9 +15,12 @@ Commands
 ``run-study NAME STUDY_JSON OUT.json``
     :func:`pose_uncertainty.pipeline.jobs.run_study`.
 
-Exit status: 0 success; 2 bad usage or a configuration that is not a JSON object (one line
-on stderr); an error of the computation ends with its traceback on stderr (status 1), as a
-script job does.
+Exit status and errors are those of the ``pose-uncertainty`` command
+(:func:`pose_uncertainty.cli._common.one_line_errors`): 0 success; 2 bad usage, a bad
+configuration, a run over the cost guard's limits or an I/O error (one line on stderr, the
+rule's log, naming the key or the file); 1 a defect of the program (one line); 128 + the signal's
+number for SIGTERM and SIGHUP (a cluster's time limit), 130 for SIGINT, with no ``.part`` file
+left. ``--debug`` (before KIND) adds the full traceback to the log.
 """
 
 from __future__ import annotations
@@ -27,6 +30,8 @@ import json
 import sys
 from collections.abc import Sequence
 from typing import Any
+
+from ._common import one_line_errors
 
 __all__ = ["main"]
 
@@ -43,6 +48,7 @@ def _object(text: str) -> dict[str, Any]:
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="python -m pose_uncertainty.cli.job", description=__doc__.split("\n")[0])
+    parser.add_argument("--debug", action="store_true", help="print the full traceback after an error's line")
     sub = parser.add_subparsers(dest="kind", required=True, metavar="KIND")
     for kind, what in (("simulate-run", "a dead-reckoning run"), ("simulate-localization", "a localization run")):
         p = sub.add_parser(kind, help=f"execute {what} and write its log and timings")
@@ -59,6 +65,10 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one job; returns the exit status (see the module docstring)."""
     args = _parser().parse_args(argv)
+    return one_line_errors(lambda: _dispatch(args), debug=args.debug)
+
+
+def _dispatch(args: argparse.Namespace) -> int:
     from ..pipeline import jobs
 
     if args.kind == "simulate-run":

@@ -88,23 +88,34 @@ def _print_localization_state(state: dict[str, Any]) -> None:
 
 
 def _report_verification(log: Any, comparison: Comparison) -> int:
-    """Print the outcome of ``--verify`` (one of the contract's three) and return the exit status."""
+    """Print the outcome of ``--verify`` (one of the contract's three) and return the exit status.
+
+    "identical" is said only when everything the log holds was compared and its bytes equal a
+    recomputation's; otherwise the lines say what was compared and what was not (and why).
+    """
     for line in comparison.mismatches:
         print(f"MISMATCH {line}")
     for line in comparison.notes:
         print(f"note: {line}")
     what = ", ".join(f"{k} {v}" for k, v in sorted(comparison.compared.items()))
+    skipped = "; ".join(f"{k} ({why})" for k, why in sorted(comparison.not_compared.items()))
     if comparison.status == MISMATCH:
         print(f"verify: MISMATCH, {len(comparison.mismatches)} difference(s) beyond the reproducibility "
               f"contract between the log and a recomputation")  # fmt: skip
         return EXIT_MISMATCH
-    if comparison.status == IDENTICAL:
+    if comparison.status == IDENTICAL and not skipped:
         print("verify: identical, the log's bytes equal those of a recomputation")
         return EXIT_OK
-    print(f"verify: equal within tolerance; largest relative difference {comparison.worst:.2e} of the "
-          f"quantity's scale, in {comparison.worst_at}; tolerance {comparison.tolerance:.2e} "
-          f"for {log.n_steps} steps")  # fmt: skip
-    print(f"  compared: {what}")
+    if comparison.status == IDENTICAL or comparison.worst == 0.0:
+        print("verify: equal in everything compared: every record compared equals a recomputation's exactly, "
+              "but not everything was compared")  # fmt: skip
+    else:
+        print(f"verify: equal within tolerance; largest relative difference {comparison.worst:.2e} of the "
+              f"quantity's scale, in {comparison.worst_at}; tolerance {comparison.tolerance:.2e} "
+              f"for {log.n_steps} steps")  # fmt: skip
+    print(f"  compared: {what or 'every other record, byte for byte'}")
+    if skipped:
+        print(f"  not compared: {skipped}")
     here = provenance()
     for key in (*MACHINE_KEYS, "numpy_version", "scipy_version"):
         print(f"  {key}: log {log.provenance.get(key, 'not recorded')}; this machine {here[key]}")

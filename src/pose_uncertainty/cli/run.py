@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from ..core.atomic import check_destination
 from ..experiments.config import RunConfig
 from ..experiments.localization import (
     LocalizationConfig,
@@ -17,7 +18,7 @@ from ..present.figures import render_figures
 from ..present.localization import render_localization_figures
 from ..records.localization import write_localization
 from ..records.run import write_run
-from ._common import EXIT_OK, CommandError, load_config_file
+from ._common import EXIT_OK, CommandError, add_follow_symlink, load_config_file
 
 __all__ = ["add_parser", "cmd_run"]
 
@@ -36,11 +37,14 @@ def add_parser(sub: Any) -> None:
         help="also log wall-clock timings (topic /timings); the file is then not byte-reproducible",
     )
     p.add_argument("--figures", metavar="DIR", help="also render the run's figures into DIR")
+    add_follow_symlink(p)
     p.set_defaults(func=cmd_run)
 
 
 def cmd_run(args: argparse.Namespace) -> int:
     """``run``: config file → execute → write log (→ figures)."""
+    # refuse a special file or an unchosen link at OUT before the run costs anything
+    args.output = check_destination(args.output, follow_symlinks=args.follow_symlink)
     data = load_config_file(args.config)
     if is_localization_config(data):  # kind: localization
         return _run_localization(args, data)

@@ -25,6 +25,7 @@ __all__ = [
     "check_positive",
     "check_positive_int",
     "check_probability",
+    "first_line",
     "parse_number",
     "parse_numbers",
 ]
@@ -200,3 +201,9 @@ def parse_numbers(value: Any, like: Any = None, *, text_keys: frozenset[str] = f
         item = like[0] if isinstance(like, list | tuple) and like else None
         return [parse_numbers(v, item, text_keys=text_keys) for v in value]
     return parse_number(value, like)
+
+
+def first_line(exc: BaseException) -> str:
+    """The first line of an exception's message (its type's name when it has none), for a one-line error."""
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__

@@ -73,7 +73,11 @@ __all__ = [
     "Driver",
     "Limits",
     "check",
+    "check_localization",
+    "check_study",
     "estimate",
+    "estimate_localization",
+    "estimate_study",
     "job_resources",
     "limits",
     "mem_available",
@@ -465,29 +469,7 @@ def check(config: RunConfig | Mapping[str, Any], limit: Limits | None = None) ->
         and the parameters that drive the estimate.
     """
     cfg = _config(config)
-    cost = estimate(cfg)
-    lim = limits() if limit is None else limit
-    if lim.mem_bytes is not None and cost.mem_bytes > lim.mem_bytes:
-        drivers = "; ".join(
-            f"{d.name} {fmt_bytes(d.mem_bytes)} ({d.params})" for d in cost.top("mem_bytes")
-        )
-        raise CostError(
-            f"run {cfg.name!r} would need about {fmt_bytes(cost.mem_bytes)} of memory, over the "
-            f"limit of {fmt_bytes(lim.mem_bytes)} ({lim.mem_source}; set {ENV_MAX_MEMORY}, e.g. "
-            f"=64G or =none, to change it); it is driven by {drivers}"
-        )
-    if lim.seconds is not None and cost.seconds > lim.seconds:
-        drivers = "; ".join(
-            f"{d.name} {fmt_seconds(d.seconds)} ({d.params})" for d in cost.top("seconds")
-        )
-        raise CostError(
-            f"run {cfg.name!r} would take about {fmt_seconds(cost.seconds)}, over the limit of "
-            f"{fmt_seconds(lim.seconds)} ({lim.seconds_source}; set {ENV_MAX_SECONDS}, e.g. =6h "
-            f"or =none, to change it); it is driven by {drivers}"
-        )
-    if cost.seconds > ANNOUNCE_SECONDS:
-        print(f"run {cfg.name!r}: estimated {cost.summary()}", file=sys.stderr, flush=True)
-    return cost
+    return _guard(f"run {cfg.name!r}", estimate(cfg), limits() if limit is None else limit)
 
 
 #: a cluster job runs snakemake itself before the run (and its script's own interpreter)
@@ -506,3 +488,182 @@ def job_resources(config: RunConfig | Mapping[str, Any]) -> dict[str, int]:
     mem_mb = math.ceil(cost.mem_bytes * 1.25 / 1e6) + _JOB_OVERHEAD_MB
     runtime = max(10, math.ceil(3.0 * cost.seconds / 60.0) + 5)
     return {"mem_mb": int(mem_mb), "runtime": int(runtime)}
+
+
+# --- localization runs -----------------------------------------------------------------------
+#
+# A localization run (``pose_uncertainty.experiments.localization.execute_localization``) runs
+# each configured filter on R simulated runs of K = N + 1 steps, one after the other; a filter's
+# working memory is freed between runs. Coefficients measured on this project's 2-core machine
+# (2026-12-02; the room of ``config/worlds/room.yaml``, 40 steps, a fresh process's peak RSS):
+#
+# ==============  ===========================================  =====================================
+# filter          memory                                       time per step and run
+# ==============  ===========================================  =====================================
+# EKF             (steps only)                                 4 ms
+# histogram       40 B × cells (+ 8 B × nx·ny per logged grid)  20 ms + 0.6 µs × cells (nx·ny·ntheta)
+# particle        150 B × n                                    1 ms + 1.5 µs × n
+# ==============  ===========================================  =====================================
+#
+# (histogram: 0.10 s/step at 72,000 cells, 1.27 s at 2.3 M, 38 B a cell; particle: 0.14 s/step at
+# n = 100,000, 90 B a particle.) Simulating a step costs 1 ms; steps' own records 2 kB and 200 µs
+# (as a dead-reckoning run's).
+_LOC_SIM_S = 1e-3
+_EKF_STEP_S = 4e-3
+_HIST_CELL_BYTES, _HIST_STEP_S, _HIST_CELL_S = 40.0, 20e-3, 0.6e-6
+_PART_BYTES, _PART_STEP_S, _PART_S = 150.0, 1e-3, 1.5e-6
+
+
+def estimate_localization(config: Any) -> Cost:
+    """Peak memory and time of a localization run, from its parameters alone.
+
+    Parameters
+    ----------
+    config : LocalizationConfig (:mod:`pose_uncertainty.experiments.localization`, validated)
+
+    Returns
+    -------
+    Cost
+        As :func:`estimate`: ``mem_bytes`` [bytes], ``seconds`` [s] (order of magnitude) and the
+        drivers: the interpreter, the steps (R runs × K steps simulated and recorded), and one
+        driver per filter (``filter histogram``: cells = nx·ny·ntheta of its grid; ``filter
+        particle``: n particles). Filters run one after the other: the peak holds the largest
+        filter's memory, not their sum.
+    """
+    from ..localization.histogram import pose_grid_for  # (a localization run imports it anyway)
+
+    traj = config.build_trajectory()
+    k_steps = int(traj.n_steps) + 1
+    repeat = int(config.repeat)
+    runs_text = f"repeat {repeat} × K = {k_steps:,} steps"
+    drivers = [
+        Driver("interpreter", "Python, numpy, scipy, mcap", _BASE_BYTES, _BASE_S),
+        Driver("steps", f"{runs_text} (trajectory {config.trajectory['name']}, dt {config.trajectory.get('dt', '')})",
+               _STEP_BYTES * k_steps, (_STEP_S + _LOC_SIM_S * repeat) * k_steps),
+    ]  # fmt: skip
+    filters: list[Driver] = []
+    f = config.filters
+    if "ekf" in f:
+        filters.append(Driver("filter ekf", runs_text, 0.0, _EKF_STEP_S * repeat * k_steps))
+    if "histogram" in f:
+        h = f["histogram"]
+        # the filter's own grid: a Grid holds its counts, not its cells (nothing of their size is made)
+        g = pose_grid_for(config.build_world(), h["resolution"], h["ntheta"])
+        nx, ny, nt = g.nx, g.ny, g.ntheta
+        cells = float(nx) * ny * nt
+        every = int(config.log.get("grid_every", 0) or 0)
+        logged = 8.0 * nx * ny * (k_steps // every + 2) if every > 0 else 0.0
+        res = "the world's cells" if h["resolution"] is None else f"resolution {h['resolution']:g}"
+        filters.append(Driver(
+            "filter histogram",
+            f"filters.histogram {res}, ntheta {nt}: {nx:,} × {ny:,} × {nt} = {cells:,.0f} cells; {runs_text}",
+            _HIST_CELL_BYTES * cells + logged, (_HIST_STEP_S + _HIST_CELL_S * cells) * repeat * k_steps, cells,
+        ))  # fmt: skip
+    if "particle" in f:
+        n = float(f["particle"]["n_particles"])
+        filters.append(Driver("filter particle", f"filters.particle.n_particles {n:,.0f}; {runs_text}",
+                              _PART_BYTES * n, (_PART_STEP_S + _PART_S * n) * repeat * k_steps))  # fmt: skip
+    drivers += filters
+    mem = sum(d.mem_bytes for d in drivers[:2]) + max((d.mem_bytes for d in filters), default=0.0)
+    secs = sum(d.seconds for d in drivers)
+    return Cost(mem_bytes=int(min(mem, 2**62)), seconds=float(min(secs, 1e30)), drivers=tuple(drivers))
+
+
+def _guard(label: str, cost: Cost, lim: Limits) -> Cost:
+    """Refuse ``cost`` over a limit of ``lim`` (:class:`CostError`, one line: the estimate, the limit and
+    where it comes from, the drivers), or announce it on stderr when it is long; return it."""
+    for what, over, size, env, example in (
+        ("mem_bytes", f"need about {fmt_bytes(cost.mem_bytes)} of memory", fmt_bytes, ENV_MAX_MEMORY, "=64G"),
+        ("seconds", f"take about {fmt_seconds(cost.seconds)}", fmt_seconds, ENV_MAX_SECONDS, "=6h"),
+    ):
+        limit, source = (lim.mem_bytes, lim.mem_source) if what == "mem_bytes" else (lim.seconds, lim.seconds_source)
+        if limit is not None and getattr(cost, what) > limit:
+            drivers = "; ".join(f"{d.name} {size(getattr(d, what))} ({d.params})" for d in cost.top(what))
+            raise CostError(
+                f"{label} would {over}, over the limit of {size(limit)} ({source}; set {env}, e.g. "
+                f"{example} or =none, to change it); it is driven by {drivers}"
+            )
+    if cost.seconds > ANNOUNCE_SECONDS:
+        print(f"{label}: estimated {cost.summary()}", file=sys.stderr, flush=True)
+    return cost
+
+
+def check_localization(config: Any, limit: Limits | None = None) -> Cost:
+    """The guard of :func:`check` for a localization run (:func:`estimate_localization`).
+
+    Refuses a run over a limit with one line (the estimate, the limit, the drivers); announces
+    a run estimated over :data:`ANNOUNCE_SECONDS` on stderr before it starts.
+
+    Returns
+    -------
+    Cost — the estimate, when within the limits
+
+    Raises
+    ------
+    CostError
+    """
+    return _guard(f"localization run {config.name!r}", estimate_localization(config), limits() if limit is None else limit)
+
+
+# --- studies ---------------------------------------------------------------------------------
+#
+# A study (``pose_uncertainty.analysis.studies``) is dominated by its sampling: n poses carried
+# over N steps, for each of E evaluations (growth-law points, checkpoints, cases). Only that is
+# modelled, with the Monte Carlo coefficients above (140 B a pose, 100 ns a pose-step): a bound
+# that refuses a study of absurd size with the same one line as a run, not a calibrated estimate.
+_STUDY_DEFAULT_STEPS = 1000
+
+
+def _study_steps(params: Mapping[str, Any]) -> int:
+    """The steps N a study's parameters imply (its trajectory, ``duration / dt``, ``n_steps``, ``dts``)."""
+    tp = params.get("trajectory")
+    if isinstance(tp, Mapping) and "name" in tp:
+        return trajectories.n_steps(str(tp["name"]), **{k: v for k, v in tp.items() if k != "name"})
+    cases = params.get("cases")
+    if isinstance(cases, list | tuple) and cases:
+        return max(_study_steps({**params, "cases": None, **dict(c)}) for c in cases if isinstance(c, Mapping))
+    if "n_steps" in params:
+        v = params["n_steps"]
+        return int(sum(v)) if isinstance(v, list | tuple) else int(v)
+    duration = float(params.get("duration", params.get("length", 0.0)) or 0.0)
+    dts = params.get("dts", params.get("dt"))
+    dts = dts if isinstance(dts, list | tuple) else [dts]
+    if duration > 0 and all(isinstance(d, int | float) and d > 0 for d in dts):
+        return int(sum(math.ceil(duration / float(d)) for d in dts))
+    return _STUDY_DEFAULT_STEPS
+
+
+def estimate_study(name: str, kind: str, params: Mapping[str, Any]) -> Cost:
+    """A bound on a study's memory and time from its sampling size (see the comment above).
+
+    Parameters
+    ----------
+    name : the study's name; kind : its kind; params : every parameter (``study_params``)
+
+    Returns
+    -------
+    Cost — drivers ``interpreter`` and ``sampling`` (n poses × N steps × E evaluations)
+    """
+    n = float(params.get("n", params.get("n_particles", 1)) or 1)
+    steps = _study_steps(params)
+    evals = float(params.get("n_points", 0) or 0) + float(params.get("n_checkpoints", 0) or 0)
+    cases = params.get("cases")
+    evals = max(1.0, evals, float(len(cases)) if isinstance(cases, list | tuple) else 1.0)
+    which = "n" if "n" in params else "n_particles"
+    drivers = (
+        Driver("interpreter", "Python, numpy, scipy", _BASE_BYTES, _BASE_S),
+        Driver("sampling", f"study {name!r} ({kind}): {which} {n:,.0f} × N = {steps:,} steps × {evals:g} evaluation(s)",
+               _PARTICLE_BYTES * n, _MC_S["per_step"] * n * steps * evals),
+    )  # fmt: skip
+    return Cost(mem_bytes=int(min(sum(d.mem_bytes for d in drivers), 2**62)),
+                seconds=float(min(sum(d.seconds for d in drivers), 1e30)), drivers=drivers)  # fmt: skip
+
+
+def check_study(name: str, kind: str, params: Mapping[str, Any], limit: Limits | None = None) -> Cost:
+    """The guard of :func:`check` for a study (:func:`estimate_study`): one line over a limit.
+
+    Raises
+    ------
+    CostError
+    """
+    return _guard(f"study {name!r}", estimate_study(name, kind, params), limits() if limit is None else limit)

@@ -73,12 +73,14 @@ from ..localization.result import ASSOCIATIONS, SCENARIOS, FilterResult, Start
 from ..localization.sensors import BeamSensor, RangeBearingSensor
 from ..localization.world import World, world_from_dict
 from ..methods.sampling import REGIMES
+from . import cost
 from .config_checks import builder_keywords
 from .config_checks import check_keys as _check_keys
 from .config_checks import fail as _fail
 from .config_checks import integer as _int
 from .config_checks import name as _name
 from .config_checks import real as _float
+from .progress import Progress
 from .sweep import ConfigError, Run, expand_set
 
 __all__ = [
@@ -673,6 +675,17 @@ class _Display:
                 self.grids[k] = np.array(state["belief_xy"], dtype=np.float64)
 
 
+def _on_step(show: _Display | None, progress: Progress, done: int, total: int) -> Callable[[int, dict[str, Any]], None]:
+    """The filters' ``on_step``: the display's (first run only), then the run's progress."""
+
+    def on_step(k: int, state: dict[str, Any]) -> None:
+        if show is not None:
+            show(k, state)
+        progress(done + k + 1, total)
+
+    return on_step
+
+
 def _run_filter(name: str, cfg: LocalizationConfig, run: simulate.SimulatedRun, world: World, start: Start,
                 sensors: Mapping[str, Any], r: int, on_step: Any) -> FilterResult:  # fmt: skip
     """One filter on one simulated run."""
@@ -694,12 +707,23 @@ def _run_filter(name: str, cfg: LocalizationConfig, run: simulate.SimulatedRun, 
 def execute_localization(config: LocalizationConfig) -> LocalizationResult:
     """Simulate the R runs, run every configured filter on each, and compute every measure.
 
+    The cost guard (:func:`pose_uncertainty.experiments.cost.check_localization`) first
+    refuses a run over the memory or time limit, with one line, and announces a long one;
+    progress (steps of every filter on every run) goes to stderr
+    (:class:`~pose_uncertainty.experiments.progress.Progress`).
+
     Returns
     -------
     LocalizationResult
         Everything but ``timings`` is a deterministic function of ``config`` (its seed
         included), the package version and the environment.
+
+    Raises
+    ------
+    pose_uncertainty.experiments.cost.CostError
+        The run's estimate exceeds a limit (nothing was allocated).
     """
+    cost.check_localization(config)  # the guard: one line naming the estimate, the limit and the drivers
     t_all = time.perf_counter()
     world, traj = config.build_world(), config.build_trajectory()
     lm_sensor, beam_sensor = config.landmark_sensor(), config.beam_sensor()
@@ -712,6 +736,9 @@ def execute_localization(config: LocalizationConfig) -> LocalizationResult:
     shown = {f: _Display(f, config.log, traj.n_steps) for f in names}
     seconds = {f: 0.0 for f in names}
     t_sim = 0.0
+    n_steps = traj.n_steps + 1
+    progress = Progress(f"{config.name}: filters {', '.join(names)}")
+    total = config.repeat * len(names) * n_steps
     for r in range(config.repeat):
         t0 = time.perf_counter()
         run = simulate.simulate(
@@ -722,8 +749,10 @@ def execute_localization(config: LocalizationConfig) -> LocalizationResult:
         )  # fmt: skip
         t_sim += time.perf_counter() - t0
         runs.append(run)
-        for f in names:
-            res = _run_filter(f, config, run, world, start, sensors, r, shown[f] if r == 0 else None)
+        for i, f in enumerate(names):
+            done = (r * len(names) + i) * n_steps
+            res = _run_filter(f, config, run, world, start, sensors, r,
+                              _on_step(shown[f] if r == 0 else None, progress, done, total))  # fmt: skip
             results[f].append(res)
             seconds[f] += float(res.step_seconds.sum())
     t0 = time.perf_counter()

@@ -26,6 +26,7 @@ from ..analysis.studies import STUDIES, summarize
 from ..core.atomic import atomic_write_text
 from ..core.provenance import provenance
 from ..core.table_io import jsonable
+from .cost import check_study
 
 __all__ = ["FORMAT", "collect_studies", "read_study", "run_study", "study_params"]
 
@@ -60,6 +61,7 @@ def study_params(name: str, spec: Mapping[str, Any]) -> tuple[str, dict[str, Any
 def run_study(name: str, spec: Mapping[str, Any], out: str | os.PathLike[str]) -> Path:
     """Run one configured study and write its log (JSON, atomically) to ``out``."""
     kind, params = study_params(name, spec)
+    check_study(name, kind, params)  # the cost guard: one line over the memory or time limit
     results = STUDIES[kind](**params)
     doc = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "name": name, "study": kind,

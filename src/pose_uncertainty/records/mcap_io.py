@@ -9,7 +9,8 @@ the same bytes.
 
 Reading
 -------
-:func:`read_container` reads the whole file, validates the magic, every chunk CRC, the
+:func:`read_container` checks the kind of file, its size and its magic before reading anything
+else, then reads it record by record (never whole), validates every chunk CRC, the
 data-section CRC and the summary CRC (:func:`scan`), and checks that pose-uncertainty wrote it
 (the header's library and the ``pose_uncertainty.run`` metadata record). It raises
 :class:`RunLogError` (a ``ValueError`` with one line: ``"<path>: <problem>"``) for an empty,
@@ -23,15 +24,17 @@ from __future__ import annotations
 import io
 import json
 import os
+import stat
 import zlib
 from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import numpy as np
 from google.protobuf.message import DecodeError
+from mcap.opcode import Opcode
 from mcap.records import Channel, DataEnd, Footer, Header, Message, Metadata, Schema
 from mcap.stream_reader import CRCValidationError, StreamReader
 from mcap.writer import CompressionType
@@ -173,14 +176,49 @@ def write_atomically(path: str | os.PathLike[str], write: Callable[..., None], *
 # --- reading -----------------------------------------------------------------------------
 
 
-def scan(data: bytes) -> tuple[list[Any], str | None]:
+def _size(stream: IO[bytes]) -> int:
+    here = stream.tell()
+    size = stream.seek(0, os.SEEK_END)
+    stream.seek(here)
+    return size
+
+
+def _read_at(stream: IO[bytes], offset: int, n: int) -> bytes:
+    stream.seek(offset)
+    return stream.read(n)
+
+
+class _StrictReader(StreamReader):
+    """The MCAP stream reader, refusing record opcodes the format does not define.
+
+    ``mcap``'s reader skips an unknown record; a run of zero bytes would then be read as
+    millions of empty records (a file of zeros after a valid start never ends). This
+    project's writer writes only the format's records.
+    """
+
+    def _read_record(self, opcode: int, length: int) -> Any:
+        if opcode not in _OPCODES:
+            raise ValueError(f"record opcode {opcode:#04x} is not an MCAP record")
+        return super()._read_record(opcode, length)
+
+
+_OPCODES = frozenset(int(o) for o in Opcode)
+
+
+def scan(data: bytes | IO[bytes]) -> tuple[list[Any], str | None]:
     """Read every record, validating chunk and data-section CRCs; stop at the first problem.
+
+    Parameters
+    ----------
+    data : the file's bytes, or a seekable binary file object (read record by record: the file
+        is never held whole in memory)
 
     Returns the records read so far (chunk contents only for whole, CRC-valid
     chunks) and a description of the problem, or None if the file is complete.
     """
-    stream = io.BytesIO(data)
-    reader = StreamReader(stream, validate_crcs=True, record_size_limit=len(data))
+    stream: IO[bytes] = io.BytesIO(data) if isinstance(data, (bytes, bytearray, memoryview)) else data
+    size = _size(stream)
+    reader = _StrictReader(stream, validate_crcs=True, record_size_limit=size)
     records: list[Any] = []
     try:
         for rec in reader.records:  # one by one: keep what precedes a failure
@@ -192,22 +230,22 @@ def scan(data: bytes) -> tuple[list[Any], str | None]:
             f"corrupted: CRC mismatch in {what} record (stored {exc.expected:#010x}, computed {exc.actual:#010x})",
         )
     except Exception as exc:  # noqa: BLE001 - any parse failure of foreign bytes is a damaged file
-        return records, _parse_failure(data, stream.tell(), exc)
-    return records, _summary_problem(data, records)
+        return records, _parse_failure(stream, size, stream.tell(), exc)
+    return records, _summary_problem(stream, size, records)
 
 
-def _parse_failure(data: bytes, pos: int, exc: Exception) -> str:
+def _parse_failure(stream: IO[bytes], size: int, pos: int, exc: Exception) -> str:
     """What an unreadable record at byte ``pos`` means: a damaged magic, a truncation or corruption."""
-    tail = data[-len(MAGIC) :]
+    tail = _read_at(stream, max(0, size - len(MAGIC)), len(MAGIC))
     if len(tail) == len(MAGIC) and 0 < sum(a != b for a, b in zip(tail, MAGIC, strict=True)) <= 2:
         return "corrupted: damaged MCAP magic at the end of the file"
-    if not data.endswith(MAGIC):
-        return f"truncated: the file ends at byte {len(data)} inside an MCAP record (no footer)"
-    detail = "a record runs past the end of the file" if pos >= len(data) else (str(exc) or type(exc).__name__)
+    if tail != MAGIC:
+        return f"truncated: the file ends at byte {size} inside an MCAP record (no footer)"
+    detail = "a record runs past the end of the file" if pos >= size else (str(exc) or type(exc).__name__)
     return f"corrupted: unreadable MCAP record near byte {pos} ({detail})"
 
 
-def _summary_problem(data: bytes, records: list[Any]) -> str | None:
+def _summary_problem(stream: IO[bytes], size: int, records: list[Any]) -> str | None:
     """The footer, the data end and the summary CRC of a file whose records all parsed."""
     footer = records[-1] if records else None
     if not isinstance(footer, Footer):
@@ -215,12 +253,18 @@ def _summary_problem(data: bytes, records: list[Any]) -> str | None:
     if not any(isinstance(r, DataEnd) for r in records):
         return "corrupted: no DataEnd record (the data section is damaged)"
     if footer.summary_crc != 0:
-        footer_at = len(data) - len(MAGIC) - _FOOTER_RECORD
+        footer_at = size - len(MAGIC) - _FOOTER_RECORD
         start = footer.summary_start or footer_at
         if not 0 < start <= footer_at:
             return f"corrupted: summary offset {footer.summary_start} is outside the file"
-        crc = zlib.crc32(data[start:footer_at])
-        crc = zlib.crc32(data[footer_at : footer_at + 1 + 8 + 16], crc)
+        stream.seek(start)
+        crc, left = 0, footer_at - start
+        while left > 0:
+            block = stream.read(min(left, 1 << 20))
+            if not block:
+                return "truncated: the summary section ends early"
+            crc, left = zlib.crc32(block, crc), left - len(block)
+        crc = zlib.crc32(_read_at(stream, footer_at, 1 + 8 + 16), crc)
         if crc != footer.summary_crc:
             return (
                 f"corrupted: CRC mismatch in the summary section "
@@ -252,22 +296,46 @@ class Container:
     problem: str | None
 
 
-def _read_bytes(p: Path) -> bytes:
+_KINDS = ((stat.S_ISDIR, "is a directory"), (stat.S_ISFIFO, "is a FIFO (named pipe)"),
+          (stat.S_ISSOCK, "is a socket"), (stat.S_ISCHR, "is a character device"),
+          (stat.S_ISBLK, "is a block device"))  # fmt: skip
+
+
+def _open_log(p: Path) -> IO[bytes]:
+    """Open a log for reading after checking, without reading it, that it can be one.
+
+    The kind of file (a regular file: a FIFO or a device such as ``/dev/zero`` would never end),
+    its size (empty, shorter than the magic) and the MCAP magic at its start (24 bytes read) are
+    checked first; the file is then read record by record by :func:`scan`.
+    """
     try:
-        data = p.read_bytes()
+        st = p.stat()
     except FileNotFoundError:
         raise RunLogError(f"{p}: no such file") from None
-    except IsADirectoryError:
-        raise RunLogError(f"{p}: is a directory, not a run log") from None
     except OSError as exc:
         raise RunLogError(f"{p}: cannot read ({exc.strerror or exc})") from None
-    if not data:
+    if not stat.S_ISREG(st.st_mode):
+        what = next((w for test, w in _KINDS if test(st.st_mode)), "is not a regular file")
+        raise RunLogError(f"{p}: {what}, not a run log (a run log is a regular *.mcap file)")
+    if st.st_size == 0:
         raise RunLogError(f"{p}: empty file (0 bytes), not a run log")
-    if not data.startswith(MAGIC):
-        if MAGIC.startswith(data):
-            raise RunLogError(f"{p}: truncated: only {len(data)} bytes of the MCAP magic")
-        raise RunLogError(f"{p}: not an MCAP file (no MCAP magic; {_describe_start(data)})")
-    return data
+    try:
+        fh = p.open("rb")
+    except OSError as exc:
+        raise RunLogError(f"{p}: cannot read ({exc.strerror or exc})") from None
+    try:
+        if not stat.S_ISREG(os.fstat(fh.fileno()).st_mode):  # replaced since the check
+            raise RunLogError(f"{p}: not a regular file, not a run log")
+        head = fh.read(24)
+        if not head.startswith(MAGIC):
+            if MAGIC.startswith(head):
+                raise RunLogError(f"{p}: truncated: only {len(head)} bytes of the MCAP magic")
+            raise RunLogError(f"{p}: not an MCAP file (no MCAP magic; {_describe_start(head)})")
+        fh.seek(0)
+    except BaseException:
+        fh.close()
+        raise
+    return fh
 
 
 def read_container(path: str | os.PathLike[str], *, recover: bool = False) -> Container:
@@ -277,7 +345,8 @@ def read_container(path: str | os.PathLike[str], *, recover: bool = False) -> Co
     CRC-valid chunks only; ``partial=True``, ``problem`` says what is wrong) instead of raising.
     """
     p = Path(path)
-    records, problem = scan(_read_bytes(p))
+    with _open_log(p) as fh:
+        records, problem = scan(fh)
     if problem is not None and not recover:
         n_msgs = sum(isinstance(r, Message) for r in records)
         hint = f"; {n_msgs} messages before it can be recovered (replay --recover)" if n_msgs else ""

@@ -149,6 +149,10 @@ class Comparison:
         One line each: differences beyond the contract; facts that are not differences.
     compared : dict of str to int
         What was compared: messages per topic, metadata keys.
+    not_compared : dict of str to str
+        What the log holds that was not compared, and why (the header's library string of
+        another version, wall-clock timings). An outcome with anything here is never reported
+        as identical.
     """
 
     status: str = IDENTICAL
@@ -158,6 +162,7 @@ class Comparison:
     mismatches: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     compared: dict[str, int] = field(default_factory=dict)
+    not_compared: dict[str, str] = field(default_factory=dict)
 
 
 @dataclass
@@ -436,6 +441,7 @@ def compare_log_bytes(logged: bytes, fresh: bytes, *, n_steps: int,
     hb = next((r for r in b if isinstance(r, Header)), None)
     if ha is not None and hb is not None and ha.library != hb.library:
         out.notes.append(f"written by {ha.library}, recomputed by {hb.library}")
+        out.not_compared["the header's library"] = f"written by {ha.library}, recomputed by {hb.library}"
     _compare_metadata(walk, a, b, frozenset(skip_metadata), out)
     ta, ma = _messages(a)
     tb, mb = _messages(b)

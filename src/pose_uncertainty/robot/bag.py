@@ -33,6 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 from rosbags.highlevel import AnyReader
 
+from ..core.validation import first_line
 from .config import RobotConfig
 from .messages import (
     INT_ARRAY_BITS,
@@ -129,11 +130,6 @@ def bag_paths(path: str | Path) -> list[Path]:
 def _decode(reader: AnyReader, raw: bytes, msgtype: str) -> Any:
     """A deserialised message (rosbags types it as ``object``)."""
     return reader.deserialize(raw, msgtype)
-
-
-def _first_line(exc: BaseException) -> str:
-    text = str(exc).strip()
-    return text.splitlines()[0] if text else type(exc).__name__
 
 
 # --- choosing the topics ------------------------------------------------------------------
@@ -403,4 +399,4 @@ def read_bag(path: str | Path, robot: RobotConfig | None = None, progress: Progr
     except BagError:
         raise
     except Exception as exc:  # noqa: BLE001 - rosbags raises many kinds on a damaged file
-        raise BagError(f"{src}: cannot read the bag, truncated or damaged ({_first_line(exc)})") from None
+        raise BagError(f"{src}: cannot read the bag, truncated or damaged ({first_line(exc)})") from None
