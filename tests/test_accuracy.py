@@ -139,3 +139,21 @@ def test_bad_input():
         ProbabilityMap.from_density_xy(np.arange(3.0), np.arange(4.0), np.zeros((4, 3)))
     with pytest.raises(ValueError, match="pr must be a probability"):
         stats.hdr_region(np.ones(4) / 4, 1.5)
+
+
+def test_a_gaussian_with_no_mass_on_the_clouds_grid_gives_undefined_distances_not_an_error() -> None:
+    # A long path's cloud can lie where Method A's Gaussian has no mass at all (a 400 m straight
+    # with 100 particles did): the shape distances on the cells are undefined (NaN), the model's
+    # mass on the grid says why, and the coverage is still measured (0: no point inside).
+    rng = np.random.default_rng(5)
+    cloud = np.column_stack([rng.normal(100.0, 0.01, 200), rng.normal(50.0, 0.01, 200), np.zeros(200)])
+    res = ac.compare_methods(cloud, (np.zeros(3), np.diag([1e-4, 1e-4, 1e-4])), None, rng, prs=(0.9,))
+    assert res["cartesian"]["model_mass_on_grid"] == 0.0
+    assert math.isnan(res["cartesian"]["hellinger"])
+    assert math.isnan(res["cartesian"]["kl"])
+    assert math.isnan(res["monte_carlo"]["hellinger_floor"])
+    assert res["cartesian"]["coverage_xy_90"] == 0.0
+    # where both have mass the distance is defined and in [0, 1]
+    near = ac.compare_methods(cloud, (np.array([100.0, 50.0, 0.0]), np.diag([1e-4, 1e-4, 1e-4])), None, rng,
+                              prs=(0.9,))
+    assert 0.0 <= near["cartesian"]["hellinger"] <= 1.0

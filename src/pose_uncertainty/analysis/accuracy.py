@@ -210,12 +210,18 @@ def _safe_mean_log(x: NDArray) -> float:
         return float(np.mean(np.log(x)))
 
 
+def _shape_distances(p: NDArray, q: NDArray) -> tuple[float, float]:
+    """(Hellinger, KL) of ``p`` against ``q`` on the compared cells; both NaN when either puts no
+    mass on them (a cloud and a model with no cell in common: their shapes on the cells are
+    undefined, and the model's mass on the grid, logged beside, says so)."""
+    if not (float(np.sum(p)) > 0.0 and float(np.sum(q)) > 0.0):
+        return math.nan, math.nan
+    return hellinger(p, q), kl_divergence(p, q)
+
+
 def _distances(p: NDArray, q: NDArray) -> dict[str, float]:
-    return {
-        "hellinger": hellinger(p, q),
-        "kl": kl_divergence(p, q),
-        "model_mass_on_grid": float(q.sum()),
-    }
+    h, kl = _shape_distances(p, q)
+    return {"hellinger": h, "kl": kl, "model_mass_on_grid": float(q.sum())}
 
 
 def _gauss2_pdf(mean: NDArray, cov: NDArray) -> Any:
@@ -360,7 +366,8 @@ def _floor(pose: NDArray, cov_xy: NDArray, n: int, grid: Grid, rng: np.random.Ge
     draws = rng.multivariate_normal(pose[:2], cov_xy, size=n, method="eigh")
     q = cell_probabilities(_gauss2_pdf(pose[:2], cov_xy), grid, 4)
     p = grid.histogram_xy(draws)
-    return {"hellinger_floor": hellinger(p, q), "kl_floor": kl_divergence(p, q)}
+    h, kl = _shape_distances(p, q)
+    return {"hellinger_floor": h, "kl_floor": kl}
 
 
 def compare_methods(
