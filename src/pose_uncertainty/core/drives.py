@@ -295,7 +295,8 @@ def differential_twist(ds_r: ArrayLike, ds_l: ArrayLike, track: ArrayLike) -> ND
     """
     r = np.asarray(ds_r, dtype=np.float64)
     l = np.asarray(ds_l, dtype=np.float64)
-    return _vec((r + l) / 2.0, np.zeros_like(r + l), (r - l) / track)
+    b = np.asarray(track, dtype=np.float64)
+    return _vec((r + l) / 2.0, np.zeros_like(r + l), (r - l) / b)
 
 
 def differential_twist_jacobian(track: ArrayLike, shape: tuple[int, ...] = ()) -> NDArray[np.float64]:

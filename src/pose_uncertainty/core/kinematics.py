@@ -130,10 +130,7 @@ def step(pose: ArrayLike, ds: ArrayLike, dtheta: ArrayLike, method: Method = "mi
     -------
     ndarray, shape (..., 3)
     """
-    d = check_finite("ds", ds)
-    dth = check_finite("dtheta", dtheta)
-    d, dth = np.broadcast_arrays(d, dth)
-    return step_twist(pose, _twists(d, dth), method)
+    return step_twist(pose, _twists(ds, dtheta), method)
 
 
 def integrate(
@@ -156,17 +153,16 @@ def integrate(
     poses : ndarray, shape (..., N+1, 3) — the start pose followed by the pose
         after each step (heading unwrapped).
     """
-    d = check_finite("ds", ds)
-    dth = check_finite("dtheta", dtheta)
-    d, dth = np.broadcast_arrays(d, dth)
-    if d.ndim == 0:
-        raise ValueError(f"ds must have shape (..., N), got shape {d.shape}")
-    return integrate_twist(_twists(d, dth), start, method)
+    xi = _twists(ds, dtheta)
+    if xi.ndim == 1:
+        raise ValueError(f"ds must have shape (..., N), got shape {xi.shape[:-1]}")
+    return integrate_twist(xi, start, method)
 
 
-def _twists(ds: NDArray[np.float64], dtheta: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Body twists ``(Δs, 0, Δθ)`` (..., 3) of steps without lateral motion (same shapes in)."""
-    return np.stack([ds, np.zeros_like(ds), dtheta], axis=-1)
+def _twists(ds: ArrayLike, dtheta: ArrayLike) -> NDArray[np.float64]:
+    """Body twists ``(Δs, 0, Δθ)`` (..., 3) of steps without lateral motion (``ds``, ``dtheta`` broadcast)."""
+    d, dth = np.broadcast_arrays(check_finite("ds", ds), check_finite("dtheta", dtheta))
+    return np.stack([d, np.zeros_like(d), dth], axis=-1)
 
 
 def inverse_arc(

@@ -184,7 +184,7 @@ def _sandwich(J: NDArray, S: NDArray) -> NDArray:
     return np.moveaxis(_sandwich_soa(_soa(J), _soa(S)), (0, 1), (-2, -1))
 
 
-def _soa(A: NDArray) -> NDArray:
+def _soa(A: ArrayLike) -> NDArray:
     """Matrices (..., r, c) as one contiguous array per entry, shape (r, c, ...)."""
     return np.ascontiguousarray(np.moveaxis(np.asarray(A, dtype=np.float64), (-2, -1), (0, 1)))
 

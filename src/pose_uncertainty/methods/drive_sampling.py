@@ -103,11 +103,9 @@ def _end_poses(
     if start_offset is not None:
         delta += start_offset[:, 2:3]
         heading_noise_end += start_offset[:, 2]
-    b = None
-    if dv2 is not None or nom.v2 is not None:
-        b = np.broadcast_to(nom.v2, a.shape).copy() if dv2 is None else dv2
-        if dv2 is not None and nom.v2 is not None:
-            b += nom.v2
+    b: NDArray[np.float64] | None = dv2  # v₂' per particle and step, None: no lateral travel
+    if nom.v2 is not None:
+        b = np.broadcast_to(nom.v2, a.shape).copy() if b is None else b + nom.v2
     if method == "exact":
         # s' = sin(Δθ'/2)/(Δθ'/2), Δθ' = Δθ̄ + e
         e += nom.dtheta
@@ -159,6 +157,7 @@ def _chunk_poses(
         return integrate_twist(_particle_twists(path, errors), start, method)[:, cps, :]  # type: ignore[arg-type]
     du = list(errors.channels)
     scratch = du[-1]
+    dv2: NDArray[np.float64] | None
     if errors.chi is not None:
         d = _particle_twists(path, errors) - path.twists
         dv1, dv2, e = d[..., 0].copy(), d[..., 1].copy(), d[..., 2].copy()
