@@ -16,9 +16,9 @@ covariances:
   (batched over parameter sets; :func:`.drive_covariance.step`); the reference.
 * :func:`propagate` — closed form, no loop over steps
   (:func:`.drive_covariance.propagate_steps`: the step Jacobians ``J_p = I + c e₃ᵀ``
-  telescope into prefix sums). The covariance is linear in ``(k_r, k_l)``, so it
-  is computed once per geometry for unit constants and combined for every
-  parameter set.
+  telescope into prefix sums). The covariance is linear in ``(k_r, k_l)``, so for
+  many parameter sets it is computed once per geometry for unit constants and
+  combined for every set.
 
 Error ellipses (Němec 2012 §2.1.1) come from :func:`ellipse` (closed form) and
 :func:`ellipse_polyline` (transformed circle).
@@ -237,13 +237,12 @@ def propagate_travels(
     sr = np.broadcast_to(sr, geo + sr.shape[-1:])
     sl = np.broadcast_to(sl, geo + sl.shape[-1:])
     b = np.broadcast_to(b, geo)[..., None]
-    # unit constants (k_r, k_l) = (1, 0) and (0, 1): Σ_Δ = diag(|Δs_r|, 0), diag(0, |Δs_l|)
-    unit = _sigma_delta(sr, sl, np.array([[1.0], [0.0]]).reshape((2,) + (1,) * len(geo) + (1,)),
-                        np.array([[0.0], [1.0]]).reshape((2,) + (1,) * len(geo) + (1,)))  # fmt: skip
-    poses, G = propagate_steps(
-        differential_twist(sr, sl, b), differential_twist_jacobian(b, sr.shape), unit,
-        start=p0, method="midpoint",
-    )  # fmt: skip
+    twists, jac = differential_twist(sr, sl, b), differential_twist_jacobian(b, sr.shape)
+    if kr.ndim == 0 and kl.ndim == 0:  # one parameter set: Σ_Δ itself
+        return propagate_steps(twists, jac, _sigma_delta(sr, sl, kr, kl), cov0=S0, start=p0, method="midpoint")
+    # unit constants (k_r, k_l) = (1, 0) and (0, 1), combined for every parameter set
+    one = np.array([1.0, 0.0]).reshape((2,) + (1,) * sr.ndim)
+    poses, G = propagate_steps(twists, jac, _sigma_delta(sr, sl, one, 1.0 - one), start=p0, method="midpoint")
     covs = kr[..., None, None, None] * G[0] + kl[..., None, None, None] * G[1]
     if np.any(S0):
         covs = covs + start_covariance(poses[0], S0)

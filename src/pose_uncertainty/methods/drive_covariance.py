@@ -294,16 +294,15 @@ def _transport_soa(poses: NDArray, Q: NDArray) -> NDArray:
     P_sm = [_prefix(s * mi[r]) for r in range(2)]
     lin = [_prefix(q[c]) - (P_sm[c] if c < 2 else 0.0) for c in range(3)]
 
-    def X(r: int, c: int) -> NDArray:
-        return m[r] * lin[c] - _prefix(mi[r] * q[c])
-
+    # X_rc for the rows of x, y (r < 2), each once
+    X = {(r, c): m[r] * lin[c] - _prefix(mi[r] * q[c]) for r in range(2) for c in range(3)}
     S = np.empty((*np.broadcast_shapes(P_s.shape, m[0].shape), 3, 3))
     for r, c in _PAIRS:
         e = _prefix(0.5 * (Q[r, c] + Q[c, r]))
         if r < 2:
-            e = e + X(r, c)
+            e = e + X[r, c]
         if c < 2:
-            e = e + X(c, r)
+            e = e + X[c, r]
         if r < 2 and c < 2:
             e = e + _prefix(s * mi[r] * mi[c]) + m[r] * m[c] * P_s
         S[..., r, c] = e
