@@ -160,6 +160,8 @@ def propagate(
     S0 = check_pose_cov("cov0", cov0)
     delta, unit = _step_noise(trajectory)
     start, times = trajectory.start, trajectory.times
+    if kr.ndim == 0 and kl.ndim == 0:  # one parameter set: its twist covariance itself
+        return propagate_twists(delta, kr * unit[0] + kl * unit[1], start=start, cov0=S0, times=times)
     G = propagate_twists(delta, unit, start=start, times=times).covs  # (k_r, k_l) = (1, 0), (0, 1)
     covs = kr[..., None, None, None] * G[0] + kl[..., None, None, None] * G[1]
     if np.any(S0):
