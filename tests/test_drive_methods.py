@@ -10,12 +10,10 @@ from pose_uncertainty.core import drives as dr
 from pose_uncertainty.core import kinematics as kin
 from pose_uncertainty.core import stats
 from pose_uncertainty.core import trajectories as tr
-from pose_uncertainty.methods import covariance as cv
 from pose_uncertainty.methods import drive_covariance as dc
 from pose_uncertainty.methods import drive_noise as dn
 from pose_uncertainty.methods import drive_sampling as ds
 from pose_uncertainty.methods import expcoords as ec
-from pose_uncertainty.methods import sampling as sp
 from pose_uncertainty.methods.wheel_noise import SEED001
 
 ALL_DRIVES = [
@@ -60,54 +58,122 @@ def _assert_agree(mean_mc, cov_mc, mean_a, cov_a, n):
     assert np.all(np.abs(mean_mc - mean_a) <= 5 * np.sqrt(np.diag(cov_a) / n) + 1e-12)
 
 
-# --- the differential drive through the generic interface: today's numbers ----------------
+# --- the differential drive is one drive among the others ----------------------------------
 
 
-@pytest.fixture(scope="module")
-def differential():
+def test_wheel_path_is_the_trajectorys_wheel_travels_bit_for_bit():
     t = tr.s_curve(0.5, dt=0.01, track=0.2)
-    path = dr.DrivePath(dr.Differential(0.2), np.stack([t.ds_r, t.ds_l], -1), t.dt, t.start)
-    return t, path, dn.DriveErrorModel(k=(5e-4, 3e-4))
-
-
-def test_differential_poses_are_todays(differential):
-    t, path, _ = differential
+    path = dr.wheel_path(t)
+    assert path.drive == dr.Differential(0.2)
+    assert_array_equal(path.u, np.stack([t.ds_r, t.ds_l], -1))
     for method in kin.METHODS:
-        assert_allclose(path.poses_by(method), t.poses_by(method), rtol=0, atol=1e-12)
-    assert_allclose(dr.follow(dr.Differential(0.2), t).u, path.u, atol=1e-15)
+        assert_array_equal(path.poses_by(method), t.poses_by(method))
+    # follow() recomputes the travels from the arcs: the same up to rounding
+    assert_allclose(dr.follow(dr.Differential(0.2), t).u, path.u, rtol=0, atol=1e-15)
 
 
-def test_differential_method_a_is_todays(differential):
-    t, path, model = differential
-    cov0 = np.diag([1e-4, 2e-4, 1e-3])
-    for c0 in (None, cov0):
-        old = cv.propagate(t, 5e-4, 3e-4, cov0=c0)
-        new = dc.propagate_path(path, model, cov0=c0)
-        assert_allclose(new.poses, old.poses, rtol=0, atol=1e-12)
-        assert_allclose(new.covs, old.covs, rtol=1e-12, atol=1e-12 * np.abs(old.covs).max())
+@pytest.mark.parametrize(("k_r", "k_l", "b"), [(5e-4, 5e-4, 0.2), (9e-4, 1e-4, 0.1)])
+def test_differential_method_a_on_a_straight_line_is_the_closed_form(k_r, k_l, b):
+    """The exact discrete closed form of the straight line (s = nΔ, K = k_r+k_l, D = k_r−k_l):
+    σx² = K s/4, σy² = K/b² (s³/3 − sΔ²/12), σθ² = K s/b², σxy = D s²/(4b), σxθ = D s/(2b),
+    σyθ = K s²/(2b²) — midpoint and exact steps (on a straight line their Jacobians coincide)."""
+    t = tr.straight(2.0, dt=0.01, speed=1.0, track=b)
+    K, D, delta = k_r + k_l, k_r - k_l, t.ds[0]
+    for method in ("midpoint", "exact"):
+        res = dc.propagate_path(dr.wheel_path(t), dn.DriveErrorModel(k=(k_r, k_l)), method=method)
+        for n in (1, t.n_steps // 3, t.n_steps):
+            s = n * delta
+            expected = np.array([
+                [K * s / 4, D * s**2 / (4 * b), D * s / (2 * b)],
+                [D * s**2 / (4 * b), K / b**2 * (s**3 / 3 - s * delta**2 / 12), K * s**2 / (2 * b**2)],
+                [D * s / (2 * b), K * s**2 / (2 * b**2), K * s / b**2],
+            ])  # fmt: skip
+            assert_allclose(res.covs[n], expected, rtol=1e-10, atol=1e-18)
 
 
-def test_differential_expcoords_is_todays(differential):
-    t, path, model = differential
-    old = ec.propagate(t, 5e-4, 3e-4)
-    new = dc.expcoords(path, model)
-    assert_allclose(new.poses, old.poses, rtol=0, atol=1e-12)
-    assert_allclose(new.covs, old.covs, rtol=0, atol=1e-12 * np.abs(old.covs).max())
+def test_differential_per_run_on_a_straight_line_is_the_closed_form():
+    """Per run, wheel scale errors ε_j ~ N(0, k_j/L) (L = s at the end): to first order the heading
+    error after s is (ε_r − ε_l)s/b and the lateral error ∫ heading = (ε_r − ε_l)s²/(2b), so
+    σθ² = K s²/(L b²), σy² = K s⁴/(4 L b²), σyθ = K s³/(2 L b²), σx² = K s²/(4L)."""
+    k_r, k_l, b = 9e-4, 1e-4, 0.2
+    t = tr.straight(2.0, dt=0.01, speed=1.0, track=b)
+    res = dc.propagate_path_per_run(dr.wheel_path(t), dn.DriveErrorModel(k=(k_r, k_l)))
+    K, D, L = k_r + k_l, k_r - k_l, 2.0
+    for n in (t.n_steps // 4, t.n_steps):
+        s = n * t.ds[0]
+        expected = np.array([
+            [K * s**2 / (4 * L), D * s**3 / (4 * L * b), D * s**2 / (2 * L * b)],
+            [D * s**3 / (4 * L * b), K * s**4 / (4 * L * b**2), K * s**3 / (2 * L * b**2)],
+            [D * s**2 / (2 * L * b), K * s**3 / (2 * L * b**2), K * s**2 / (L * b**2)],
+        ])  # fmt: skip
+        assert_allclose(res.covs[n], expected, rtol=1e-9, atol=1e-18)
 
 
-@pytest.mark.parametrize("regime", ["per_step", "per_run"])
-@pytest.mark.parametrize(
-    "extra",
-    [{}, {"cov0": np.diag([1e-4, 2e-4, 1e-3])}, {"checkpoints": [0, 40, 158]}],
-    ids=["end", "cov0", "checkpoints"],
-)
-def test_differential_monte_carlo_is_todays_with_the_same_seed(differential, regime, extra):
-    t, path, model = differential
-    old = sp.sample_end_poses(
-        t, 5e-4, 3e-4, 5000, np.random.default_rng(11), regime=regime, **extra
-    )
-    new = ds.sample_poses(path, model, 5000, np.random.default_rng(11), regime=regime, **extra)
-    assert_allclose(new, old, rtol=0, atol=1e-12)
+def _recursion(drive, u, Su, Qx, S0, start, method):
+    """The step recursion of Method A with numpy's matmul: the route the closed form is not."""
+    xi = drive.twist(u)
+    p, S = np.asarray(start, float), np.asarray(S0, float)
+    poses, covs = [p], [S]
+    for i in range(len(u)):
+        J_p, J_xi = dc.twist_step_jacobians(p[2], xi[i], method)
+        J_u = J_xi @ drive.twist_jacobian(u[i])
+        S = J_p @ S @ J_p.T + J_u @ Su[i] @ J_u.T + (0 if Qx is None else J_xi @ Qx[i] @ J_xi.T)
+        p = kin.step_twist(p, xi[i], method)
+        poses.append(p)
+        covs.append(S)
+    return np.array(poses), np.array(covs)
+
+
+@pytest.mark.parametrize("method", ["midpoint", "exact", "euler"])
+@pytest.mark.parametrize("drive", ALL_DRIVES, ids=IDS)
+def test_method_a_closed_form_equals_the_step_recursion(drive, method):
+    path = dr.follow(drive, tr.s_curve(0.5, dt=0.02, track=0.2))
+    model = _small_model(drive)
+    mean = dn.measurement_mean(drive, path.u, model)
+    Su = dn.measurement_cov(drive, path.u, path.dt, model)
+    Qx = dn.slip_twist_cov(drive, mean, model)
+    S0 = np.array([[1e-4, 2e-5, 0.0], [2e-5, 3e-4, 1e-5], [0.0, 1e-5, 2e-4]])
+    start = (0.3, -0.2, 0.4)
+    poses, covs = dc.propagate(drive, mean, Su, twist_cov=Qx, cov0=S0, start=start, method=method)
+    P1, C1 = _recursion(drive, mean, Su, Qx, S0, start, method)
+    assert_allclose(poses, P1, rtol=0, atol=1e-12)
+    assert_allclose(covs, C1, rtol=0, atol=1e-12 * np.abs(C1).max())
+    # the one-step recursion of the module agrees too
+    p1, c1 = dc.step(drive, P1[5], C1[5], mean[5], Su[5], method)
+    assert_allclose(p1, P1[6], atol=1e-14)
+    if Qx is None:
+        assert_allclose(c1, C1[6], rtol=0, atol=1e-13 * np.abs(C1[6]).max())
+
+
+@pytest.mark.parametrize("drive", ALL_DRIVES, ids=IDS)
+def test_per_run_closed_form_equals_the_sensitivity_recursion(drive):
+    path = dr.follow(drive, tr.s_curve(0.5, dt=0.02, track=0.2))
+    model = _small_model(drive)
+    mean = dn.measurement_mean(drive, path.u, model)
+    sens = dn.per_run_sensitivity(drive, path.u, path.dt, model)
+    S0 = np.diag([1e-4, 2e-4, 3e-4])
+    poses, covs = dc.propagate_per_run(drive, mean, sens, cov0=S0, method="exact")
+    # S_{i+1} = J_p S_i + J_ξ T_i, Φ_{i+1} = J_p Φ_i, Σ = S W Sᵀ + Φ Σ_0 Φᵀ, step by step
+    xi, S, Phi = drive.twist(mean), np.zeros((3, sens.T.shape[-1])), np.eye(3)
+    for i in range(path.n_steps):
+        J_p, J_xi = dc.twist_step_jacobians(poses[i, 2], xi[i], "exact")
+        S, Phi = J_p @ S + J_xi @ sens.T[i], J_p @ Phi
+        want = (S * sens.var) @ S.T + Phi @ S0 @ Phi.T
+        assert_allclose(covs[i + 1], want, rtol=0, atol=1e-12 * np.abs(want).max())
+
+
+@pytest.mark.parametrize("method", kin.METHODS)
+@pytest.mark.parametrize("drive", ALL_DRIVES, ids=IDS)
+def test_monte_carlo_end_poses_equal_the_integrated_particles(drive, method):
+    # two routes: the perturbation kernel of the end poses vs integrate_twist at a checkpoint at N
+    path = dr.follow(drive, SHORT_ARC)
+    model = _small_model(drive)
+    kw = {"method": method, "cov0": np.diag([1e-4, 2e-4, 1e-3])}
+    for regime in ("per_step", "per_run"):
+        a = ds.sample_poses(path, model, 2000, np.random.default_rng(4), regime=regime, **kw)
+        b = ds.sample_poses(path, model, 2000, np.random.default_rng(4), regime=regime,
+                            checkpoints=[path.n_steps], **kw)  # fmt: skip
+        assert_allclose(a, b[:, 0], rtol=0, atol=1e-12)
 
 
 # --- Jacobians of the step ----------------------------------------------------------------
@@ -136,16 +202,6 @@ def test_step_jacobians_equal_finite_differences(drive, method, rng):
     assert J_u.shape == (len(u), 3, drive.n_channels)
     assert_allclose(J_p, _numeric_jacobian(lambda q: drive.step(q, u, method), p), atol=1e-8)
     assert_allclose(J_u, _numeric_jacobian(lambda q: drive.step(p, q, method), u), atol=1e-8)
-
-
-def test_method_a_differential_jacobians_are_spec_section_2(rng):
-    th, sr, sl = rng.normal(size=(3, 20)) * 0.2
-    J_p, J_u = dc.step_jacobians(
-        dr.Differential(0.3), np.stack([0 * th, 0 * th, th], -1), np.stack([sr, sl], -1)
-    )
-    J_p0, J_d0 = cv.jacobians(th, sr, sl, 0.3)
-    assert_allclose(J_p, J_p0, atol=1e-15)
-    assert_allclose(J_u, J_d0, atol=1e-15)
 
 
 def test_method_a_batch_equals_single_runs(rng):

@@ -44,8 +44,6 @@ NEAR_MIN, NEAR_RATIO = 40, 0.8
 _PAIR = "two variants of one algorithm side by side"
 ALLOWED: dict[str, str] = {
     "analysis/calibration.py:fit_alphas_odometry ~ analysis/calibration.py:fit_alphas_velocity": _PAIR,
-    "core/kinematics.py:integrate ~ core/kinematics.py:integrate_twist": _PAIR + " (wheel steps vs twists)",
-    "core/kinematics.py:step ~ core/kinematics.py:step_twist": _PAIR + " (wheel steps vs twists)",
     "experiments/localization.py:<module> ~ experiments/run.py:<module>": "the two result dataclasses' fields",
     "methods/intervals.py:interval_dead_reckoning ~ methods/zonotopes.py:zonotope_dead_reckoning":
         _PAIR + " (interval vs zonotope set arithmetic)",
@@ -57,8 +55,6 @@ ALLOWED: dict[str, str] = {
     "core/validation.py:check_choice ~ experiments/localization.py:_choice": "different error contract (config key)",
     "core/validation.py:check_positive_int ~ experiments/config_checks.py:integer":
         "different error contract (config key)",
-    "methods/drive_covariance.py:propagate_path ~ methods/drive_covariance.py:propagate_path_per_run":
-        _PAIR + " (per step vs per run)",
     "core/se2.py:adjoint ~ methods/expcoords.py:to_cartesian_cov": "different maps, alike in shape",
     "core/se2.py:exp ~ core/se2.py:log": "a map and its inverse, alike in shape",
     "methods/maps/transition.py:_odometry_nodes ~ methods/maps/transition.py:_velocity_nodes": _PAIR + " (odometry vs velocity model)",

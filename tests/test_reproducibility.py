@@ -152,11 +152,39 @@ def test_a_log_with_simd_dispatch_disabled_verifies(tmp_path: Path, capsys: pyte
 
 @pytest.mark.parametrize("name", sorted(default_runs.CONFIGS))
 def test_runs_without_a_drive_log_what_they_logged_before(name: str) -> None:
-    """The reference logs (written by the code before the drives existed) hold the same records."""
+    """The reference logs (written by the code before the drives existed) hold the same records.
+
+    They are of format version 2; the fresh log states that version (same records).
+    """
     ref = REFERENCES / f"{name}.mcap"
-    cmp = rp.compare_log_bytes(ref.read_bytes(), default_runs.reference_bytes(default_runs.CONFIGS[name]),
-                               n_steps=open_run(ref).n_steps)  # fmt: skip
+    logged = open_run(ref)
+    version = logged.metadata["format_version"]
+    fresh = default_runs.reference_bytes(default_runs.CONFIGS[name], format_version=version)
+    cmp = rp.compare_log_bytes(ref.read_bytes(), fresh, n_steps=logged.n_steps)
     assert cmp.status in (rp.IDENTICAL, rp.WITHIN_TOLERANCE), cmp.mismatches
+    print(f"\n{name}: format version {version}, {cmp.status}, worst {cmp.worst:.2e} of the scale ({cmp.worst_at})")
+
+
+def test_a_version_2_log_is_read_summarised_and_verified_by_this_code(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A log of the previous format version: read and summarised as is; verified by recomputing
+    with the current code, written under the logged version (same records), within tolerance."""
+    old = tmp_path / "straight.mcap"
+    old.write_bytes((REFERENCES / "straight.mcap").read_bytes())
+    log = open_run(old)
+    assert log.metadata["format_version"] == "2"
+    assert main(["replay", str(old)]) == 0
+    assert "format pose-uncertainty-runlog v2" in capsys.readouterr().out
+    code, out = _verify(old, capsys)
+    assert code == 0, out
+    assert "verify: identical" in out or "verify: equal within tolerance" in out, out
+    assert "run-log format version 2; recomputed by this code (version 3" in out, out
+    # a fresh log states the current version, and the previous one only when asked
+    assert open_run(write_run(tmp_path / "new.mcap", execute(RunConfig.from_dict(STRAIGHT)))).metadata[
+        "format_version"] == "3"
+    with pytest.raises(ValueError, match=r"format_version must be one of 2, 3 .*got '1'"):
+        log_bytes(execute(RunConfig.from_dict(STRAIGHT)), format_version="1")
 
 
 # --- what is a mismatch -----------------------------------------------------------------------
@@ -287,7 +315,7 @@ def test_a_timings_log_is_compared_apart_from_its_timings(tmp_path: Path, capsys
 @pytest.mark.parametrize(
     ("metadata", "pattern"),
     [
-        ({"format_version": "99"}, r"run log format version '99' is not supported \(this reader: 2\)"),
+        ({"format_version": "99"}, r"run log format version '99' is not supported \(this reader: 2, 3\)"),
         ({"numpy_version": "1.26.4"}, (r"written with numpy 1\.26\.4, this machine has numpy 2\.\d+\.\d+; a different "
                                       r"major version changes numpy's semantics")),
     ],

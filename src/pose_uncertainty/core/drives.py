@@ -133,9 +133,12 @@ __all__ = [
     "SynchroDrive",
     "Tricycle",
     "TwoAxleSteering",
+    "differential_twist",
+    "differential_twist_jacobian",
     "drive_path",
     "follow",
     "make_drive",
+    "wheel_path",
 ]
 
 #: relative tolerance of the inverse kinematics for motion a drive cannot make
@@ -233,6 +236,26 @@ class Drive(ABC):
         """Poses (..., N+1, 3) from measurements (..., N, m) (:func:`~pose_uncertainty.core.kinematics.integrate_twist`)."""
         return integrate_twist(self.twist(u), start, method)
 
+    def twist_perturbation(
+        self, u: NDArray[np.float64], du: list[NDArray[np.float64]]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None, NDArray[np.float64]]:
+        """``δξ = ξ(u + δu) − ξ(u)`` as ``(δv₁, δv₂, δΔθ)``, each shape (n, N) — the Monte Carlo's input.
+
+        Parameters
+        ----------
+        u : ndarray, shape (N, m) — nominal measurements
+        du : list of m ndarrays, shape (n, N) — each channel's errors; the arrays may be
+            overwritten (a drive linear in ``u`` computes ``δξ`` in place)
+
+        Returns
+        -------
+        δv₁, δv₂, δΔθ : ndarray, shape (n, N) [m, m, rad]; ``δv₂`` is None for a drive whose
+        errors never move it sideways (the particles' lateral travel is the nominal one).
+        This default takes the difference of :meth:`twist`; a drive may give a fast path.
+        """
+        d = self.twist(u + np.stack(du, axis=-1)) - self.twist(u)
+        return d[..., 0], d[..., 1], d[..., 2]
+
     def _no_sideways(self, xi: NDArray) -> None:
         scale = np.maximum(1.0, np.abs(xi).max(axis=-1))
         bad = np.abs(xi[..., 1]) > _TOL * scale
@@ -262,6 +285,29 @@ class Drive(ABC):
 # --- differential and skid-steer ---------------------------------------------------------
 
 
+def differential_twist(ds_r: ArrayLike, ds_l: ArrayLike, track: ArrayLike) -> NDArray[np.float64]:
+    """The differential drive's twist ``((Δs_r + Δs_l)/2, 0, (Δs_r − Δs_l)/b)``, shape (..., 3).
+
+    Parameters
+    ----------
+    ds_r, ds_l : array_like, shape (...) — wheel travels [m]
+    track : array_like, broadcast with them — wheel separation b [m], > 0 (not checked here)
+    """
+    r = np.asarray(ds_r, dtype=np.float64)
+    l = np.asarray(ds_l, dtype=np.float64)
+    b = np.asarray(track, dtype=np.float64)
+    return _vec((r + l) / 2.0, np.zeros_like(r + l), (r - l) / b)
+
+
+def differential_twist_jacobian(track: ArrayLike, shape: tuple[int, ...] = ()) -> NDArray[np.float64]:
+    """``∂ξ/∂(Δs_r, Δs_l) = [[½, ½], [0, 0], [1/b, −1/b]]``, shape (*shape, 3, 2) (track broadcast)."""
+    inv = 1.0 / np.asarray(track, dtype=np.float64)
+    half = np.full(np.broadcast_shapes(shape, inv.shape), 0.5)
+    zero = np.zeros_like(half)
+    inv = np.broadcast_to(inv, half.shape)
+    return np.stack([np.stack([half, half], -1), np.stack([zero, zero], -1), np.stack([inv, -inv], -1)], -2)
+
+
 @dataclass(frozen=True)
 class Differential(Drive):
     """Differential drive (§3.2.2.1): ``u = (Δs_r, Δs_l)``; ``track`` b [m] > 0."""
@@ -282,13 +328,21 @@ class Differential(Drive):
 
     def twist(self, u: ArrayLike) -> NDArray[np.float64]:
         a = self._u(u)
-        r, l = a[..., 0], a[..., 1]
-        return _vec((r + l) / 2.0, np.zeros_like(r), (r - l) / self.track)
+        return differential_twist(a[..., 0], a[..., 1], self.track)
 
     def twist_jacobian(self, u: ArrayLike) -> NDArray[np.float64]:
-        a = self._u(u)
-        J = np.array([[0.5, 0.5], [0.0, 0.0], [1.0 / self.track, -1.0 / self.track]])
-        return np.broadcast_to(J, (*a.shape[:-1], 3, 2)).copy()
+        return differential_twist_jacobian(self.track, self._u(u).shape[:-1])
+
+    def twist_perturbation(
+        self, u: NDArray[np.float64], du: list[NDArray[np.float64]]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None, NDArray[np.float64]]:
+        """Linear, in place: ``δv₁ = (δs_r + δs_l)/2``, no lateral error, ``δΔθ = (δs_r − δs_l)/b`` (in ``du[0]``)."""
+        dr, dl = du
+        dv = dr + dl
+        dv *= 0.5
+        dr -= dl
+        dr /= self.track
+        return dv, None, dr
 
     def measurements(self, twist: ArrayLike) -> NDArray[np.float64]:
         xi = self._xi(twist)
@@ -854,6 +908,16 @@ def follow(drive: Drive, trajectory: Trajectory) -> DrivePath:
     """
     u = drive.measurements(_path_twists(drive, trajectory))
     return DrivePath(drive, u, trajectory.dt, trajectory.start, trajectory.name)
+
+
+def wheel_path(trajectory: Trajectory) -> DrivePath:
+    """The trajectory's own wheel travels as the path of a :class:`Differential` drive of its track.
+
+    Unlike :func:`follow` (which recomputes the travels from the arcs), the measurements are the
+    trajectory's ``(Δs_r, Δs_l)`` bit for bit: the route of every run without a ``drive`` section.
+    """
+    u = np.stack([trajectory.ds_r, trajectory.ds_l], axis=-1)
+    return DrivePath(Differential(trajectory.track), u, trajectory.dt, trajectory.start, trajectory.name)
 
 
 def drive_path(drive: Drive, path: str, **params: Any) -> DrivePath:

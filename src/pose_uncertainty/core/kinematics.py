@@ -1,9 +1,10 @@
 """Differential-drive kinematics (Šafránek 2022 §2.2.2–2.2.3), batched over leading dimensions.
 
-Holonomic drives also move sideways: :func:`step_twist` and :func:`integrate_twist`
+One implementation for every drive: :func:`step_twist` and :func:`integrate_twist`
 take a body-frame twist increment ``(v₁, v₂, Δθ)`` per step (forward, left,
-turn) with the same four integration methods; ``v₂ = 0`` gives the numbers of
-:func:`step` and :func:`integrate` bit for bit.
+turn; holonomic drives also move sideways) with four integration methods;
+:func:`step` and :func:`integrate` are their front doors for steps without
+lateral motion, ``(Δs, Δθ)`` → ``(Δs, 0, Δθ)``.
 
 Conventions: SI units; a pose is ``(x, y, θ)`` with θ counter-clockwise from
 the x axis; headings along a path are kept *unwrapped* (cumulative), only
@@ -112,22 +113,6 @@ def _sinc_half(dtheta: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.sinc(dtheta / (2.0 * np.pi))
 
 
-def _translation(
-    theta: NDArray[np.float64], ds: NDArray[np.float64], dtheta: NDArray[np.float64], method: str
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Per-step (Δx, Δy) from the heading at the start of the step."""
-    if method == "euler":
-        phi, scale = theta, ds
-    elif method == "euler_end":
-        phi, scale = theta + dtheta, ds
-    elif method == "midpoint":
-        phi, scale = theta + dtheta / 2.0, ds
-    else:  # exact arc about the ICC:
-        # R(sin(θ+Δθ) − sin θ) = Δs · sinc(Δθ/2) · cos(θ + Δθ/2), continuous through Δθ = 0
-        phi, scale = theta + dtheta / 2.0, ds * _sinc_half(dtheta)
-    return scale * np.cos(phi), scale * np.sin(phi)
-
-
 def step(pose: ArrayLike, ds: ArrayLike, dtheta: ArrayLike, method: Method = "midpoint") -> NDArray:
     """One forward-kinematics step ``p' = f(p, Δs, Δθ)``.
 
@@ -145,12 +130,7 @@ def step(pose: ArrayLike, ds: ArrayLike, dtheta: ArrayLike, method: Method = "mi
     -------
     ndarray, shape (..., 3)
     """
-    check_choice("method", method, METHODS)
-    p = check_last_axis("pose", pose, 3)
-    d = check_finite("ds", ds)
-    dth = check_finite("dtheta", dtheta)
-    dx, dy = _translation(p[..., 2], d, dth, method)
-    return np.stack([p[..., 0] + dx, p[..., 1] + dy, p[..., 2] + dth], axis=-1)
+    return step_twist(pose, _twists(ds, dtheta), method)
 
 
 def integrate(
@@ -173,23 +153,16 @@ def integrate(
     poses : ndarray, shape (..., N+1, 3) — the start pose followed by the pose
         after each step (heading unwrapped).
     """
-    check_choice("method", method, METHODS)
-    d = check_finite("ds", ds)
-    dth = check_finite("dtheta", dtheta)
-    d, dth = np.broadcast_arrays(d, dth)
-    if d.ndim == 0:
-        raise ValueError(f"ds must have shape (..., N), got shape {d.shape}")
-    p0 = check_last_axis("start", start, 3)
-    theta0 = p0[..., 2, None]
-    cum = np.cumsum(dth, axis=-1)
-    theta_before = theta0 + np.concatenate([np.zeros_like(cum[..., :1]), cum[..., :-1]], axis=-1)
-    dx, dy = _translation(theta_before, d, dth, method)
-    zero = np.zeros((*d.shape[:-1], 1))
-    x = p0[..., 0, None] + np.concatenate([zero, np.cumsum(dx, axis=-1)], axis=-1)
-    y = p0[..., 1, None] + np.concatenate([zero, np.cumsum(dy, axis=-1)], axis=-1)
-    th = theta0 + np.concatenate([zero, cum], axis=-1)
-    x, y, th = np.broadcast_arrays(x, y, th)
-    return np.stack([x, y, th], axis=-1)
+    xi = _twists(ds, dtheta)
+    if xi.ndim == 1:
+        raise ValueError(f"ds must have shape (..., N), got shape {xi.shape[:-1]}")
+    return integrate_twist(xi, start, method)
+
+
+def _twists(ds: ArrayLike, dtheta: ArrayLike) -> NDArray[np.float64]:
+    """Body twists ``(Δs, 0, Δθ)`` (..., 3) of steps without lateral motion (``ds``, ``dtheta`` broadcast)."""
+    d, dth = np.broadcast_arrays(check_finite("ds", ds), check_finite("dtheta", dtheta))
+    return np.stack([d, np.zeros_like(d), dth], axis=-1)
 
 
 def inverse_arc(

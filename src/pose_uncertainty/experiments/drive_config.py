@@ -1,8 +1,10 @@
 """The ``drive`` section of a run configuration: which drive, its geometry, its odometry errors.
 
 Without a ``drive`` section a run is the differential drive of the trajectory's
-track with the wheel constants ``k_r``, ``k_l`` (today's runs, logged exactly as
-before). With one, the trajectory is the geometric path that the drive follows
+track with the wheel constants ``k_r``, ``k_l``: the trajectory's own wheel travels as a
+:class:`~pose_uncertainty.core.drives.Differential` path
+(:func:`~pose_uncertainty.core.drives.wheel_path`) through the same drive stack, logged
+as before (no ``drive`` key, Method C included). With one, the trajectory is the geometric path that the drive follows
 (:func:`pose_uncertainty.core.drives.follow`), and Method A, Monte Carlo and
 the exponential-coordinates Gaussian are those of the drive
 (:mod:`pose_uncertainty.experiments.drive_run`)::

@@ -5,17 +5,20 @@ Midpoint step with ``Δs = (Δs_r+Δs_l)/2``, ``Δθ = (Δs_r−Δs_l)/b`` and
 
     Σ_p' = J_p Σ_p J_pᵀ + J_Δ Σ_Δ J_Δᵀ,        Σ_Δ = diag(k_r|Δs_r|, k_l|Δs_l|)
 
-Two routes compute the same covariances:
+The differential drive is one drive among the others: the functions here are
+the front doors of Method A for every drive (:mod:`.drive_covariance`), with the
+differential drive's twist ``ξ = (Δs, 0, Δθ)`` and Jacobian ``∂ξ/∂(Δs_r, Δs_l)``
+(:func:`~pose_uncertainty.core.drives.differential_twist`, array-valued track
+allowed) and ``Σ_Δ`` as the measurement covariance. Two routes compute the same
+covariances:
 
 * :func:`propagate_recursive` — the recursion above, one step at a time
-  (batched over parameter sets); the reference.
-* :func:`propagate` — closed form, no loop over steps. The midpoint ``J_p`` is
-  ``I + c e₃ᵀ`` with ``c = (−Δy, Δx, 0)``, so a product of them from step ``m``
-  to ``n`` is ``A(p_n − p_m) = I + (−(y_n−y_m), x_n−x_m, 0)ᵀ e₃ᵀ``; hence
-  ``Σ_n = A Σ_0 Aᵀ + Σ_{i<n} A(p_n − p_{i+1}) Q_i A(·)ᵀ`` with
-  ``Q_i = J_Δ Σ_Δ J_Δᵀ``, which expands into prefix sums. The covariance is
-  linear in ``(k_r, k_l)``, so the prefix sums are computed once per geometry
-  for unit constants and combined for every parameter set.
+  (batched over parameter sets; :func:`.drive_covariance.step`); the reference.
+* :func:`propagate` — closed form, no loop over steps
+  (:func:`.drive_covariance.propagate_steps`: the step Jacobians ``J_p = I + c e₃ᵀ``
+  telescope into prefix sums). The covariance is linear in ``(k_r, k_l)``, so for
+  many parameter sets it is computed once per geometry for unit constants and
+  combined for every set.
 
 Error ellipses (Němec 2012 §2.1.1) come from :func:`ellipse` (closed form) and
 :func:`ellipse_polyline` (transformed circle).
@@ -23,13 +26,13 @@ Error ellipses (Němec 2012 §2.1.1) come from :func:`ellipse` (closed form) and
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..core.kinematics import integrate
+from ..core.drives import differential_twist, differential_twist_jacobian
+from ..core.kinematics import step_twist
 from ..core.stats import PR_3SIGMA, k_to_pr, pr_to_k
 from ..core.trajectories import Trajectory
 from ..core.validation import (
@@ -39,6 +42,13 @@ from ..core.validation import (
     check_pose_cov,
     check_positive,
     check_positive_int,
+)
+from .drive_covariance import (
+    CovarianceResult,
+    propagate_steps,
+    start_covariance,
+    step_covariance,
+    twist_step_jacobians,
 )
 
 __all__ = [
@@ -56,22 +66,6 @@ __all__ = [
     "step",
 ]
 
-
-
-@dataclass(frozen=True, eq=False)
-class CovarianceResult:
-    """Poses and covariances along a trajectory.
-
-    Attributes
-    ----------
-    poses : ndarray, shape (B..., N+1, 3) — midpoint-integrated mean poses [m, m, rad]
-    covs : ndarray, shape (B..., N+1, 3, 3) — pose covariances [m², m·rad, rad²]
-    times : ndarray, shape (N+1,) — [s]
-    """
-
-    poses: NDArray[np.float64]
-    covs: NDArray[np.float64]
-    times: NDArray[np.float64]
 
 
 def jacobians(
@@ -95,28 +89,8 @@ def jacobians(
     sl = check_finite("ds_l", ds_l)
     b = check_positive("track", track)
     th, sr, sl, b = np.broadcast_arrays(th, sr, sl, b)
-    ds = (sr + sl) / 2.0
-    phi = th + (sr - sl) / (2.0 * b)
-    c, s = np.cos(phi), np.sin(phi)
-    one, zero = np.ones_like(th), np.zeros_like(th)
-    J_p = np.stack(
-        [
-            np.stack([one, zero, -ds * s], axis=-1),
-            np.stack([zero, one, ds * c], axis=-1),
-            np.stack([zero, zero, one], axis=-1),
-        ],
-        axis=-2,
-    )
-    h = ds / (2.0 * b)
-    J_delta = np.stack(
-        [
-            np.stack([0.5 * c - h * s, 0.5 * c + h * s], axis=-1),
-            np.stack([0.5 * s + h * c, 0.5 * s - h * c], axis=-1),
-            np.stack([1.0 / b, -1.0 / b], axis=-1),
-        ],
-        axis=-2,
-    )
-    return J_p, J_delta
+    J_p, J_xi = twist_step_jacobians(th, differential_twist(sr, sl, b), "midpoint")
+    return J_p, J_xi @ differential_twist_jacobian(b)
 
 
 def _sigma_delta(ds_r: NDArray, ds_l: NDArray, k_r: NDArray, k_l: NDArray) -> NDArray:
@@ -163,16 +137,9 @@ def step(
     sl = check_finite("ds_l", ds_l)
     b = check_positive("track", track)
     J_p, J_d = jacobians(p[..., 2], sr, sl, b)
-    ds = (sr + sl) / 2.0
-    dth = (sr - sl) / b
-    phi = p[..., 2] + dth / 2.0
-    new_pose = np.stack(
-        [p[..., 0] + ds * np.cos(phi), p[..., 1] + ds * np.sin(phi), p[..., 2] + dth], axis=-1
-    )
-    S_d = _sigma_delta(sr, sl, kr, kl)
+    new_pose = step_twist(p, differential_twist(sr, sl, b), "midpoint")
     # Σ' = J_p Σ J_pᵀ + J_Δ Σ_Δ J_Δᵀ
-    new_cov = J_p @ S @ np.swapaxes(J_p, -1, -2) + J_d @ S_d @ np.swapaxes(J_d, -1, -2)
-    return new_pose, new_cov
+    return new_pose, step_covariance(J_p, S, J_d, _sigma_delta(sr, sl, kr, kl))
 
 
 def _check_travels(ds_r: ArrayLike, ds_l: ArrayLike) -> tuple[NDArray, NDArray]:
@@ -240,56 +207,6 @@ def propagate_recursive(
     return poses, covs
 
 
-def _prefix(x: NDArray) -> NDArray:
-    """Prefix sums over the last axis with a leading 0: out[..., n] = Σ_{i<n} x[..., i]."""
-    out = np.zeros((*x.shape[:-1], x.shape[-1] + 1))
-    np.cumsum(x, axis=-1, out=out[..., 1:])
-    return out
-
-
-_PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
-
-
-def _unit_responses(
-    poses: NDArray, sr: NDArray, sl: NDArray, b: NDArray
-) -> tuple[NDArray, NDArray]:
-    """Covariances along the path for (k_r, k_l) = (1, 0) and (0, 1), with Σ_0 = 0.
-
-    Shapes (G..., N+1, 3, 3) where G is the geometry batch shape.
-
-    With the lever arm ``m(p) = (−y, x, 0)``, the propagated noise of step i seen
-    at step n is ``A j = j + j₃ (m_n − m_{i+1}) = a_i + g_i m_n`` for each column
-    ``j`` of ``J_Δ`` (``a_i = j − j₃ m_{i+1}``, ``g_i = j₃``), so
-    ``Σ_n = Σ_{i<n} w_i (a_i + g_i m_n)(a_i + g_i m_n)ᵀ`` with ``w_i = |Δs_i|``:
-    prefix sums of ``w a aᵀ``, ``w g a`` and ``w g²``.
-    """
-    _, J_d = jacobians(poses[..., :-1, 2], sr, sl, b[..., None])
-    m = (-poses[..., 1], poses[..., 0])  # m(p) = (−y, x, 0), the zero entry left implicit
-    shape = (*poses.shape[:-1], 3, 3)
-    out = []
-    for col, travel in ((0, sr), (1, sl)):
-        w = np.abs(travel)
-        g = J_d[..., 2, col]
-        a = [J_d[..., 0, col] - g * m[0][..., 1:], J_d[..., 1, col] - g * m[1][..., 1:], g]
-        P_gg = _prefix(w * g * g)
-        P_ga = [_prefix(w * g * a[r]) for r in range(3)]
-        m_full = (m[0], m[1], np.zeros_like(m[0]))
-        S = np.empty(shape)
-        for r, c in _PAIRS:
-            # Σ w a_r a_c + m_r Σ w g a_c + m_c Σ w g a_r + m_r m_c Σ w g²
-            e = _prefix(w * a[r] * a[c])
-            if r < 2:
-                e += m_full[r] * P_ga[c]
-            if c < 2:
-                e += m_full[c] * P_ga[r]
-            if r < 2 and c < 2:
-                e += m_full[r] * m_full[c] * P_gg
-            S[..., r, c] = e
-            S[..., c, r] = e
-        out.append(S)
-    return out[0], out[1]
-
-
 def propagate_travels(
     ds_r: ArrayLike,
     ds_l: ArrayLike,
@@ -319,18 +236,18 @@ def propagate_travels(
     geo = np.broadcast_shapes(sr.shape[:-1], b.shape)
     sr = np.broadcast_to(sr, geo + sr.shape[-1:])
     sl = np.broadcast_to(sl, geo + sl.shape[-1:])
-    b = np.broadcast_to(b, geo)
-    poses = integrate((sr + sl) / 2.0, (sr - sl) / b[..., None], p0, method="midpoint")
-    G_r, G_l = _unit_responses(poses, sr, sl, b)
-    covs = kr[..., None, None, None] * G_r + kl[..., None, None, None] * G_l
+    b = np.broadcast_to(b, geo)[..., None]
+    twists, jac = differential_twist(sr, sl, b), differential_twist_jacobian(b, sr.shape)
+    if kr.ndim == 0 and kl.ndim == 0:  # one parameter set: Σ_Δ itself
+        return propagate_steps(twists, jac, _sigma_delta(sr, sl, kr, kl), cov0=S0, start=p0, method="midpoint")
+    # unit constants (k_r, k_l) = (1, 0) and (0, 1), combined for every parameter set
+    one = np.array([1.0, 0.0]).reshape((2,) + (1,) * sr.ndim)
+    poses, G = propagate_steps(twists, jac, _sigma_delta(sr, sl, one, 1.0 - one), start=p0, method="midpoint")
+    covs = kr[..., None, None, None] * G[0] + kl[..., None, None, None] * G[1]
     if np.any(S0):
-        m = np.stack([-poses[..., 1], poses[..., 0], np.zeros_like(poses[..., 0])], axis=-1)
-        c = m - m[..., :1, :]
-        A = np.broadcast_to(np.eye(3), (*c.shape[:-1], 3, 3)).copy()
-        A[..., :, 2] += c
-        covs = covs + A @ S0[..., None, :, :] @ np.swapaxes(A, -1, -2)
+        covs = covs + start_covariance(poses[0], S0)
     batch = covs.shape[:-3]
-    return np.broadcast_to(poses, batch + poses.shape[-2:]).copy(), covs
+    return np.broadcast_to(poses[0], batch + poses.shape[-2:]).copy(), covs
 
 
 def propagate(

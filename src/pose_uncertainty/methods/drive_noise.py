@@ -31,7 +31,7 @@ The sign convention: an error is *true minus reported*. The robot reports the
 nominal measurements ``u``; it truly moved by ``u + bias + noise``; Method A's
 mean is the path of ``u + bias``.
 
-Two regimes (the names of :mod:`.sampling`)
+Two regimes (:data:`.particles.REGIMES`)
 -------------------------------------------
 ``"per_step"`` (non-systematic) — independent errors every step with the
 variances above. ``"per_run"`` (systematic) — one draw per run, kept for the
@@ -67,7 +67,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..core.drives import Drive, SkidSteer
 from ..core.kinematics import Method
 from ..core.validation import check_choice, check_finite, check_nonnegative
-from .sampling import REGIMES
+from .particles import REGIMES
 from .wheel_noise import WheelErrorSources, sample_speed_errors, speed_variance
 
 __all__ = [
@@ -279,11 +279,16 @@ def per_run_sensitivity(
 
 
 class SampledErrors(NamedTuple):
-    """Errors of ``n`` runs: measurement errors (n, N, m) and the skid-steer's ICR, or None."""
+    """Errors of ``n`` runs: each channel's measurement errors (n, N) and the skid-steer's ICR, or None."""
 
-    du: NDArray[np.float64]
+    channels: tuple[NDArray[np.float64], ...]  # m arrays (n, N), true minus reported, biases included
     chi: NDArray[np.float64] | None  # (n, N) or (n, 1)
     x_icr: NDArray[np.float64] | None
+
+    @property
+    def du(self) -> NDArray[np.float64]:
+        """The measurement errors as one array, shape (n, N, m)."""
+        return np.stack(self.channels, axis=-1)
 
 
 def _gaussian_errors(
@@ -320,7 +325,7 @@ def sample_errors(
     shape (c, n, N) — (c, n, 1) per run — for the c Gaussian channels in
     channel order; then each encoder channel (:func:`.wheel_noise.sample_speed_errors`);
     then the ICR ``χ``, ``x_ICR``. For the differential drive with ``k`` only this
-    is the draw of :func:`.sampling.sample_end_poses`.
+    is the draw of the differential drive's :func:`.sampling.sample_end_poses` (its front door).
 
     Parameters
     ----------
@@ -329,8 +334,8 @@ def sample_errors(
 
     Returns
     -------
-    SampledErrors — ``du`` (n, N, m) true minus reported; ``chi``, ``x_icr``
-    (n, N) per step or (n, 1) per run, None without slip
+    SampledErrors — ``channels``: m arrays (n, N), true minus reported (``du`` stacks
+    them, (n, N, m)); ``chi``, ``x_icr`` (n, N) per step or (n, 1) per run, None without slip
     """
     check_choice("regime", regime, REGIMES)
     ch = channels(drive, model)
@@ -343,7 +348,8 @@ def sample_errors(
     for j in range(a.shape[1]):
         if j not in errors and model.encoder is not None:
             errors[j] = sample_speed_errors(model.encoder, a[:, j] / dt, n, rng, regime) * dt
-    du = np.stack([errors[j] for j in range(a.shape[1])], axis=-1) + ch.bias
+    # a zero bias is left out (adding 0.0 changes nothing but the sign of a zero)
+    du = tuple(errors[j] + ch.bias[j] if ch.bias[j] != 0.0 else errors[j] for j in range(a.shape[1]))
     if model.slip is None or not isinstance(drive, SkidSteer):
         return SampledErrors(du, None, None)
     zs = rng.standard_normal((2, n, width))

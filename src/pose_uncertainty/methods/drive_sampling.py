@@ -2,28 +2,45 @@
 
 Each particle's measurements are the path's plus errors drawn by
 :func:`.drive_noise.sample_errors` (``per_step`` or ``per_run``, biases
-included, the skid-steer's ICR drawn too); its twists ``ξ(u + δu)`` are
-integrated by :func:`~pose_uncertainty.core.kinematics.integrate_twist`. The
-particles run in the chunks of :func:`.sampling.chunk_streams` (one random
-stream per chunk), so a seed gives bit-identical clouds for any number of
-threads, and for the differential drive with ``k`` only the draws are those
-of :func:`.sampling.sample_end_poses`.
+included, the skid-steer's ICR drawn too). The particles run in the chunks of
+:func:`.particles.chunk_streams` (one random stream per chunk), so a seed gives
+bit-identical clouds for any number of threads. The differential drive of a
+trajectory's wheel travels is one drive among the others: :func:`.sampling.sample_end_poses`
+is its front door.
+
+End poses: the nominal path plus a small heading perturbation
+--------------------------------------------------------------
+For the end poses only (no checkpoints) the particles are not integrated one by one.
+A particle's twist in step ``i`` is the nominal ``ξ̄_i = (v̄₁, v̄₂, Δθ̄)`` plus
+``δξ_i = ξ(u + δu) − ξ(u)`` (:meth:`~pose_uncertainty.core.drives.Drive.twist_perturbation`,
+computed in place for a drive linear in ``u``). Its heading error ``e_i = δΔθ_i`` makes
+the step heading ``φ_i = φ̄_i + δ_i`` with the nominal ``φ̄_i`` and
+``δ_i = Σ_{j<i} e_j + c·e_i`` (c = ½ midpoint/exact, 0 Euler, 1 Euler-end), so with
+``(a, b) = s'·(v̄₁ + δv₁, v̄₂ + δv₂)`` (``s' = sin(Δθ'/2)/(Δθ'/2)`` exact, 1 otherwise)::
+
+    x = x₀ + Σ_i [cos φ̄_i (a cos δ − b sin δ) − sin φ̄_i (a sin δ + b cos δ)]_i     (y likewise)
+
+the trigonometry of the particles is on the small ``δ`` only and the sums over the steps
+are matrix–vector products: the same arithmetic as integrating ``ξ(u + δu)`` up to rounding.
+With checkpoints, the particles' twists are integrated by
+:func:`~pose_uncertainty.core.kinematics.integrate_twist`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..core.drives import DrivePath, SkidSteer
-from ..core.kinematics import METHODS, integrate_twist
+from ..core.kinematics import HEADING_OFFSET, METHODS, integrate_twist
 from ..core.threads import default_workers
 from ..core.validation import check_choice, check_positive_int
 from . import drive_noise as dn
-from .sampling import REGIMES, chunk_streams, start_factor
+from .particles import REGIMES, chunk_streams, start_factor
 
 __all__ = ["sample_poses"]
 
@@ -39,21 +56,117 @@ def _check_checkpoints(checkpoints: Sequence[int] | None, n_steps: int) -> list[
     return cps
 
 
-def _particle_poses(
-    path: DrivePath,
-    errors: dn.SampledErrors,
-    start: NDArray[np.float64],
+class _Nominal(NamedTuple):
+    """The nominal path of :func:`_end_poses`: twists (N,) each and step headings' cos, sin."""
+
+    v1: NDArray[np.float64]
+    v2: NDArray[np.float64] | None  # None: no lateral travel
+    dtheta: NDArray[np.float64]
+    cos: NDArray[np.float64]  # cos φ̄_i
+    sin: NDArray[np.float64]
+    start: NDArray[np.float64]
+
+
+def _nominal(path: DrivePath, method: str) -> _Nominal:
+    """The nominal twists and step headings ``φ̄_i = θ̄_i + c Δθ̄_i`` of a path."""
+    xi = path.twists
+    dth = xi[:, 2]
+    th_before = path.start[2] + np.concatenate([[0.0], np.cumsum(dth)[:-1]])
+    phi = th_before + HEADING_OFFSET[method] * dth
+    v2 = xi[:, 1] if np.any(xi[:, 1]) else None
+    return _Nominal(xi[:, 0], v2, dth, np.cos(phi), np.sin(phi), path.start)
+
+
+def _end_poses(
+    nom: _Nominal,
+    dv1: NDArray[np.float64],
+    dv2: NDArray[np.float64] | None,
+    e: NDArray[np.float64],
+    scratch: NDArray[np.float64],
     method: str,
-    cps: list[int],
+    start_offset: NDArray[np.float64] | None = None,
 ) -> NDArray[np.float64]:
-    """Poses (m, C, 3) at the checkpoints of particles with the given errors."""
+    """End poses (m, 3) of particles with twist perturbations ``(δv₁, δv₂, e)`` (m, N) (module docstring).
+
+    Overwrites ``dv1``, ``dv2``, ``e`` and ``scratch`` (m, N, a free buffer). ``start_offset``
+    (m, 3), optional, moves each particle's start pose; its heading offset joins δ.
+    """
+    c = HEADING_OFFSET[method]
+    a = dv1
+    a += nom.v1  # v₁' per particle and step
+    heading_noise_end = e.sum(axis=-1)
+    delta = np.cumsum(e, axis=-1, out=scratch)  # Σ_{j<=i} e_j
+    if c != 1.0:
+        e *= 1.0 - c
+        delta -= e  # Σ_{j<i} e_j + c e_i
+        e /= 1.0 - c
+    if start_offset is not None:
+        delta += start_offset[:, 2:3]
+        heading_noise_end += start_offset[:, 2]
+    b: NDArray[np.float64] | None = dv2  # v₂' per particle and step, None: no lateral travel
+    if nom.v2 is not None:
+        b = np.broadcast_to(nom.v2, a.shape).copy() if b is None else b + nom.v2
+    if method == "exact":
+        # s' = sin(Δθ'/2)/(Δθ'/2), Δθ' = Δθ̄ + e
+        e += nom.dtheta
+        e *= 1.0 / (2.0 * np.pi)
+        s = np.sinc(e)
+        a *= s
+        if b is not None:
+            b *= s
+    if b is None:
+        np.cos(delta, out=e)
+        e *= a  # a cos δ
+        np.sin(delta, out=delta)
+        delta *= a  # a sin δ
+        along, across = e, delta
+    else:
+        cd, sd = np.cos(delta), np.sin(delta)
+        along = a * cd - b * sd
+        across = a * sd + b * cd
+    x = along @ nom.cos - across @ nom.sin
+    y = along @ nom.sin + across @ nom.cos
+    x0, y0, th0 = nom.start
+    if start_offset is not None:
+        x += start_offset[:, 0]
+        y += start_offset[:, 1]
+    th_end = th0 + nom.dtheta.sum() + heading_noise_end
+    return np.stack([x0 + x, y0 + y, th_end], axis=-1)
+
+
+def _particle_twists(path: DrivePath, errors: dn.SampledErrors) -> NDArray[np.float64]:
+    """Twists (m, N, 3) of particles with the given errors (the skid-steer's ICR drawn too)."""
     u = path.u + errors.du
     drive = path.drive
     if errors.chi is not None and errors.x_icr is not None and isinstance(drive, SkidSteer):
-        xi = drive.twist_icr(u, errors.chi, errors.x_icr)
+        return drive.twist_icr(u, errors.chi, errors.x_icr)
+    return drive.twist(u)
+
+
+def _chunk_poses(
+    path: DrivePath,
+    nom: _Nominal,
+    errors: dn.SampledErrors,
+    offset: NDArray[np.float64] | None,
+    method: str,
+    cps: list[int] | None,
+) -> NDArray[np.float64]:
+    """Poses (m, C, 3) of a chunk's particles: at the checkpoints, or the end (C = 1)."""
+    if cps is not None:
+        start = path.start[None, :] if offset is None else path.start + offset
+        return integrate_twist(_particle_twists(path, errors), start, method)[:, cps, :]  # type: ignore[arg-type]
+    du = list(errors.channels)
+    scratch = du[-1]
+    dv2: NDArray[np.float64] | None
+    if errors.chi is not None:
+        d = _particle_twists(path, errors) - path.twists
+        dv1, dv2, e = d[..., 0].copy(), d[..., 1].copy(), d[..., 2].copy()
+        scratch = np.empty_like(e)
     else:
-        xi = drive.twist(u)
-    return integrate_twist(xi, start, method)[:, cps, :]  # type: ignore[arg-type]
+        dv1, dv2, e = path.drive.twist_perturbation(path.u, du)
+        if scratch is e or scratch is dv1 or scratch is dv2 or scratch.shape != e.shape:
+            scratch = np.empty_like(e)
+    return _end_poses(nom, dv1, dv2, e, scratch, method, offset)[:, None, :]
 
 
 def sample_poses(
@@ -67,6 +180,7 @@ def sample_poses(
     checkpoints: Sequence[int] | None = None,
     cov0: ArrayLike | None = None,
     workers: int | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> NDArray[np.float64]:
     """Noisy executions of a drive's path: the Monte Carlo ground truth of its error model.
 
@@ -84,6 +198,8 @@ def sample_poses(
         particle starts at a draw from N(path.start, cov0)
     workers : int, optional — threads (default: the cores, at most 8); the
         output does not depend on it
+    progress : callable, optional — ``progress(done, n)`` with the particles done so
+        far, called from the calling thread after each chunk (default None: nothing)
 
     Returns
     -------
@@ -101,26 +217,36 @@ def sample_poses(
     start_sqrt = start_factor(cov0)
     chunk, starts, children = chunk_streams(rng, n, N)
     out = np.empty((n, 1 if cps is None else len(cps), 3))
+    nom = _nominal(path, method)
 
     def run_chunk(j: int) -> None:
         lo = starts[j]
         m = min(chunk, n - lo)
         g = children[j]
         errors = dn.sample_errors(path.drive, path.u, path.dt, model, m, g, regime)
-        start = path.start[None, :]
-        if start_sqrt is not None:
-            start = start + g.standard_normal((m, 3)) @ start_sqrt.T
-        out[lo : lo + m] = _particle_poses(path, errors, start, method, [N] if cps is None else cps)
+        offset = None if start_sqrt is None else g.standard_normal((m, 3)) @ start_sqrt.T
+        out[lo : lo + m] = _chunk_poses(path, nom, errors, offset, method, cps)
 
-    _map_chunks(run_chunk, len(starts), n_workers)
+    _map_chunks(run_chunk, starts, chunk, n, n_workers, progress)
     return out[:, 0, :] if cps is None else out
 
 
-def _map_chunks(run_chunk: Callable[[int], None], n_chunks: int, workers: int) -> None:
-    """Run every chunk, on ``workers`` threads (each chunk writes its own rows)."""
-    if workers == 1 or n_chunks == 1:
-        for j in range(n_chunks):
+def _map_chunks(
+    run_chunk: Callable[[int], None],
+    starts: list[int],
+    chunk: int,
+    n: int,
+    workers: int,
+    progress: Callable[[int, int], None] | None,
+) -> None:
+    """Run every chunk, on ``workers`` threads (each chunk writes its own rows), reporting progress."""
+    if workers == 1 or len(starts) == 1:
+        for j in range(len(starts)):
             run_chunk(j)
+            if progress is not None:
+                progress(min(n, starts[j] + chunk), n)
     else:
         with ThreadPoolExecutor(max_workers=workers) as pool:
-            list(pool.map(run_chunk, range(n_chunks)))
+            for j, _ in enumerate(pool.map(run_chunk, range(len(starts)))):
+                if progress is not None:
+                    progress(min(n, starts[j] + chunk), n)

@@ -35,8 +35,10 @@ Because ``Ad`` is a homomorphism, the product of the step adjoints from step
     Σ_n = Ad_{μ_n}⁻¹ [ Ad_{μ_0} Σ_0 Ad_{μ_0}ᵀ + Σ_{i<n} Ad_{μ_{i+1}} Q_i Ad_{μ_{i+1}}ᵀ ] Ad_{μ_n}⁻ᵀ
 
 with ``Q_i = J_r M Σ_Δ Mᵀ J_rᵀ``: a prefix sum, no loop over steps
-(:func:`propagate`); :func:`propagate_recursive` is the step recursion, kept to
-test it.
+(:func:`propagate_twists`, for the twists and twist noise of any drive);
+:func:`propagate_recursive` is the step recursion, kept to test it. The
+differential drive is one drive among the others: :func:`propagate` is its front
+door (``M`` = :func:`~pose_uncertainty.core.drives.differential_twist_jacobian`).
 
 Headings
 --------
@@ -64,6 +66,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..core.drives import differential_twist, differential_twist_jacobian
 from ..core.kinematics import integrate_twist, sinc
 from ..core.se2 import adjoint, adjoint_inverse, compose, cosc, exp, inverse, log, right_jacobian
 from ..core.trajectories import Trajectory
@@ -113,15 +116,14 @@ class ExpGaussian:
     times: NDArray[np.float64]
 
 
-def _step_noise(traj: Trajectory) -> tuple[NDArray, NDArray, NDArray]:
-    """Twists δ_i (N, 3) and the unit noise factors B_r, B_l (N, 3) = J_r(δ_i) M e_r|l."""
-    ds, dth = traj.ds, traj.dtheta
-    delta = np.stack([ds, np.zeros_like(ds), dth], axis=-1)
-    Jr = right_jacobian(delta)
-    b = traj.track
-    col_r = np.array([0.5, 0.0, 1.0 / b])  # M e_r
-    col_l = np.array([0.5, 0.0, -1.0 / b])  # M e_l
-    return delta, Jr @ col_r, Jr @ col_l
+def _step_noise(traj: Trajectory) -> tuple[NDArray, NDArray]:
+    """Twists δ_i (N, 3) of the wheel travels and the wheels' unit twist covariances (2, N, 3, 3):
+    ``|Δs_r| M e_r e_rᵀ Mᵀ`` and ``|Δs_l| M e_l e_lᵀ Mᵀ``."""
+    delta = differential_twist(traj.ds_r, traj.ds_l, traj.track)
+    M = differential_twist_jacobian(traj.track)  # (3, 2)
+    unit = np.stack([np.abs(traj.ds_r), np.abs(traj.ds_l)])[..., None, None]
+    cols = np.stack([np.outer(M[:, 0], M[:, 0]), np.outer(M[:, 1], M[:, 1])])[:, None]
+    return delta, unit * cols
 
 
 def _check_k(k_r: ArrayLike, k_l: ArrayLike) -> tuple[NDArray, NDArray]:
@@ -156,31 +158,17 @@ def propagate(
     """
     kr, kl = _check_k(k_r, k_l)
     S0 = check_pose_cov("cov0", cov0)
-    mu = trajectory.poses  # exact arcs, unwrapped heading
-    _, Br, Bl = _step_noise(trajectory)
-    Ad_next = adjoint(mu[1:])  # (N, 3, 3)
-    ur = np.einsum("nij,nj->ni", Ad_next, Br)  # Ad_{μ_{i+1}} J_r M e_r
-    ul = np.einsum("nij,nj->ni", Ad_next, Bl)
-    wr = np.abs(trajectory.ds_r)
-    wl = np.abs(trajectory.ds_l)
-    # prefix sums of w u uᵀ with a leading 0
-    n = trajectory.n_steps
-    Pr_ = np.zeros((n + 1, 3, 3))
-    Pl_ = np.zeros((n + 1, 3, 3))
-    np.cumsum(wr[:, None, None] * ur[:, :, None] * ur[:, None, :], axis=0, out=Pr_[1:])
-    np.cumsum(wl[:, None, None] * ul[:, :, None] * ul[:, None, :], axis=0, out=Pl_[1:])
-    Ad_inv = adjoint_inverse(mu)  # (N+1, 3, 3)
-    AdT = np.swapaxes(Ad_inv, -1, -2)
-    G_r = Ad_inv @ Pr_ @ AdT
-    G_l = Ad_inv @ Pl_ @ AdT
-    covs = kr[..., None, None, None] * G_r + kl[..., None, None, None] * G_l
+    delta, unit = _step_noise(trajectory)
+    start, times = trajectory.start, trajectory.times
+    if kr.ndim == 0 and kl.ndim == 0:  # one parameter set: its twist covariance itself
+        return propagate_twists(delta, kr * unit[0] + kl * unit[1], start=start, cov0=S0, times=times)
+    G = propagate_twists(delta, unit, start=start, times=times).covs  # (k_r, k_l) = (1, 0), (0, 1)
+    covs = kr[..., None, None, None] * G[0] + kl[..., None, None, None] * G[1]
     if np.any(S0):
-        Ad0 = adjoint(mu[0])
-        T = Ad_inv @ Ad0  # (N+1, 3, 3)
-        covs = covs + T @ S0[..., None, :, :] @ np.swapaxes(T, -1, -2)
-    covs = 0.5 * (covs + np.swapaxes(covs, -1, -2))
+        covs = covs + propagate_twists(delta, np.zeros_like(unit[0]), start=start, cov0=S0).covs
+    mu = trajectory.poses
     poses = np.broadcast_to(mu, covs.shape[:-3] + mu.shape).copy()
-    return ExpGaussian(poses=poses, covs=covs, times=trajectory.times)
+    return ExpGaussian(poses=poses, covs=covs, times=times)
 
 
 def propagate_twists(
@@ -201,7 +189,7 @@ def propagate_twists(
 
         Σ_n = Ad_{μ_n}⁻¹ [Ad_{μ_0} Σ_0 Ad_{μ_0}ᵀ + Σ_{i<n} Ad_{μ_{i+1}} Q_i Ad_{μ_{i+1}}ᵀ] Ad_{μ_n}⁻ᵀ
 
-    For the differential drive ``Q_ξ = M Σ_Δ Mᵀ`` gives :func:`propagate`.
+    For the differential drive ``Q_ξ = M Σ_Δ Mᵀ`` gives :func:`propagate` (its front door).
 
     Parameters
     ----------
@@ -250,15 +238,14 @@ def propagate_recursive(
     """
     kr, kl = (float(v) for v in _check_k(k_r, k_l))
     S = check_pose_cov("cov0", cov0).astype(float)
-    delta, Br, Bl = _step_noise(trajectory)
+    delta, unit = _step_noise(trajectory)
+    Jr = right_jacobian(delta)
     A = adjoint(exp(-delta))
     n = trajectory.n_steps
     covs = np.empty((n + 1, 3, 3))
     covs[0] = S
     for i in range(n):
-        Q = kr * abs(trajectory.ds_r[i]) * np.outer(Br[i], Br[i]) + kl * abs(
-            trajectory.ds_l[i]
-        ) * np.outer(Bl[i], Bl[i])
+        Q = Jr[i] @ (kr * unit[0, i] + kl * unit[1, i]) @ Jr[i].T
         S = A[i] @ S @ A[i].T + Q
         covs[i + 1] = S
     return ExpGaussian(poses=trajectory.poses, covs=covs, times=trajectory.times)

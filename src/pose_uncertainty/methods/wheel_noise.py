@@ -70,7 +70,7 @@ from ..core.validation import (
     check_positive,
     check_positive_int,
 )
-from .sampling import REGIMES, integrate_end
+from .particles import REGIMES, integrate_end
 
 __all__ = [
     "SEED001",
@@ -239,7 +239,7 @@ def sample_end_poses(
     checkpoints: Sequence[int] | None = None,
     sources_left: WheelErrorSources | None = None,
 ) -> NDArray[np.float64]:
-    """End poses of ``n`` runs with wheel-speed errors, integrated by :func:`sampling.integrate_end`.
+    """End poses of ``n`` runs with wheel-speed errors, integrated by :func:`.particles.integrate_end`.
 
     Returns
     -------

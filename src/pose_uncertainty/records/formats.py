@@ -71,6 +71,9 @@ class LogFormat:
         ``summary(log) -> str``: human-readable.
     verify : callable
         ``verify(log) -> Comparison``: recompute a complete log and compare every record.
+    readable : tuple of str
+        The ``format_version`` values read (default: ``version`` only); older ones are those
+        whose records the current code still reads (the kind's module documents each version).
     """
 
     format: str
@@ -80,6 +83,7 @@ class LogFormat:
     assemble: Callable[[Container], Any]
     summary: Callable[[Any], str]
     verify: Callable[[Any], Comparison]
+    readable: tuple[str, ...] = ()
 
     def read(self, path: str | os.PathLike[str], *, recover: bool = False) -> Any:
         """Read and validate a log of this kind (:func:`read_log`)."""
@@ -160,11 +164,12 @@ def read_log(path: str | os.PathLike[str], *, recover: bool = False, kind: LogFo
 
 
 def check_version(c: Container, kind: LogFormat, what: str) -> None:
-    """:class:`RunLogError` unless the container's ``format_version`` is ``kind``'s (``what``: the log's name)."""
-    if c.metadata.get("format_version") != kind.version:
+    """:class:`RunLogError` unless the container's ``format_version`` is one ``kind`` reads (``what``: the log's name)."""
+    readable = kind.readable or (kind.version,)
+    if c.metadata.get("format_version") not in readable:
         raise RunLogError(
             f"{c.path}: {what} format version {c.metadata.get('format_version')!r} is not supported "
-            f"(this reader: {kind.version})"
+            f"(this reader: {', '.join(readable)})"
         )
 
 

@@ -107,6 +107,7 @@ from .reproducibility import Comparison
 __all__ = [
     "FORMAT",
     "FORMAT_VERSION",
+    "READABLE_VERSIONS",
     "RUN_LOG",
     "TOPICS",
     "PartialLogWarning",
@@ -124,7 +125,29 @@ __all__ = [
 ]
 
 FORMAT = "pose-uncertainty-runlog"
-FORMAT_VERSION = "2"
+
+#: The version of the run-log format (the ``format_version`` of the metadata record).
+#:
+#: * ``1`` — the first MCAP run log.
+#: * ``2`` — every measure computed once in the run and logged on ``/metrics`` with its unit and
+#:   definition (read back, never recomputed, by tables, claims and the report).
+#: * ``3`` — one drive stack: the differential drive is computed by the common drive stack
+#:   (:class:`pose_uncertainty.core.drives.Differential`: Method A of
+#:   :mod:`pose_uncertainty.methods.drive_covariance` in closed form, the Monte Carlo of
+#:   :mod:`pose_uncertainty.methods.drive_sampling`, the exponential-coordinates Gaussian of
+#:   :func:`pose_uncertainty.methods.expcoords.propagate_twists`). Topics, messages and metadata keys
+#:   are those of version 2. A run without a ``drive`` section logs what it logged in version 2 —
+#:   its configuration without a ``drive`` key, Method C's measures — with numbers from the
+#:   trajectory's wheel travels as a ``Differential`` path: the Monte Carlo clouds bit for bit,
+#:   Method A's and the banana's covariances within rounding (about 10⁻¹⁵ of their scale).
+#:
+#: Logs of the versions in :data:`READABLE_VERSIONS` are read, summarised and verified. Verifying
+#: recomputes with the current code and writes the fresh log under the logged version (the
+#: layout is the same), so a version-2 log verifies ``identical`` where the numbers are the same
+#: bits and ``equal within tolerance`` where they moved by rounding — the expected result.
+FORMAT_VERSION = "3"
+#: Versions of the run-log format this code reads and verifies (same topics and metadata keys).
+READABLE_VERSIONS: tuple[str, ...] = ("2", "3")
 
 T_TF = "/tf"
 T_POSE = "/robot/pose"
@@ -214,9 +237,9 @@ def _volume(mp: ProbabilityMap, t_ns: int) -> Any:
 # --- writing -----------------------------------------------------------------------------
 
 
-def _metadata(result: RunResult) -> dict[str, str]:
+def _metadata(result: RunResult, version: str = FORMAT_VERSION) -> dict[str, str]:
     extra = {"checkpoints": json.dumps(sorted(result.checkpoints)), "maps": json.dumps([m.name for m in result.maps])}
-    return metadata_record({"format": FORMAT, "format_version": FORMAT_VERSION}, result.config, result.n_steps,
+    return metadata_record({"format": FORMAT, "format_version": version}, result.config, result.n_steps,
                            extra, result.provenance)  # fmt: skip
 
 
@@ -289,9 +312,10 @@ def _write_stream(
     result: RunResult,
     include_timings: bool,
     progress: Callable[[int, int], None] | None = None,
+    version: str = FORMAT_VERSION,
 ) -> None:
     _check_result(result)
-    log = LogWriter(stream, _metadata(result))
+    log = LogWriter(stream, _metadata(result, version))
     t_ns = [fg.ns(t) for t in result.times]
     # the whole nominal path, once, at t = 0, as one black line strip
     path = fg.line_scene("path", result.poses[:, :2], fg.LINE_STRIP, fg.BLACK, 0.005, t_ns[0])
@@ -301,9 +325,18 @@ def _write_stream(
     log.finish()
 
 
-def log_bytes(result: RunResult, *, include_timings: bool = False) -> bytes:
-    """The bytes :func:`write_run` would write, without touching the file system."""
-    return stream_bytes(_write_stream, result, include_timings)
+def log_bytes(result: RunResult, *, include_timings: bool = False, format_version: str = FORMAT_VERSION) -> bytes:
+    """The bytes :func:`write_run` would write, without touching the file system.
+
+    ``format_version`` — one of :data:`READABLE_VERSIONS`: the version the metadata record
+    states (an older one only to compare with a log of that version: the layout is the same).
+    """
+    if format_version not in READABLE_VERSIONS:
+        raise ValueError(
+            f"format_version must be one of {', '.join(READABLE_VERSIONS)} (allowed: the readable run-log "
+            f"versions), got {format_version!r}"
+        )
+    return stream_bytes(_write_stream, result, include_timings, None, format_version)
 
 
 def write_run(
@@ -515,9 +548,25 @@ def compare_results(logged: RunResult, fresh: RunResult) -> list[str]:
 
 
 def _verify(log: RunLog) -> Comparison:
-    """Recompute a complete run log from its config and seed and compare every record of the two logs."""
-    return verify_recomputed(log, execute(log.config), log_bytes)
+    """Recompute a complete run log from its config and seed and compare every record of the two logs.
+
+    The fresh log states the logged format version (:data:`FORMAT_VERSION`'s notes): a log of
+    an older readable version is compared record by record with the current code's numbers.
+    """
+    version = log.metadata.get("format_version", FORMAT_VERSION)
+
+    def fresh_bytes(result: RunResult, *, include_timings: bool = False) -> bytes:
+        return log_bytes(result, include_timings=include_timings, format_version=version)
+
+    comparison = verify_recomputed(log, execute(log.config), fresh_bytes)
+    if version != FORMAT_VERSION:
+        comparison.notes.append(
+            f"the log is of run-log format version {version}; recomputed by this code (version {FORMAT_VERSION}, "
+            "same records): equal within tolerance is the expected result"
+        )
+    return comparison
 
 
 #: The dead-reckoning run log's write / read / summary / verify.
-RUN_LOG = register(LogFormat(FORMAT, FORMAT_VERSION, write_run, log_bytes, _read_run, format_summary, _verify))
+RUN_LOG = register(LogFormat(FORMAT, FORMAT_VERSION, write_run, log_bytes, _read_run, format_summary, _verify,
+                             readable=READABLE_VERSIONS))  # fmt: skip
