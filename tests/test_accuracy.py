@@ -106,6 +106,7 @@ def test_gridded_route_agrees_with_ellipse_route():
     assert g["fraction_off_map"] == 0.0
 
 
+@pytest.mark.slow
 def test_the_cartesian_gaussian_already_fails_on_the_1m_line():
     # the lead's measurement: 96.6 % of the particles inside the 98.89 % ellipse (1e6 particles);
     # with 4e4 particles the s.e. of a coverage near 0.97 is 0.0009
@@ -124,6 +125,7 @@ def test_the_cartesian_gaussian_already_fails_on_the_1m_line():
     assert "accuracy_cartesian_coverage_xy_98_89" in flat
 
 
+@pytest.mark.slow
 def test_accuracy_vs_distance_rows():
     t = tr.straight(2.0, dt=0.02, track=0.2)
     rows = ac.accuracy_vs_distance(t, 5e-4, 5e-4, 5000, np.random.default_rng(3), n_checkpoints=2)

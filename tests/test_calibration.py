@@ -34,6 +34,7 @@ def test_k_recovered_within_interval():
         assert se < 0.05 * est
 
 
+@pytest.mark.slow
 def test_k_interval_coverage_over_seeds():
     # 25 data sets × 2 constants: 95 % intervals should cover ~47.5 of 50; a binomial(50, 0.95)
     # is ≥ 42 with probability ≈ 0.9998
@@ -65,6 +66,7 @@ def test_cartesian_model_is_biased_at_thesis_constants():
     assert kc / 5e-4 - 1 > 0.07
 
 
+@pytest.mark.slow
 def test_variance_regression_interval_coverage():
     # r ~ N(0, α1 f1 + α2 f2) drawn directly: 60 data sets, 120 intervals, expect 114
     rng = np.random.default_rng(3)

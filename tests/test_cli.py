@@ -74,6 +74,7 @@ def test_replay_at_time(logged: Path, capsys: pytest.CaptureFixture[str]) -> Non
     assert err.count("\n") == 1
 
 
+@pytest.mark.slow
 def test_replay_figures_identical_to_pipeline(logged: Path, tmp_path: Path) -> None:
     """`replay --figures` (log only) vs the pipeline's call on the freshly computed result."""
     assert main(["replay", str(logged), "--figures", str(tmp_path / "replay")]) == 0
@@ -90,6 +91,7 @@ def test_replay_figures_identical_to_pipeline(logged: Path, tmp_path: Path) -> N
         assert (tmp_path / "replay" / p.name).read_bytes() == p.read_bytes(), p.name
 
 
+@pytest.mark.slow
 def test_run_with_figures_matches_replay(logged: Path, tmp_path: Path) -> None:
     cfg = tmp_path / "config.yaml"
     cfg.write_text(yaml.safe_dump(CONFIG), encoding="utf-8")
@@ -103,6 +105,7 @@ def test_run_with_figures_matches_replay(logged: Path, tmp_path: Path) -> None:
         assert p.read_bytes() == (tmp_path / "a" / p.name).read_bytes()
 
 
+@pytest.mark.slow
 def test_verify_passes_on_fresh_and_fails_on_tampered(
     logged: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -119,6 +122,7 @@ def test_verify_passes_on_fresh_and_fails_on_tampered(
     assert "verify: MISMATCH" in out
 
 
+@pytest.mark.slow
 def test_verify_catches_a_changed_display_topic(logged: Path, tmp_path: Path) -> None:
     """Same data but a different Pr-ellipse drawing: only the byte comparison can see it."""
     res = execute(RunConfig.from_dict(CONFIG))
@@ -194,6 +198,7 @@ def test_bad_config_names_the_key(tmp_path: Path, capsys: pytest.CaptureFixture[
     assert not (tmp_path / "x.mcap").exists()
 
 
+@pytest.mark.slow
 def test_console_entry_point_never_shows_a_traceback(tmp_path: Path) -> None:
     """End to end through a fresh interpreter, as a user would call it."""
     text = tmp_path / "notes.mcap"

@@ -15,6 +15,7 @@ from pose_uncertainty.experiments.study import run_study
 from pose_uncertainty.pipeline.jobs import simulate_run
 
 
+@pytest.mark.slow
 def test_simulate_run_writes_the_log_of_the_library_call(tmp_path: Path) -> None:
     config = CONFIGS["right_angles"]
     assert main(["simulate-run", json.dumps(config), str(tmp_path / "a.mcap"), str(tmp_path / "a.json")]) == 0
@@ -40,6 +41,7 @@ def test_run_study_writes_the_results_of_the_library_call(tmp_path: Path) -> Non
         (["simulate-orbit", "{}", "a", "b"], "invalid choice: 'simulate-orbit'"),
     ],
 )
+@pytest.mark.slow
 def test_bad_usage_exits_2_and_says_why(tmp_path: Path, argv: list[str], says: str) -> None:
     res = subprocess.run([sys.executable, "-m", "pose_uncertainty.cli.job", *argv], cwd=tmp_path,
                          capture_output=True, text=True, check=False)  # fmt: skip

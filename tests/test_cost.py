@@ -325,6 +325,7 @@ def test_progress_on_a_terminal_is_one_redrawn_bar() -> None:
     assert "[" + "#" * 30 + "] 100 %" in text
 
 
+@pytest.mark.slow
 def test_progress_callbacks_leave_the_results_bit_identical() -> None:
     traj = trajectories.straight(length=1.0, dt=0.01)
     calls: list[tuple[int, int]] = []

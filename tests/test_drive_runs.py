@@ -182,6 +182,7 @@ def test_the_schema_checks_the_drive_section() -> None:
 # --- execution -------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_an_explicit_differential_drive_is_the_default_run() -> None:
     """Two routes to one run: the default (covariance, sampling, expcoords) and the generic drive's."""
     cfg = _config(None, {"name": "s_curve", "radius": 0.5, "dt": 0.05, "speed": 0.5, "track": 0.2},
@@ -216,6 +217,7 @@ def test_growth_measures_of_a_straight_are_the_closed_forms() -> None:
     assert "MC_growth_sigma_along" not in m  # no Monte Carlo, no Monte Carlo growth
 
 
+@pytest.mark.slow
 def test_monte_carlo_growth_agrees_with_method_a_at_small_errors() -> None:
     """At k = 1e-7 m the first order is exact; the exponents then differ by sampling noise only.
 
@@ -276,6 +278,7 @@ def drive_logs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[RunR
     return out
 
 
+@pytest.mark.slow
 def test_drive_run_log_replays_and_verifies(drive_logs, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     res, path = drive_logs["tricycle"]
     log = open_run(path)
@@ -307,6 +310,7 @@ def test_drive_run_log_replays_and_verifies(drive_logs, tmp_path: Path, capsys: 
     assert "verify: MISMATCH" in out
 
 
+@pytest.mark.slow
 def test_replayed_figures_name_the_drive(drive_logs, tmp_path: Path) -> None:
     res, path = drive_logs["tricycle"]
     log = open_run(path)
@@ -350,6 +354,7 @@ def test_follow_is_what_the_run_drives() -> None:
     assert_allclose(res.poses, path.poses_by("midpoint"), rtol=0, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_report_section_formats_the_logged_drive_measures(drive_logs, tmp_path: Path) -> None:
     """The section "Beyond the differential drive" shows the table's numbers, formatted, and nothing else."""
     from pose_uncertainty.pipeline.claims import write_claims

@@ -108,6 +108,7 @@ def test_bad_input():
         ec.pdf_xy([[0.0, 0.0]], [0, 0, 0], np.eye(2))
 
 
+@pytest.mark.slow
 def test_planar_density_resolves_a_thin_banana():
     # 20 m straight: the banana is far thinner than its length; the quadrature in the heading
     # must resolve it (a fixed 64-node rule left ripples that moved the 98.89 % coverage by 4 %)

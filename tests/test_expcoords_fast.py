@@ -46,12 +46,14 @@ def banana(traj, k):
     return E.poses[-1], E.covs[-1]
 
 
+@pytest.mark.slow
 def test_thin_straight_banana_matches_the_full_sum():
     mu, S = banana(tr.straight(20.0, dt=0.05, track=0.2), 5e-4)
     pts = points_around(mu, S, 3000, seed=11, spread=0.3)
     assert_matches_dense(pts, mu, S, min_nodes=3000)  # the pruned path, thousands of nodes
 
 
+@pytest.mark.slow
 def test_three_lap_circle_matches_the_full_sum():
     # the heading spread is ±5.8 rad: the curve of conditional means winds round the circle, so
     # nodes far apart in w lie close in the plane; many nodes force the pruned path
@@ -72,6 +74,7 @@ def test_fat_banana_matches_the_full_sum(monkeypatch, dense_nodes):
     assert_matches_dense(pts, mu, S, n_quad=3)  # a single, partly empty block
 
 
+@pytest.mark.slow
 def test_pruned_density_integrates_to_one():
     mu, S = banana(tr.circle(radius=1.0, laps=3, dt=0.01, track=0.2), 5e-4)
     x = np.linspace(-3.0, 3.0, 301)
@@ -80,6 +83,7 @@ def test_pruned_density_integrates_to_one():
     assert abs(Z.sum() * (x[1] - x[0]) * (y[1] - y[0]) - 1.0) < 2e-3
 
 
+@pytest.mark.slow
 def test_deterministic_and_independent_of_chunking(monkeypatch):
     mu, S = banana(tr.straight(20.0, dt=0.05, track=0.2), 5e-4)
     pts = points_around(mu, S, 3000, seed=14, spread=0.3)

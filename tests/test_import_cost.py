@@ -34,6 +34,7 @@ def _loaded_after(statement: str) -> set[str]:
     return set(json.loads(out))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("job", sorted(JOBS))
 def test_a_job_imports_no_heavy_library_at_start(job):
     statement, heavy = JOBS[job]
@@ -46,6 +47,7 @@ def test_the_check_sees_a_heavy_import():
     assert "scipy.special" in _loaded_after("import pose_uncertainty, scipy.special")
 
 
+@pytest.mark.slow
 def test_a_localization_log_kind_is_found_without_importing_its_module_first():
     code = (
         "import sys; from pose_uncertainty.records import formats, run as runlog; before = sorted(formats.FORMATS); "
@@ -58,6 +60,7 @@ def test_a_localization_log_kind_is_found_without_importing_its_module_first():
     assert out == ["True", "False", "True", "True"]
 
 
+@pytest.mark.slow
 def test_a_monte_carlo_run_without_maps_runs_without_scipy_special(tmp_path):
     """Its χ² levels come from core.stats' table of scipy's values (most runs of the default config)."""
     code = (

@@ -126,6 +126,7 @@ def test_ins_method_a_matches_monte_carlo(rng):
     assert_allclose(with_start, covs + start_only, rtol=1e-12, atol=1e-18)
 
 
+@pytest.mark.slow
 def test_odometry_gyro_method_a_matches_monte_carlo(rng):
     traj = tr.circle(radius=1.0, speed=0.5, dt=0.05, track=0.2)
     # errors small enough that the second-order bias of the linearisation (∝ σ_θ², a whitened

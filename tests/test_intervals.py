@@ -85,6 +85,7 @@ def test_interval_box_equals_stepping_box_by_box():
     assert_allclose(box.hi[0], hi, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_box_and_zonotope_contain_every_sampled_trajectory(rng):
     traj = _curvy()
     A = wheel_error_generators(traj.ds_r, traj.ds_l, traj.track, ERRORS)

@@ -4,6 +4,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
 
@@ -17,6 +19,7 @@ def test_ruff_clean():
     assert res.returncode == 0, res.stdout + res.stderr
 
 
+@pytest.mark.slow
 def test_mypy_clean():
     res = _run(str(BIN / "mypy"))
     assert res.returncode == 0, res.stdout + res.stderr

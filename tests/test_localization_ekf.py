@@ -127,6 +127,7 @@ def test_unseen_landmarks_leave_the_belief_unchanged(rng):
     np.testing.assert_allclose(c2, c3, rtol=1e-12, atol=1e-16)
 
 
+@pytest.mark.slow
 def test_averaged_nees_of_the_ekf_lies_in_its_chi2_band():
     # near-linear case: small wheel noise, precise sensor, landmarks a few metres away; the
     # true start is drawn from the filter's prior so the filter's model is right (per-step wheel

@@ -263,6 +263,7 @@ def test_foxglove_topics(result: LL.LocalizationResult, logged: Path) -> None:
         assert counts[topic] == 1, topic
 
 
+@pytest.mark.slow
 def test_replay_verify_ok_and_tampered(logged: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["replay", str(logged), "--verify", "--at", "3.0"]) == 0
     out = capsys.readouterr().out
@@ -326,6 +327,7 @@ def test_table_columns_equal_the_logged_metrics(logged: Path, tmp_path: Path) ->
     assert row["n_steps"] == log.n_steps
 
 
+@pytest.mark.slow
 def test_figures_drawn_from_the_log_are_identical(result: LL.LocalizationResult, logged: Path, tmp_path: Path) -> None:
     kinds = list(LF.RUN_FIGURES)
     a = LF.render_localization_run_figures(logged, kinds, [tmp_path / f"a_{k}.png" for k in kinds])

@@ -126,6 +126,7 @@ def test_one_step_multi_step_map_equals_the_single_step_map(u):
     assert stats.hellinger(multi.values, hist3) ** 2 - floor**2 <= 0.02**2
 
 
+@pytest.mark.slow
 def test_one_step_odometry_multi_step_equals_single_step():
     g = _coarse_grid()
     od = mm.noiseless_velocity_poses((0, 0, 0), np.array([[1.0, 1.0]]), 1.0)
@@ -161,6 +162,7 @@ def _mc_end_poses(model, ctr, dt, n, seed):
     ("model", "u"),
     [("velocity", (1.0, 0.0)), ("velocity", (1.0, 1.0)), ("odometry", (1.0, 1.0))],
 )
+@pytest.mark.slow
 def test_multi_step_map_matches_monte_carlo_at_default_resolution(model, u):
     # Thesis B1 motion (α = 0.05, 1 s) driven as 10 steps of 0.1 s; default 1 cm × 2° grid that
     # grows to hold the spread; 10⁶ particles of the same model along the same trajectory.

@@ -70,6 +70,7 @@ def _rotate(v: np.ndarray, theta: float) -> np.ndarray:
     return v @ np.array([[c, -s], [s, c]])
 
 
+@pytest.mark.slow
 def test_c_measures_equal_unscented_propagate_on_the_logged_config(circle: RunLog) -> None:
     """Second route: Method C recomputed from the logged configuration, frames and ellipse by hand."""
     cfg = circle.config

@@ -29,6 +29,8 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Any, NamedTuple
 
+import pytest
+
 PKG = Path(__file__).resolve().parents[1] / "src" / "pose_uncertainty"
 
 #: Length [AST nodes] of a copied block (≈ 90 tokens, about eight statements).
@@ -228,6 +230,7 @@ def _found_in_src() -> tuple[str, ...]:
     return tuple(near_copies({str(p.relative_to(PKG)): p.read_text(encoding="utf-8") for p in PKG.rglob("*.py")}))
 
 
+@pytest.mark.slow
 def test_src_has_no_repeated_helper():
     assert [f for f in _found_in_src() if f.split(": ", 1)[-1] not in ALLOWED] == []
 

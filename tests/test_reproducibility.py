@@ -98,6 +98,7 @@ def test_other_libm_moves_results_by_whole_ulps_deterministically() -> None:
 @pytest.mark.parametrize("name", ["straight", "localization",
                                   *(pytest.param(n, marks=pytest.mark.slow)
                                     for n in ("circle_cov0_checkpoints", "per_run_exact", "map_arc"))])
+@pytest.mark.slow
 def test_a_log_from_another_libm_verifies_within_tolerance(
     name: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -124,6 +125,7 @@ def test_a_log_from_another_libm_verifies_within_tolerance(
     assert "verify: equal within tolerance" in again.stdout
 
 
+@pytest.mark.slow
 def test_a_log_with_simd_dispatch_disabled_verifies(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
 
@@ -249,6 +251,7 @@ def test_a_display_topic_moved_beyond_tolerance_is_a_mismatch(straight_log: Path
     assert "verify: MISMATCH" in out
 
 
+@pytest.mark.slow
 def test_a_one_ulp_change_is_within_tolerance_but_never_identical(straight_log: Path, tmp_path: Path,
                                                                  capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
     result = open_run(straight_log)
@@ -344,6 +347,7 @@ def test_every_log_records_the_machine_arithmetic(straight_log: Path) -> None:
     assert log_bytes(open_run(straight_log)) == straight_log.read_bytes()  # same machine: the same bytes
 
 
+@pytest.mark.slow
 def test_the_report_flags_logs_made_on_other_arithmetic(tmp_path: Path) -> None:
     from pose_uncertainty.pipeline import tables
     from pose_uncertainty.pipeline.claims import write_claims

@@ -57,6 +57,7 @@ def _check(cov: np.ndarray) -> None:
     assert plo <= int(cov.sum()) <= phi, (int(cov.sum()), (plo, phi))
 
 
+@pytest.mark.slow
 def test_intervals_cover_the_truth_in_a_few_repeats() -> None:
     # 4 repeats: each quantity must be covered at least 2 times (band of Binomial(4, 0.95))
     _check(_covered(range(4)))
@@ -68,6 +69,7 @@ def test_intervals_cover_the_truth_in_95_percent_of_100_repeats() -> None:
     _check(_covered(range(100)))
 
 
+@pytest.mark.slow
 def test_a_bag_gives_the_arrays_streams(tmp_path) -> None:
     """Two routes: bag written and read back with rosbags, and the simulated arrays directly."""
     bag = write_simulated_bag(tmp_path / "b", ROBOT, np.random.default_rng(5))

@@ -40,6 +40,7 @@ def _one_line_error(argv: list[str], capsys: pytest.CaptureFixture[str], match: 
     assert match in err[0], err
 
 
+@pytest.mark.slow
 def test_calibrate_writes_every_file(bags: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "out"
     assert main(["robot", "calibrate", str(bags["good"]), "-o", str(out)]) == 0

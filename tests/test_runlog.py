@@ -200,6 +200,7 @@ def test_every_message_has_a_frame(logfile: Path) -> None:
 # --- reproducibility and atomic writes -----------------------------------------------------
 
 
+@pytest.mark.slow
 def test_same_config_and_seed_give_identical_bytes(result: RunResult, tmp_path: Path) -> None:
     again = execute(RunConfig.from_dict(CONFIG))
     again = dataclasses.replace(again, maps=result.maps)
@@ -268,6 +269,7 @@ KILL_CONFIG = {
 }
 
 
+@pytest.mark.slow
 def test_killed_writer_leaves_only_a_recoverable_part_file(tmp_path: Path) -> None:
     """SIGKILL after 2500 messages (step ≈ 625 of 1000): no log, a .part with whole chunks."""
     import subprocess
@@ -309,6 +311,7 @@ def test_truncated_file_gives_clean_error(logfile: Path, tmp_path: Path, fractio
     _one_line_error(bad, "truncated")
 
 
+@pytest.mark.slow
 def test_every_flipped_byte_is_detected(logfile: Path, tmp_path: Path) -> None:
     """A flip anywhere (header, chunks, indexes, summary, footer) is caught by magic or a CRC."""
     data = logfile.read_bytes()
@@ -366,6 +369,7 @@ def test_partial_log_is_recovered_with_a_warning(
     assert log.config == result.config
 
 
+@pytest.mark.slow
 def test_tampered_log_fails_verification(result: RunResult, tmp_path: Path) -> None:
     clean = execute(result.config)
     path = write_run(tmp_path / "fresh.mcap", clean)
@@ -536,6 +540,7 @@ def test_metrics_agree_with_independent_routes(result: RunResult) -> None:
 # --- figures ---------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_figures_from_log_are_identical_to_figures_from_result(
     result: RunResult, logfile: Path, tmp_path: Path
 ) -> None:

@@ -30,6 +30,7 @@ def _cov_tolerance(S, n, z=5.0):
     ],
     ids=["straight", "arc", "rotation", "s_curve"],
 )
+@pytest.mark.slow
 def test_covariance_matches_monte_carlo_on_short_paths(traj, rng):
     # small k keeps the heading spread ~0.01 rad, so the first-order (linearisation) error is
     # ~σθ² ≈ 1e-4 relative: far below the Monte Carlo standard error at n = 2e5 (~0.3 %)
@@ -63,6 +64,7 @@ def test_heading_variance_both_regimes(regime, rng):
     assert abs(var - expected) <= 5 * expected * math.sqrt(2 / (N_MC - 1))
 
 
+@pytest.mark.slow
 def test_per_run_cloud_is_narrower_across_and_bent(rng):
     # systematic errors: heading error is constant-rate, so across-track spread grows slower
     t = tr.straight(1.0, dt=0.01)

@@ -152,6 +152,7 @@ def test_bad_input():
         st.integrate_in_type(np.ones((1, 2)), np.ones((1, 2)), 0.1, 0.01, "float32", scheme="x")
 
 
+@pytest.mark.slow
 def test_corrected_map_matches_its_sampler_better_than_the_thesis_map():
     # the sampler's pose-space density (corrected map) against the thesis's Thrun density, both
     # against 2e4 draws of the odometry sampler; coverage s.e. ≤ 0.0035, grid error ~ a cell

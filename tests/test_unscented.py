@@ -134,6 +134,7 @@ def test_one_step_matches_monte_carlo_to_second_order():
     assert np.abs(A.poses[-1, 0] - m[0]) > 10 * se_m[0]  # the test can tell C from A
 
 
+@pytest.mark.slow
 def test_long_arc_mean_shifts_inward_like_monte_carlo():
     """Half circle: heading noise pulls the mean end point towards the centre (and back).
 
