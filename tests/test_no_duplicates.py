@@ -49,7 +49,6 @@ ALLOWED: dict[str, str] = {
     "experiments/localization.py:<module> ~ experiments/run.py:<module>": "the two result dataclasses' fields",
     "methods/intervals.py:interval_dead_reckoning ~ methods/zonotopes.py:zonotope_dead_reckoning":
         _PAIR + " (interval vs zonotope set arithmetic)",
-    "analysis/accuracy.py:coverage_ellipse ~ analysis/accuracy.py:coverage_ellipsoid": _PAIR + " (2-D vs 3-D)",
     "analysis/studies/gaussian_methods.py:accuracy_vs_distance_study ~ analysis/studies/growth.py:growth_laws_study": "studies read alike by design",
     "analysis/studies/gaussian_methods.py:accuracy_vs_distance_study ~ analysis/studies/growth.py:polar_vs_cartesian_study":
         "studies read alike by design",
