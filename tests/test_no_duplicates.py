@@ -60,7 +60,6 @@ ALLOWED: dict[str, str] = {
         _PAIR + " (per step vs per run)",
     "core/se2.py:adjoint ~ methods/expcoords.py:to_cartesian_cov": "different maps, alike in shape",
     "core/se2.py:exp ~ core/se2.py:log": "a map and its inverse, alike in shape",
-    "methods/maps/transition.py:_odometry_nodes ~ methods/maps/transition.py:_velocity_nodes": _PAIR + " (odometry vs velocity model)",
     "methods/motion_models.py:odometry_forward ~ methods/motion_models.py:velocity_forward":
         _PAIR + " (odometry vs velocity model)",
     "methods/unscented.py:propagate ~ methods/unscented.py:propagate_se2": _PAIR + " (x-y-θ vs SE(2))",
