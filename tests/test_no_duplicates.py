@@ -47,8 +47,6 @@ ALLOWED: dict[str, str] = {
     "core/kinematics.py:step ~ core/kinematics.py:step_twist": _PAIR + " (wheel steps vs twists)",
     "experiments/cost.py:check ~ experiments/cost.py:check": "two local check() closures of the cost drivers",
     "experiments/localization.py:<module> ~ experiments/run.py:<module>": "the two result dataclasses' fields",
-    "methods/intervals.py:interval_dead_reckoning ~ methods/zonotopes.py:zonotope_dead_reckoning":
-        _PAIR + " (interval vs zonotope set arithmetic)",
     "analysis/studies/gaussian_methods.py:accuracy_vs_distance_study ~ analysis/studies/growth.py:growth_laws_study": "studies read alike by design",
     "analysis/studies/gaussian_methods.py:accuracy_vs_distance_study ~ analysis/studies/growth.py:polar_vs_cartesian_study":
         "studies read alike by design",
