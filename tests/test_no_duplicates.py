@@ -59,8 +59,6 @@ ALLOWED: dict[str, str] = {
     "core/se2.py:adjoint ~ methods/expcoords.py:to_cartesian_cov": "different maps, alike in shape",
     "core/se2.py:exp ~ core/se2.py:log": "a map and its inverse, alike in shape",
     "methods/unscented.py:propagate ~ methods/unscented.py:propagate_se2": _PAIR + " (x-y-θ vs SE(2))",
-    "present/localization.py:render_localization_set_figure ~ present/pipeline_figures.py:render_set_figure":
-        "the two kinds' set figures",
 }  # fmt: skip
 
 
