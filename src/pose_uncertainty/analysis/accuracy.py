@@ -45,7 +45,7 @@ The distances use the package's one Hellinger convention
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -131,6 +131,14 @@ def kl_divergence(p: ArrayLike, q: ArrayLike, floor: float = KL_FLOOR) -> float:
 # --- coverage ---------------------------------------------------------------------------------
 
 
+def _fraction_inside(
+    points: ArrayLike, center: ArrayLike, cov: ArrayLike, prs: Sequence[float], radius_sq: Callable[[float], Any]
+) -> dict[str, float]:
+    """``{pr_label(pr): fraction of points with dᵀΣ⁻¹d ≤ radius_sq(pr)}``."""
+    d2 = mahalanobis_sq(points, center, cov)
+    return {pr_label(pr): float(np.mean(d2 <= radius_sq(pr))) for pr in prs}
+
+
 def coverage_ellipse(
     xy: ArrayLike, center: ArrayLike, cov_xy: ArrayLike, prs: Sequence[float] = PRS
 ) -> dict[str, float]:
@@ -138,8 +146,7 @@ def coverage_ellipse(
 
     Returns ``{pr_label(pr): fraction}``.
     """
-    d2 = mahalanobis_sq(xy, center, cov_xy)
-    return {pr_label(pr): float(np.mean(d2 <= pr_to_k(pr))) for pr in prs}
+    return _fraction_inside(xy, center, cov_xy, prs, pr_to_k)
 
 
 def coverage_ellipsoid(
@@ -147,9 +154,8 @@ def coverage_ellipsoid(
 ) -> dict[str, float]:
     """Fraction of d-dimensional points inside ``dᵀΣ⁻¹d ≤ χ²_d(Pr)``; ``{pr_label: fraction}``."""
     C = check_finite("cov", cov)
-    d2 = mahalanobis_sq(points, center, C)
     dim = C.shape[-1]
-    return {pr_label(pr): float(np.mean(d2 <= chi2_ppf(pr, dim))) for pr in prs}
+    return _fraction_inside(points, center, C, prs, lambda pr: chi2_ppf(pr, dim))
 
 
 # --- gridded densities ------------------------------------------------------------------------

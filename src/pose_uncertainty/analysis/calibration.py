@@ -86,6 +86,7 @@ __all__ = [
     "CI_METHODS",
     "COORDS",
     "MIN_ROWS",
+    "SCALINGS",
     "CalibrationResult",
     "fit_alphas_odometry",
     "fit_alphas_velocity",
@@ -458,10 +459,38 @@ def fit_variance_regression(
     return _finish(names, nll, xhat, fisher, scale, lvl, ci_method, r.size, model, {})
 
 
+#: Variance features of the α fits: squared (``α V²``) or absolute (``α|V|``) control components.
+SCALINGS: tuple[str, ...] = ("squared", "abs")
+
+
+def _power(a: NDArray, scaling: str) -> NDArray:
+    """A variance feature of one control component: ``a²`` (``"squared"``) or ``|a|`` (``"abs"``)."""
+    return a * a if scaling == "squared" else np.abs(a)
+
+
 def _features(a: NDArray, b: NDArray, scaling: str) -> NDArray:
-    if scaling == "squared":
-        return np.stack([a * a, b * b], axis=-1)
-    return np.stack([np.abs(a), np.abs(b)], axis=-1)
+    """The two features (m, 2) of a noise whose variance is ``α a² + α' b²`` (or ``|a|, |b|``)."""
+    return np.stack([_power(a, scaling), _power(b, scaling)], axis=-1)
+
+
+def _per_sample(name: str, value: ArrayLike, m: int, k: int) -> NDArray:
+    """``value`` of shape (m, k) or (k,), checked and broadcast to one row per sample."""
+    return np.broadcast_to(check_last_axis(name, value, k), (m, k))
+
+
+def _single_step_fit(
+    model: str,
+    groups: Sequence[tuple[str, NDArray, NDArray, tuple[str, ...]]],
+    level: float,
+    ci_method: str,
+) -> dict[str, CalibrationResult]:
+    """One variance regression per noise group ``(key, residuals, features, α names)`` of ``model``."""
+    return {
+        key: fit_variance_regression(
+            r, F, names, level=level, ci_method=ci_method, model=f"{model}, {key} noise"
+        )
+        for key, r, F, names in groups
+    }
 
 
 def fit_alphas_velocity(
@@ -488,12 +517,12 @@ def fit_alphas_velocity(
     -------
     dict: ``"V"`` (α1, α2), ``"omega"`` (α3, α4), ``"gamma"`` (α5, α6)
     """
-    check_choice("scaling", scaling, ("squared", "abs"))
+    check_choice("scaling", scaling, SCALINGS)
     x = check_last_axis("samples", samples, 3)
     m = x.shape[0]
-    u = np.broadcast_to(check_last_axis("controls", controls, 2), (m, 2))
+    u = _per_sample("controls", controls, m, 2)
     dts = np.broadcast_to(check_finite("dt", dt), (m,))
-    x0 = np.broadcast_to(check_last_axis("starts", starts, 3), (m, 3))
+    x0 = _per_sample("starts", starts, m, 3)
     V_hat = np.empty(m)
     w_hat = np.empty(m)
     g_hat = np.empty(m)
@@ -501,16 +530,12 @@ def fit_alphas_velocity(
         sel = dts == d
         V_hat[sel], w_hat[sel], g_hat[sel] = velocity_inverse(x[sel], x0[sel], float(d))
     F = _features(u[:, 0], u[:, 1], scaling)
-    out = {}
-    for key, r, names in (
-        ("V", V_hat - u[:, 0], ("alpha1", "alpha2")),
-        ("omega", w_hat - u[:, 1], ("alpha3", "alpha4")),
-        ("gamma", g_hat, ("alpha5", "alpha6")),
-    ):
-        out[key] = fit_variance_regression(
-            r, F, names, level=level, ci_method=ci_method, model=f"velocity model, {key} noise"
-        )
-    return out
+    groups = (
+        ("V", V_hat - u[:, 0], F, ("alpha1", "alpha2")),
+        ("omega", w_hat - u[:, 1], F, ("alpha3", "alpha4")),
+        ("gamma", g_hat, F, ("alpha5", "alpha6")),
+    )
+    return _single_step_fit("velocity model", groups, level, ci_method)
 
 
 def fit_alphas_odometry(
@@ -540,31 +565,23 @@ def fit_alphas_odometry(
     -------
     dict: ``"rotation"`` (α1, α2), ``"translation"`` (α3, α4)
     """
-    check_choice("scaling", scaling, ("squared", "abs"))
+    check_choice("scaling", scaling, SCALINGS)
     x = check_last_axis("samples", samples, 3)
     m = x.shape[0]
-    op = np.broadcast_to(check_last_axis("odom_prev", odom_prev, 3), (m, 3))
-    on = np.broadcast_to(check_last_axis("odom_next", odom_next, 3), (m, 3))
-    x0 = np.broadcast_to(check_last_axis("starts", starts, 3), (m, 3))
+    op = _per_sample("odom_prev", odom_prev, m, 3)
+    on = _per_sample("odom_next", odom_next, m, 3)
+    x0 = _per_sample("starts", starts, m, 3)
     r1, tr, r2 = odometry_deltas(op, on)
     h1, ht, h2 = odometry_deltas(x0, x, ref_rot1=r1)
     # the sampler draws δ̂ = δ − noise: residuals δ − δ̂ are the noise draws
     res_rot = np.concatenate([wrap_angle(r1 - h1), wrap_angle(r2 - h2)])
     F_rot = np.concatenate([_features(r1, tr, scaling), _features(r2, tr, scaling)])
-    if scaling == "squared":
-        F_tr = np.stack([tr * tr, r1 * r1 + r2 * r2], axis=-1)
-    else:
-        F_tr = np.stack([np.abs(tr), np.abs(r1) + np.abs(r2)], axis=-1)
-    return {
-        "rotation": fit_variance_regression(
-            res_rot, F_rot, ("alpha1", "alpha2"), level=level, ci_method=ci_method,
-            model="odometry model, rotation noise",
-        ),
-        "translation": fit_variance_regression(
-            tr - ht, F_tr, ("alpha3", "alpha4"), level=level, ci_method=ci_method,
-            model="odometry model, translation noise",
-        ),
-    }
+    F_tr = np.stack([_power(tr, scaling), _power(r1, scaling) + _power(r2, scaling)], axis=-1)
+    groups = (
+        ("rotation", res_rot, F_rot, ("alpha1", "alpha2")),
+        ("translation", tr - ht, F_tr, ("alpha3", "alpha4")),
+    )
+    return _single_step_fit("odometry model", groups, level, ci_method)
 
 
 # --- CSV ----------------------------------------------------------------------------------------

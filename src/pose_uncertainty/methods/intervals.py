@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -50,8 +51,10 @@ from ..core.validation import (
 )
 
 __all__ = [
+    "BoundedPath",
     "BoundedWheelErrors",
     "IntervalBox",
+    "bounded_path",
     "box_area",
     "check_error_generators",
     "check_path_inputs",
@@ -203,6 +206,49 @@ def check_path_inputs(ds: ArrayLike, dtheta: ArrayLike, start: ArrayLike, start_
     return d, dth, p0, r0, idx
 
 
+class BoundedPath(NamedTuple):
+    """A path under bounded per-step errors: what both set methods (boxes, zonotopes) start from.
+
+    ``ds, dtheta`` (N,) [m, rad], ``start, start_radius`` (3,), ``checkpoints`` (C,) as validated
+    by :func:`check_path_inputs`; ``generators`` (N, 2, m) the ``A_k``; ``r_s, r_th`` (N,) the
+    per-step error radii ``Σ_j |A_k[i, j]|`` of ``Δs`` and ``Δθ``; ``phi`` (N,) and ``nominal``
+    (N+1, 3) from :func:`midpoint_nominal`; ``R`` (N+1,) the exact radius of the heading
+    interval ``[θ_k]`` [rad] and ``R_phi`` (N,) that of the midpoint heading; ``travelled`` and
+    ``turned`` (N+1,) the prefix sums of ``|Δs| + r_s`` and ``|Δθ| + r_th`` (the terms of the
+    position and heading sums, for :func:`rounding_guard`).
+    """
+
+    ds: Array
+    dtheta: Array
+    start: Array
+    start_radius: Array
+    checkpoints: NDArray[np.intp]
+    generators: Array
+    r_s: Array
+    r_th: Array
+    phi: Array
+    nominal: Array
+    R: Array
+    R_phi: Array
+    travelled: Array
+    turned: Array
+
+
+def bounded_path(
+    ds: ArrayLike, dtheta: ArrayLike, error_generators: ArrayLike, start: ArrayLike, start_radius: ArrayLike,
+    checkpoints: ArrayLike | None,
+) -> BoundedPath:  # fmt: skip
+    """The validated inputs of a bounded-error dead reckoning with their radii and sums (:class:`BoundedPath`)."""
+    d, dth, p0, r0, idx = check_path_inputs(ds, dtheta, start, start_radius, checkpoints)
+    A = check_error_generators(error_generators, d.size)
+    r_s, r_th = np.abs(A[:, 0]).sum(axis=-1), np.abs(A[:, 1]).sum(axis=-1)
+    _, phi, nominal = midpoint_nominal(d, dth, p0)
+    R = r0[2] + np.concatenate([[0.0], np.cumsum(r_th)])  # exact radius of [θ_k]
+    travelled = np.concatenate([[0.0], np.cumsum(np.abs(d) + r_s)])
+    turned = np.concatenate([[0.0], np.cumsum(np.abs(dth) + r_th)])  # Σ|Δθ| + R: the heading sum's terms
+    return BoundedPath(d, dth, p0, r0, idx, A, r_s, r_th, phi, nominal, R, R[:-1] + 0.5 * r_th, travelled, turned)
+
+
 def interval_dead_reckoning(
     ds: ArrayLike, dtheta: ArrayLike, error_generators: ArrayLike, *,
     start: ArrayLike = (0.0, 0.0, 0.0), start_radius: ArrayLike = (0.0, 0.0, 0.0),
@@ -221,26 +267,21 @@ def interval_dead_reckoning(
     -------
     IntervalBox with bounds (C, 3)
     """
-    d, dth, p0, r0, idx = check_path_inputs(ds, dtheta, start, start_radius, checkpoints)
-    A = check_error_generators(error_generators, d.size)
-    r_s, r_th = np.abs(A[:, 0]).sum(axis=-1), np.abs(A[:, 1]).sum(axis=-1)
-    _, phi, nominal = midpoint_nominal(d, dth, p0)
-    R = r0[2] + np.concatenate([[0.0], np.cumsum(r_th)])  # exact radius of [θ_k]
-    R_phi = R[:-1] + 0.5 * r_th
-    c_lo, c_hi = interval_cos(phi - R_phi, phi + R_phi)
-    s_lo, s_hi = interval_sin(phi - R_phi, phi + R_phi)
+    b = bounded_path(ds, dtheta, error_generators, start, start_radius, checkpoints)
+    d, r_s, p0, r0, idx, R = b.ds, b.r_s, b.start, b.start_radius, b.checkpoints, b.R
+    c_lo, c_hi = interval_cos(b.phi - b.R_phi, b.phi + b.R_phi)
+    s_lo, s_hi = interval_sin(b.phi - b.R_phi, b.phi + b.R_phi)
     x_lo, x_hi = interval_mul(d - r_s, d + r_s, c_lo, c_hi)
     y_lo, y_hi = interval_mul(d - r_s, d + r_s, s_lo, s_hi)
     zero = np.zeros(1)
     cum = {k: np.concatenate([zero, np.cumsum(v)]) for k, v in
-           (("xl", x_lo), ("xh", x_hi), ("yl", y_lo), ("yh", y_hi), ("mag", np.abs(d) + r_s))}  # fmt: skip
-    g = rounding_guard(np.abs(p0[:2]).sum() + r0.sum() + cum["mag"][idx], idx)
-    turned = np.concatenate([[0.0], np.cumsum(np.abs(dth) + r_th)])  # Σ|Δθ| + R: the heading sum's terms
-    g_th = rounding_guard(abs(p0[2]) + r0[2] + turned[idx], idx)
+           (("xl", x_lo), ("xh", x_hi), ("yl", y_lo), ("yh", y_hi))}  # fmt: skip
+    g = rounding_guard(np.abs(p0[:2]).sum() + r0.sum() + b.travelled[idx], idx)
+    g_th = rounding_guard(abs(p0[2]) + r0[2] + b.turned[idx], idx)
     lo = np.stack([p0[0] - r0[0] + cum["xl"][idx] - g, p0[1] - r0[1] + cum["yl"][idx] - g,
-                   nominal[idx, 2] - R[idx] - g_th], -1)  # fmt: skip
+                   b.nominal[idx, 2] - R[idx] - g_th], -1)  # fmt: skip
     hi = np.stack([p0[0] + r0[0] + cum["xh"][idx] + g, p0[1] + r0[1] + cum["yh"][idx] + g,
-                   nominal[idx, 2] + R[idx] + g_th], -1)  # fmt: skip
+                   b.nominal[idx, 2] + R[idx] + g_th], -1)  # fmt: skip
     return IntervalBox(lo, hi, idx)
 
 

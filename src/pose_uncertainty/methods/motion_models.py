@@ -166,6 +166,16 @@ def _check_cell(cell: tuple[float, float] | None) -> tuple[float, float] | None:
 # ----------------------------------------------------------------------------- velocity
 
 
+def _chord_move(xp: Array, head: Array, chord: Array, theta_end: Array) -> Array:
+    """Poses (..., 3): ``xp`` moved by ``chord`` [m] along heading ``head``, ending at heading ``theta_end``.
+
+    One step of either model is such a move: turn, translate along the chord, turn.
+    """
+    return np.stack(
+        [xp[..., 0] + chord * np.cos(head), xp[..., 1] + chord * np.sin(head), theta_end], axis=-1
+    )
+
+
 def velocity_variances(control: ArrayLike, alphas: ArrayLike, scaling: str = "squared") -> Array:
     """Variances ``(σ_V², σ_ω², σ_γ²)`` of the velocity model for ``control = (V, ω)``.
 
@@ -231,16 +241,8 @@ def velocity_forward(
     xp = _pose("x_prev", x_prev)
     V_, w_, g_ = (np.asarray(a, dtype=np.float64) for a in (V, omega, gamma))
     phi = w_ * dt
-    chord = V_ * dt * sinc(phi / 2.0)
-    head = xp[..., 2] + phi / 2.0
-    return np.stack(
-        [
-            xp[..., 0] + chord * np.cos(head),
-            xp[..., 1] + chord * np.sin(head),
-            xp[..., 2] + phi + g_ * dt,
-        ],
-        axis=-1,
-    )
+    # the arc is an odometry step: turn by φ/2, the chord VΔt·sinc(φ/2), turn by φ/2 + γΔt
+    return _chord_move(xp, xp[..., 2] + phi / 2.0, V_ * dt * sinc(phi / 2.0), xp[..., 2] + phi + g_ * dt)
 
 
 def velocity_jacobian_det(V_hat: ArrayLike, omega_hat: ArrayLike, dt: float) -> Array:
@@ -521,9 +523,7 @@ def odometry_forward(x_prev: ArrayLike, rot1: ArrayLike, trans: ArrayLike, rot2:
     xp = _pose("x_prev", x_prev)
     r1, tr, r2 = (np.asarray(a, dtype=np.float64) for a in (rot1, trans, rot2))
     head = xp[..., 2] + r1
-    return np.stack(
-        [xp[..., 0] + tr * np.cos(head), xp[..., 1] + tr * np.sin(head), head + r2], axis=-1
-    )
+    return _chord_move(xp, head, tr, head + r2)
 
 
 def odometry_variances(

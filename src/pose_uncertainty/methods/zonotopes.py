@@ -36,7 +36,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..core.validation import check_finite, check_last_axis
-from .intervals import check_error_generators, check_path_inputs, midpoint_nominal, rounding_guard
+from .intervals import bounded_path, rounding_guard
 
 __all__ = [
     "Zonotope",
@@ -93,32 +93,26 @@ def zonotope_dead_reckoning(
     list of Zonotope — one per checkpoint ``n``: centre (3,) the nominal pose, generators
     (3, m·n + 5) [m, m, rad]
     """
-    d, dth, p0, r0, idx = check_path_inputs(ds, dtheta, start, start_radius, checkpoints)
-    A = check_error_generators(error_generators, d.size)
-    r_s, r_th = np.abs(A[:, 0]).sum(axis=-1), np.abs(A[:, 1]).sum(axis=-1)
-    _, phi, nom = midpoint_nominal(d, dth, p0)
+    b = bounded_path(ds, dtheta, error_generators, start, start_radius, checkpoints)
+    A, nom, r0 = b.generators, b.nominal, b.start_radius
     dx, dy = np.diff(nom[:, 0]), np.diff(nom[:, 1])
-    R = r0[2] + np.concatenate([[0.0], np.cumsum(r_th)])
-    R_phi = R[:-1] + 0.5 * r_th
     # |ρ_k| ≤ |e_s|·|δφ| + |Δs|·δφ²/2, summed over the steps before each checkpoint
-    rho = np.concatenate([[0.0], np.cumsum(r_s * R_phi + 0.5 * np.abs(d) * R_phi**2)])
-    mag = np.concatenate([[0.0], np.cumsum(np.abs(d) + r_s)])
-    turned = np.concatenate([[0.0], np.cumsum(np.abs(dth) + r_th)])
+    rho = np.concatenate([[0.0], np.cumsum(b.r_s * b.R_phi + 0.5 * np.abs(b.ds) * b.R_phi**2)])
     out = []
-    for n in idx:  # a few checkpoints; every step's generators at once
+    for n in b.checkpoints:  # a few checkpoints; every step's generators at once
         turn = np.stack([-(nom[n, 1] - nom[1 : n + 1, 1]) - 0.5 * dy[:n],
                          (nom[n, 0] - nom[1 : n + 1, 0]) + 0.5 * dx[:n]], -1)  # fmt: skip
         G_steps = np.empty((3, n, A.shape[2]))
-        G_steps[0] = np.cos(phi[:n, None]) * A[:n, 0] + turn[:, 0, None] * A[:n, 1]
-        G_steps[1] = np.sin(phi[:n, None]) * A[:n, 0] + turn[:, 1, None] * A[:n, 1]
+        G_steps[0] = np.cos(b.phi[:n, None]) * A[:n, 0] + turn[:, 0, None] * A[:n, 1]
+        G_steps[1] = np.sin(b.phi[:n, None]) * A[:n, 0] + turn[:, 1, None] * A[:n, 1]
         G_steps[2] = A[:n, 1]
         G_start = np.diag(r0)
         G_start[0, 2] = -(nom[n, 1] - nom[0, 1]) * r0[2]
         G_start[1, 2] = (nom[n, 0] - nom[0, 0]) * r0[2]
-        g = rounding_guard(np.abs(p0).sum() + r0.sum() + mag[n], n)
+        g = rounding_guard(np.abs(b.start).sum() + r0.sum() + b.travelled[n], n)
         G_rem = np.diag([rho[n] + g, rho[n] + g])
         G = np.concatenate([G_start, G_steps.reshape(3, -1), np.vstack([G_rem, np.zeros((1, 2))])], axis=1)
-        G[2, 2] += float(rounding_guard(abs(p0[2]) + r0[2] + turned[n], n))  # the heading's own guard
+        G[2, 2] += float(rounding_guard(abs(b.start[2]) + r0[2] + b.turned[n], n))  # the heading's own guard
         out.append(Zonotope(nom[n].copy(), G))
     return out
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +30,29 @@ def _write_timings(timings: Mapping[str, float], out: str | os.PathLike[str] | N
         atomic_write_text(out, json.dumps({k: float(v) for k, v in sorted(timings.items())}, indent=1) + "\n")
 
 
+def _write_run(out: str | os.PathLike[str], result: Any) -> Path:
+    """A dead-reckoning run's log, its progress shown under the run's name."""
+    return write_run(out, result, progress=Progress(f"{result.config.name}: writing the log"))
+
+
+#: Each job kind: its configuration from the mapping, its execution, the writer of its log.
+_KINDS: dict[str, tuple[Callable[[Mapping[str, Any]], Any], Callable[[Any], Any], Callable[..., Path]]] = {
+    "run": (RunConfig.from_dict, execute, _write_run),
+    "localization": (lambda c: LocalizationConfig.from_dict(dict(c)), execute_localization, write_localization),
+}
+
+
+def _simulate(kind: str, config: Mapping[str, Any], out: str | os.PathLike[str],
+              timings_out: str | os.PathLike[str] | None) -> Path:  # fmt: skip
+    """Execute one run of ``kind`` (a key of :data:`_KINDS`), write its log to ``out`` and its timings."""
+    parse, run, write = _KINDS[kind]
+    result = run(parse(config))
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    path = write(out, result)
+    _write_timings(result.timings, timings_out)
+    return path
+
+
 def simulate_run(config: Mapping[str, Any], out: str | os.PathLike[str],
                  timings_out: str | os.PathLike[str] | None = None) -> Path:  # fmt: skip
     """Execute one dead-reckoning run and write its log (and, optionally, its timings as JSON).
@@ -44,11 +67,7 @@ def simulate_run(config: Mapping[str, Any], out: str | os.PathLike[str],
     -------
     Path — ``out``
     """
-    result = execute(RunConfig.from_dict(config))
-    Path(out).parent.mkdir(parents=True, exist_ok=True)
-    path = write_run(out, result, progress=Progress(f"{result.config.name}: writing the log"))
-    _write_timings(result.timings, timings_out)
-    return path
+    return _simulate("run", config, out, timings_out)
 
 
 def simulate_localization(config: Mapping[str, Any], out: str | os.PathLike[str],
@@ -57,7 +76,4 @@ def simulate_localization(config: Mapping[str, Any], out: str | os.PathLike[str]
 
     Parameters and return as :func:`simulate_run`, for a ``kind: localization`` configuration.
     """
-    result = execute_localization(LocalizationConfig.from_dict(dict(config)))
-    path = write_localization(out, result)
-    _write_timings(result.timings, timings_out)
-    return path
+    return _simulate("localization", config, out, timings_out)

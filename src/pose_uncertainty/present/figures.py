@@ -21,7 +21,7 @@ from __future__ import annotations
 import functools
 import io
 import os
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -50,6 +50,7 @@ __all__ = [
     "new_figure",
     "render_figures",
     "save_figure",
+    "save_figure_of_kind",
     "trajectory_figure",
     "wrap_title",
 ]
@@ -507,6 +508,21 @@ def save_figure(fig: Figure, path: str | os.PathLike[str]) -> Path:
             data = buf.getvalue()
     atomic_write_bytes(p, data)
     return p
+
+
+def save_figure_of_kind(
+    kind: str, builders: Mapping[str, Callable[[], Figure]], out: str | os.PathLike[str]
+) -> Path:
+    """Draw the figure of ``kind`` with its builder and save it to ``out`` (its folder created).
+
+    ``builders`` maps each allowed kind to a function drawing that figure; another ``kind``
+    is a ValueError naming it and the allowed kinds.
+    """
+    if kind not in builders:
+        raise ValueError(f"set figure kind must be one of {tuple(builders)}, got {kind!r}")
+    fig = builders[kind]()
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    return save_figure(fig, out)
 
 
 def _palette_png(fig: Figure, metadata: dict[str, str | None]) -> bytes:

@@ -21,6 +21,7 @@ same log gives the same bytes.
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -276,11 +277,6 @@ def render_localization_set_figure(kind: str, logs: Sequence[str | os.PathLike[s
                                    timings: Sequence[str | os.PathLike[str]], out: str | os.PathLike[str],
                                    title: str = "") -> Path:  # fmt: skip
     """Draw a set figure (``accuracy_time`` or ``success``) and save it."""
-    if kind == "accuracy_time":
-        fig = accuracy_time_figure(logs, timings, title)
-    elif kind == "success":
-        fig = success_figure(logs, title)
-    else:
-        raise ValueError(f"set figure kind must be one of {SET_FIGURES}, got {kind!r}")
-    Path(out).parent.mkdir(parents=True, exist_ok=True)
-    return figures.save_figure(fig, out)
+    builders = {"accuracy_time": functools.partial(accuracy_time_figure, logs, timings, title),
+                "success": functools.partial(success_figure, logs, title)}  # fmt: skip
+    return figures.save_figure_of_kind(kind, builders, out)

@@ -19,6 +19,7 @@ Every figure is saved by :func:`pose_uncertainty.present.figures.save_figure` (d
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 from collections.abc import Mapping, Sequence
@@ -340,16 +341,8 @@ def render_set_figure(
     kind: str, logs: Sequence[str | os.PathLike[str]], out: str | os.PathLike[str], title: str = ""
 ) -> Path:
     """Draw a set-level figure (``growth``, ``cloud_polar`` or ``drives``) and save it."""
-    if kind == "growth":
-        fig = growth_figure(logs, title)
-    elif kind == "cloud_polar":
-        fig = cloud_polar_figure(logs, title)
-    elif kind == "drives":
-        fig = drives_figure(logs, title)
-    else:
-        raise ValueError(f"set figure kind must be 'growth', 'cloud_polar' or 'drives', got {kind!r}")
-    Path(out).parent.mkdir(parents=True, exist_ok=True)
-    return figures.save_figure(fig, out)
+    draw = {"growth": growth_figure, "cloud_polar": cloud_polar_figure, "drives": drives_figure}
+    return figures.save_figure_of_kind(kind, {k: functools.partial(f, logs, title) for k, f in draw.items()}, out)
 
 
 # --- the UMBmark figure, and a study's figure by its kind -----------------------------------------

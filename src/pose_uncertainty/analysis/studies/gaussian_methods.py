@@ -22,6 +22,11 @@ from ...methods import unscented as ut
 from .. import accuracy as ac
 
 
+def straight_path(length: float) -> dict[str, Any]:
+    """The studies' default path as a trajectory configuration: straight, ``length`` [m], Δt 0.01 s, track 0.2 m."""
+    return {"name": "straight", "length": length, "dt": 0.01, "track": 0.2}
+
+
 def accuracy_case(
     trajectory: dict[str, Any] | None = None,
     k: float = 5e-4,
@@ -43,7 +48,7 @@ def accuracy_case(
     -------
     dict: ``case`` (the label), ``k``, ``length`` [m] and the entries of ``compare_methods``.
     """
-    t = tr.from_config(trajectory or {"name": "straight", "length": 1.0, "dt": 0.01, "track": 0.2})
+    t = tr.from_config(trajectory or straight_path(1.0))
     rng = np.random.default_rng(seed)
     cloud = sp.sample_end_poses(t, k, k, n, rng)
     A = cv.propagate(t, k, k)
@@ -83,7 +88,7 @@ def coverage_vs_distance(
 
 
 def accuracy_vs_distance_study(
-    trajectory: dict[str, Any] = {"name": "straight", "length": 20.0, "dt": 0.01, "track": 0.2},  # noqa: B006
+    trajectory: dict[str, Any] = straight_path(20.0),  # noqa: B008
     k: float = 5e-4, n: int = 10_000, seed: int = 12, n_checkpoints: int = 5, n_threshold: int = 50_000,
 ) -> list[dict[str, Any]]:
     """:func:`coverage_vs_distance` along a configured trajectory (``n_threshold`` draws for the

@@ -20,6 +20,7 @@ from ...methods import covariance as cv
 from ...methods import sampling as sp
 from ...methods import unscented as ut
 from .. import accuracy as ac
+from .gaussian_methods import straight_path
 
 
 def _moments(v: NDArray) -> dict[str, float]:
@@ -115,7 +116,7 @@ def growth_laws(
 
 
 def polar_vs_cartesian_study(
-    trajectory: dict[str, Any] = {"name": "straight", "length": 1.0, "dt": 0.01, "track": 0.2},  # noqa: B006
+    trajectory: dict[str, Any] = straight_path(1.0),  # noqa: B008
     k: float = 5e-4, n: int = 100_000, seed: int = 5,
 ) -> dict[str, Any]:
     """:func:`polar_vs_cartesian` of a per-step Monte Carlo cloud of a configured trajectory."""
@@ -124,7 +125,7 @@ def polar_vs_cartesian_study(
 
 
 def growth_laws_study(
-    trajectory: dict[str, Any] = {"name": "straight", "length": 20.0, "dt": 0.01, "track": 0.2},  # noqa: B006
+    trajectory: dict[str, Any] = straight_path(20.0),  # noqa: B008
     k: float = 5e-4, n_points: int = 20, n_particles: int = 20_000, seed: int = 0,
     regime: str = "per_step",
 ) -> dict[str, Any]:

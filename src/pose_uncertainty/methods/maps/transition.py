@@ -11,6 +11,7 @@ its window for every source heading, is a :class:`GridTransition` (:func:`grid_t
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -122,31 +123,57 @@ class _ControlNodes(NamedTuple):
     head_std: float  # its standard deviation [rad]
 
 
+def _control_nodes(
+    stp: _Step,
+    sd: Array,
+    h: float,
+    ht: float,
+    n_max: int,
+    *,
+    trans: int,
+    per: float,
+    lever_of: Callable[[float], float],
+    forward: Callable[[Array, Array], Array],
+    head: tuple[float, float],
+    clip: float = math.inf,
+) -> _ControlNodes:
+    """Nodes of the two noisy controls on a product grid, spaced ≤ a quarter cell in pose space.
+
+    The translation-like control ``u[trans]`` (``V`` or ``δtrans``) is spaced ≤ ``h/4`` per
+    ``per`` (the step's duration for rates, 1 for increments); the rotation-like one
+    ``u[1 − trans]`` (``ω`` or ``δrot1``) ≤ ``h_θ/4`` per ``per`` and ≤ ``h/4`` at the lever
+    ``lever_of(|translation| + reach)`` [m per unit of rotation], then clipped to ``±clip``.
+    ``forward(a, b)`` moves the nodes (first axis ``u[0]``) to local pose changes; ``head`` is
+    the heading-only noise's (mean, std) [rad].
+    """
+    t_mean, t_sd = float(stp.u[trans]), float(sd[trans])
+    r_mean, r_sd = float(stp.u[1 - trans]), float(sd[1 - trans])
+    t_n, t_w = _node_masses(t_mean, t_sd, stp.noise, 0.25 * h / per, n_max)
+    lever = lever_of(abs(t_mean) + noise_reach(stp.noise) * t_sd)
+    r_sp = min(0.25 * ht / per, 0.25 * h / lever if lever > 0 else math.inf)
+    r_n, r_w = _node_masses(r_mean, r_sd, stp.noise, r_sp, n_max)
+    r_n = np.clip(r_n, -clip, clip)
+    (a_n, a_w), (b_n, b_w) = ((t_n, t_w), (r_n, r_w)) if trans == 0 else ((r_n, r_w), (t_n, t_w))
+    A, B = np.meshgrid(a_n, b_n, indexing="ij")
+    return _ControlNodes(A.shape, forward(A.ravel(), B.ravel()), np.outer(a_w, b_w).ravel(), *head)
+
+
 def _velocity_nodes(stp: _Step, sd: Array, h: float, ht: float, n_max: int) -> _ControlNodes:
-    """Nodes of ``(V̂, ω̂)``, spaced ≤ a quarter cell in pose space."""
-    V, w = float(stp.u[0]), float(stp.u[1])
+    """Nodes of ``(V̂, ω̂)``: along-track ``dx = dV·Δt·sinc ≤ dV·Δt``, across ``≈ |V|Δt²/2·dω``, heading ``Δt·dω``."""
     dt = stp.dt
-    # along-track: dx = dV·Δt·sinc ≤ dV·Δt; across: ≈ |V|Δt²/2·dω; heading: Δt·dω
-    Vn, Vw = _node_masses(V, float(sd[0]), stp.noise, 0.25 * h / dt, n_max)
-    lever = (abs(V) + noise_reach(stp.noise) * float(sd[0])) * dt * dt / 2.0
-    w_sp = min(0.25 * ht / dt, 0.25 * h / lever if lever > 0 else math.inf)
-    wn, ww = _node_masses(w, float(sd[1]), stp.noise, w_sp, n_max)
-    wn = np.clip(wn, -math.pi / dt, math.pi / dt)
-    A, B = np.meshgrid(Vn, wn, indexing="ij")
-    pose = velocity_forward(np.zeros(3), A.ravel(), B.ravel(), 0.0, dt)
-    return _ControlNodes(A.shape, pose, np.outer(Vw, ww).ravel(), 0.0, float(sd[2]) * dt)
+    return _control_nodes(
+        stp, sd, h, ht, n_max, trans=0, per=dt, lever_of=lambda a: a * dt * dt / 2.0,
+        forward=lambda a, b: velocity_forward(np.zeros(3), a, b, 0.0, dt), head=(0.0, float(sd[2]) * dt),
+        clip=math.pi / dt,
+    )  # fmt: skip
 
 
 def _odometry_nodes(stp: _Step, sd: Array, h: float, ht: float, n_max: int) -> _ControlNodes:
-    """Nodes of ``(δ̂rot1, δ̂trans)``, spaced ≤ a quarter cell in pose space."""
-    r1, tr, r2 = (float(v) for v in stp.u)
-    tr_n, tr_w = _node_masses(tr, float(sd[1]), stp.noise, 0.25 * h, n_max)
-    lever = abs(tr) + noise_reach(stp.noise) * float(sd[1])
-    r1_sp = min(0.25 * ht, 0.25 * h / lever if lever > 0 else math.inf)
-    r1_n, r1_w = _node_masses(r1, float(sd[0]), stp.noise, r1_sp, n_max)
-    A, B = np.meshgrid(r1_n, tr_n, indexing="ij")
-    pose = odometry_forward(np.zeros(3), A.ravel(), B.ravel(), 0.0)
-    return _ControlNodes(A.shape, pose, np.outer(r1_w, tr_w).ravel(), r2, float(sd[2]))
+    """Nodes of ``(δ̂rot1, δ̂trans)``: across ``≈ |δtrans|·dδrot1``; ``δrot2`` is the heading-only noise."""
+    return _control_nodes(
+        stp, sd, h, ht, n_max, trans=1, per=1.0, lever_of=lambda a: a,
+        forward=lambda a, b: odometry_forward(np.zeros(3), a, b, 0.0), head=(float(stp.u[2]), float(sd[2])),
+    )  # fmt: skip
 
 
 def _node_heading_variances(
