@@ -10,7 +10,7 @@ CORES  ?= all
 # holds a flock for the whole run, clears what a killed run left (workflow/run-locked.sh)
 LOCKED := workflow/run-locked.sh
 
-.PHONY: report test quick bench bench-regenerate lint venv lock clean slurm-up slurm-down
+.PHONY: report test quick bench bench-regenerate lint venv lock clean slurm-up slurm-down docs
 
 venv: $(STAMP)
 
@@ -57,3 +57,7 @@ clean:
 # the run keys of the pipeline schema, generated from the key tables next to the config dataclasses
 schema: $(STAMP)
 	$(BIN)/python -m pose_uncertainty.experiments.schema workflow/schemas/config.schema.yaml
+
+# the documentation site → docs/_build/html/index.html (offline; warnings are errors)
+docs: $(STAMP)
+	$(BIN)/sphinx-build -b html -W --keep-going -n -j 1 docs docs/_build/html
