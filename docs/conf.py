@@ -86,6 +86,8 @@ suppress_warnings = ["autosummary.import_cycle", "ref.python"]
 html_theme = "pydata_sphinx_theme"
 html_title = "pose-uncertainty"
 html_static_path = ["_static"]
+html_css_files = ["custom.css"]
+html_context = {"default_mode": "auto"}  # light or dark as the reader's system is (the theme logs an error without it)
 html_theme_options = {
     "navigation_with_keys": False,
     "show_toc_level": 2,

@@ -10,6 +10,8 @@ parser and load every YAML example with the real configuration readers, without 
 
 from __future__ import annotations
 
+import argparse
+import html
 import json
 import os
 import re
@@ -19,7 +21,6 @@ import sys
 import textwrap
 import time
 import urllib.request
-from html.parser import HTMLParser
 from pathlib import Path
 from typing import Any
 from urllib.parse import unquote, urlsplit
@@ -152,30 +153,23 @@ def site(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out / "html"
 
 
-class _Page(HTMLParser):
-    def __init__(self) -> None:
-        super().__init__()
-        self.ids: set[str] = set()
-        self.links: list[tuple[str, str]] = []  # (tag attribute, url)
-        self.text: list[str] = []
-
-    def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
-        a = dict(attrs)
-        for key in ("id", "name"):
-            if a.get(key):
-                self.ids.add(str(a[key]))
-        for key in ("href", "src"):
-            if a.get(key):
-                self.links.append((f"{tag}.{key}", str(a[key])))
-
-    def handle_data(self, data: str) -> None:
-        self.text.append(data)
+_ID = re.compile(r'\b(?:id|name)="([^"]+)"')
+_LINK = re.compile(r'<(\w+)\b[^>]*?\b(href|src)="([^"]*)"')
+_TAG = re.compile(r"<[^>]+>")
 
 
-def _parse(path: Path) -> _Page:
-    page = _Page()
-    page.feed(path.read_text(encoding="utf-8"))
-    return page
+def _ids(path: Path) -> set[str]:
+    return {html.unescape(m) for m in _ID.findall(path.read_text(encoding="utf-8"))}
+
+
+def _links(path: Path) -> list[tuple[str, str]]:
+    """``(tag.attribute, url)`` of every link and resource of a page."""
+    return [(f"{t}.{a}", html.unescape(u)) for t, a, u in _LINK.findall(path.read_text(encoding="utf-8"))]
+
+
+def _text(path: Path) -> str:
+    """The page's text: tags removed, entities decoded, whitespace collapsed."""
+    return " ".join(html.unescape(_TAG.sub(" ", path.read_text(encoding="utf-8"))).split())
 
 
 @pytest.mark.slow
@@ -184,7 +178,7 @@ def test_site_has_every_section_and_the_executed_examples(site: Path) -> None:
     assert len(pages) > 150
     for section in ("tutorials", "howto", "theory", "explanation", "reference"):
         assert (site / section / "index.html").is_file()
-    own = " ".join(_parse(site / "tutorials/own-run.html").text)
+    own = _text(site / "tutorials/own-run.html")
     m = re.search(r"Monte Carlo inside: ([0-9.]+)", own)
     assert m, "the executed tutorial shows no output"
     # the page shows the package's own number: the same seeded computation here gives it too
@@ -198,7 +192,7 @@ def test_site_has_every_section_and_the_executed_examples(site: Path) -> None:
     cloud = sampling.sample_end_poses(t, 5e-4, 5e-4, n=100_000, rng=np.random.default_rng(1), regime="per_step")
     inside = stats.fraction_inside_ellipse(cloud[:, :2], res.poses[-1, :2], res.covs[-1, :2, :2], covariance.PR_3SIGMA)
     assert m.group(1) == f"{inside:.4f}"
-    notebook = " ".join(_parse(site / "tutorials/explore_runs.html").text)
+    notebook = _text(site / "tutorials/explore_runs.html")
     assert "Traceback" not in notebook
     assert "Traceback" not in own
     assert len(list((site / "_images").glob("*.png"))) >= 3  # the notebook's figures
@@ -208,24 +202,25 @@ def test_site_has_every_section_and_the_executed_examples(site: Path) -> None:
 def test_generated_reference_lists_every_key_option_and_measure(site: Path) -> None:
     from pose_uncertainty.cli import build_parser
 
-    config = " ".join(_parse(site / "reference/config.html").text)
+    config = _text(site / "reference/config.html")
     schema = pu_reference.config_schema()
     parts = [schema, *schema["$defs"].values()]
     paths = [p for part in parts for p, _ in pu_reference.walk_keys(part)]
     assert [p for p in paths if p not in config] == []
 
-    measures = " ".join(_parse(site / "reference/measures.html").text)
+    measures = _text(site / "reference/measures.html")
     patterns = [pu_reference._readable(p) for p, _, _ in pu_reference.measure_registry()]
     assert [p for p in patterns if p not in measures] == []
 
-    cli = " ".join(_parse(site / "reference/cli.html").text)
+    cli = _text(site / "reference/cli.html")
 
     def options(parser: Any) -> list[str]:
         out = []
         for a in parser._actions:
-            out += a.option_strings
-            for sub in (getattr(a, "choices", None) or {}).values():
-                if hasattr(sub, "_actions"):
+            if not isinstance(a, argparse._HelpAction):
+                out += a.option_strings
+            if isinstance(a, argparse._SubParsersAction):
+                for sub in a.choices.values():
                     out += options(sub)
         return out
 
@@ -234,10 +229,11 @@ def test_generated_reference_lists_every_key_option_and_measure(site: Path) -> N
 
 @pytest.mark.slow
 def test_internal_links_resolve_and_nothing_is_fetched(site: Path) -> None:
+    files = {str(p) for p in site.rglob("*") if p.is_file()}
     broken, external = [], []
-    cache: dict[Path, set[str]] = {}
-    for page in sorted(site.rglob("*.html")):
-        for attr, url in _parse(page).links:
+    ids: dict[str, set[str]] = {}
+    for page in sorted(p for p in site.rglob("*.html") if p.relative_to(site).parts[0] != "_static"):
+        for attr, url in set(_links(page)):
             parts = urlsplit(url)
             if parts.scheme in ("http", "https"):
                 if attr != "a.href":  # a script, style sheet, font or image from the web
@@ -245,14 +241,15 @@ def test_internal_links_resolve_and_nothing_is_fetched(site: Path) -> None:
                 continue
             if parts.scheme in ("mailto", "data", "javascript") or (not parts.path and not parts.fragment):
                 continue
-            target = (page.parent / unquote(parts.path)).resolve() if parts.path else page
-            if target.is_dir():
-                target = target / "index.html"
-            if not target.exists():
+            target = os.path.normpath(os.path.join(page.parent, unquote(parts.path))) if parts.path else str(page)
+            if target not in files and os.path.join(target, "index.html") in files:
+                target = os.path.join(target, "index.html")
+            if target not in files:
                 broken.append(f"{page.relative_to(site)}: {url}")
-            elif parts.fragment and target.suffix == ".html":
-                ids = cache.setdefault(target, _parse(target).ids)
-                if unquote(parts.fragment) not in ids:
+            elif parts.fragment and target.endswith(".html"):
+                if target not in ids:
+                    ids[target] = _ids(Path(target))
+                if unquote(parts.fragment) not in ids[target]:
                     broken.append(f"{page.relative_to(site)}: {url} (no such anchor)")
     assert external == [], external[:20]
     assert broken == [], broken[:20]

@@ -204,16 +204,19 @@ class ConfigKeysDirective(_Generated):
             out += [f".. _config-{anchor}:", "", title, "-" * len(title), ""]
             if part.get("description"):
                 out += [_plain(part["description"]), ""]
-            rows = []
             for path, sub in walk_keys(part):
                 doc = sub.get("description")
                 if not doc:
                     LOG.warning("pu-config-keys: the key %s of %s has no description", path, title)
                     doc = ""
                 unit = sub.get("x-unit", "")
-                rows.append([_lit(path), _type_of(sub), _lit(unit) if isinstance(unit, str) else "", _default(sub),
-                             _plain(doc)])  # fmt: skip
-            out += _table(["key", "type", "unit", "default", "description"], rows, "18 16 6 12 48")
+                facts = [_type_of(sub)]
+                if isinstance(unit, str) and unit:
+                    facts.append(f"unit {_lit(unit)}")
+                if _default(sub):
+                    facts.append(f"default {_default(sub)}")
+                # a definition list: the key, then what it takes, then what it means
+                out += [_lit(path), "   " + " · ".join(facts), "", "   " + (_plain(doc) or "—"), ""]
         return out
 
 
