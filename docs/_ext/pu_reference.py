@@ -44,8 +44,15 @@ def _lit(text: Any) -> str:
 
 
 def _plain(text: Any) -> str:
-    """Free text as RST text: escape what reST would read as markup."""
-    s = _cell(text)
+    """Free text as RST text: `code` spans as literals, the rest escaped where reST would read markup."""
+    parts = re.split(r"(`[^`]+`)", _cell(text))
+    # "\\ " (an escaped space, which reST drops) lets a literal touch the text around it
+    return "".join(f"\\ {_lit(p[1:-1])}\\ " if p.startswith("`") and p.endswith("`") and len(p) > 1 else _escape(p)
+                   for p in parts)  # fmt: skip
+
+
+def _escape(s: str) -> str:
+    """Escape what reST would read as markup in plain text."""
     s = s.replace("\\", "\\\\").replace("*", "\\*").replace("`", "\\`").replace("|", "\\|")
     s = re.sub(r"(?<![\w\\])_", r"\\_", s)
     s = re.sub(r"_(?!\w)", r"\\_", s)
@@ -197,7 +204,7 @@ class ConfigKeysDirective(_Generated):
 
     def lines(self) -> list[str]:
         schema = config_schema()
-        parts: list[tuple[str, str, dict[str, Any]]] = [("the pipeline configuration", "top", schema)]
+        parts: list[tuple[str, str, dict[str, Any]]] = [("The pipeline configuration (top level)", "top", schema)]
         parts += [(f"{name}", name, sub) for name, sub in schema.get("$defs", {}).items()]
         out: list[str] = []
         for title, anchor, part in parts:
