@@ -14,7 +14,7 @@ LOCKED := workflow/run-locked.sh
 # set, as in many containers); ms when the files are up to date.
 COMPILE := $(BIN)/python -m compileall -q src
 
-.PHONY: report test quick bench bench-regenerate lint venv lock clean slurm-up slurm-down
+.PHONY: report test quick bench bench-regenerate lint venv lock clean slurm-up slurm-down docs
 
 venv: $(STAMP)
 
@@ -64,3 +64,7 @@ clean:
 # the run keys of the pipeline schema, generated from the key tables next to the config dataclasses
 schema: $(STAMP)
 	$(BIN)/python -m pose_uncertainty.experiments.schema workflow/schemas/config.schema.yaml
+
+# the documentation site → docs/_build/html/index.html (offline; warnings are errors)
+docs: $(STAMP)
+	$(BIN)/sphinx-build -b html -W --keep-going -n -j 1 docs docs/_build/html

@@ -15,7 +15,7 @@ from pose_uncertainty.methods import systematic as sy
 
 L, B = 4.0, 0.3  # Borenstein's 4 m square; a 0.3 m track
 NOMINAL = sy.WheelGeometry(B)
-README = Path(__file__).resolve().parents[1] / "README.md"
+CALIBRATE_DOC = Path(__file__).resolve().parents[1] / "docs" / "howto" / "calibrate.md"
 
 
 def _truth(E_d, E_b):
@@ -240,10 +240,10 @@ def test_bad_settings_one_line_errors():
 
 
 def _readme_csv():
-    """The example CSV of the README's UMBmark section (the ```csv block after its heading)."""
-    text = README.read_text(encoding="utf-8")
-    section = text[text.index("## Calibrate systematic errors (UMBmark)") :]
-    return re.search(r"```csv\n(.*?)```", section, re.DOTALL).group(1)
+    """The example CSV of the calibration how-to's UMBmark section (the first block after its heading)."""
+    text = CALIBRATE_DOC.read_text(encoding="utf-8")
+    section = text[text.index("## Systematic errors with UMBmark") :]
+    return re.search(r"```text\n(direction,x,y\n.*?)```", section, re.DOTALL).group(1)
 
 
 def test_readme_example_parses_and_cli_end_to_end(tmp_path, capsys):

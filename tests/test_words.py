@@ -16,7 +16,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 #: What a reader of the repository gets: the package, the pipeline, its configs, the docs.
-PRODUCT = ("src", "workflow", "config", "notebooks", "benchmarks", "README.md", "Snakefile", "Makefile")
+PRODUCT = ("src", "workflow", "config", "notebooks", "benchmarks", "docs", "README.md", "Snakefile", "Makefile")
 
 #: Words that point outside the repository, each with what to write instead.
 FORBIDDEN = {
@@ -27,7 +27,8 @@ FORBIDDEN = {
 }
 
 #: Generated or cached (git-ignored): not part of the product's text.
-_SKIP_DIRS = {"__pycache__", ".ipynb_checkpoints", ".pytest_cache", ".ruff_cache", ".mypy_cache", "build"}
+_SKIP_DIRS = {"__pycache__", ".ipynb_checkpoints", ".pytest_cache", ".ruff_cache", ".mypy_cache", "build",
+              "_build", "generated"}  # docs/_build, docs/reference/generated: built from the sources
 _SKIP_UNDER = (Path("benchmarks", "results"),)
 
 

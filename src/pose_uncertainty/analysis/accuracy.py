@@ -264,7 +264,7 @@ def evaluate_cartesian(
     samples : array_like, shape (n, 3) — Monte Carlo poses, unwrapped headings
     pose : array_like, shape (3,) — the method's mean pose
     cov : array_like, shape (3, 3) — its covariance, positive definite
-    grid : Grid, optional — default :func:`grid_for_cloud` of the samples
+    grid : Grid, optional — default :meth:`Grid.covering` of the samples
     prs : probabilities of the credible regions; supersample : see :func:`cell_probabilities`
 
     Returns

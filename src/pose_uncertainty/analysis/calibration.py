@@ -1,7 +1,7 @@
 """Calibration: error constants estimated from observed poses, with confidence intervals.
 
 Wheel-noise constants ``k_r, k_l`` (Method A's model)
-----------------------------------------------------
+------------------------------------------------------
 Data: end poses ``p_1 … p_n`` of repeated runs of one known trajectory (a CSV
 of measurements, or the Monte Carlo cloud of a run log). Model: the end pose
 is Gaussian with mean the noiseless end pose and covariance linear in the

@@ -22,7 +22,8 @@ def add_parser(sub: Any) -> None:
     c = rsub.add_parser("calibrate", help="bag → calibration.json, ros2_control/nav2/robot_localization YAML")
     c.add_argument("bag", help="rosbag2 folder, .mcap, .db3 or ROS 1 .bag")
     c.add_argument("--robot", metavar="ROBOT.yaml", help="robot file (radii, track, ticks, joints, topics)")
-    c.add_argument("-o", "--outdir", required=True, metavar="OUTDIR")
+    c.add_argument("-o", "--outdir", required=True, metavar="OUTDIR",
+                   help="folder for calibration.json and the parameter files (created)")
     c.add_argument("--seed", type=int, default=0, help="seed of the Monte Carlo parts (default 0)")
     c.set_defaults(func=cmd_calibrate)
     q = rsub.add_parser("predict", help="uncertainty horizon from known constants (no ground truth needed)")
@@ -30,13 +31,15 @@ def add_parser(sub: Any) -> None:
     q.add_argument("--k-l", type=float, required=True, help="left wheel error constant [m]")
     q.add_argument("--robot", metavar="ROBOT.yaml", help="robot file (track, nominal_speed, thresholds)")
     q.add_argument("--track", type=float, help="track [m] (default: the robot file's)")
-    q.add_argument("-o", "--outdir", required=True, metavar="OUTDIR")
-    q.add_argument("--seed", type=int, default=0)
+    q.add_argument("-o", "--outdir", required=True, metavar="OUTDIR",
+                   help="folder for horizon.json and report.html (created)")
+    q.add_argument("--seed", type=int, default=0, help="seed of the horizon's Monte Carlo (default 0)")
     q.set_defaults(func=cmd_predict)
     s = rsub.add_parser("simulate", help="write a bag of a simulated robot with known radii, track and k")
-    s.add_argument("-o", "--out", required=True, metavar="BAG")
-    s.add_argument("--storage", choices=("mcap", "sqlite3", "mcap-file", "ros1"), default="mcap")
-    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("-o", "--out", required=True, metavar="BAG", help="the bag to write")
+    s.add_argument("--storage", choices=("mcap", "sqlite3", "mcap-file", "ros1"), default="mcap",
+                   help="bag storage: rosbag2 mcap folder, rosbag2 sqlite3 folder, one .mcap file, ROS 1 .bag")
+    s.add_argument("--seed", type=int, default=0, help="seed of the simulated noise (default 0)")
     s.set_defaults(func=cmd_simulate)
 
 

@@ -200,7 +200,7 @@ class Drive(ABC):
 
     @property
     def steering_limit(self) -> float | None:
-        """Largest |steering angle| the inverse kinematics may use [rad], or None (unlimited)."""
+        """Largest absolute steering angle the inverse kinematics may use [rad], or None (unlimited)."""
         return None
 
     def _u(self, u: ArrayLike) -> NDArray[np.float64]:

@@ -1,6 +1,6 @@
 """Zero-mean noise densities and samplers of the motion models (Thrun ch. 5; Němec 2012 §2.2.1).
 
-Every function takes a **variance** ``var`` (never a standard deviation):
+Every function takes a **variance** ``var`` (never a standard deviation)::
 
     prob_normal(a, b²)     = exp(−a²/(2b²)) / √(2π b²)
     prob_triangular(a, b²) = max(0, 1/(√6 b) − |a|/(6 b²))          (support |a| ≤ √6 b)

@@ -6,7 +6,7 @@ sections, :class:`~pose_uncertainty.experiments.drive_config.DriveConfig`) keeps
 
 * the value check with its one-line error (:meth:`Key.check`, the form of
   :mod:`pose_uncertainty.experiments.config_checks`),
-* the default a missing key takes (:meth:`Key.default_of`),
+* the default a missing key takes (:meth:`Key.get`),
 * the unit logged with the configuration (:func:`units`),
 * the JSON Schema of the key (:meth:`Key.schema`), from which
   :mod:`pose_uncertainty.experiments.schema` generates the run keys of

@@ -1,7 +1,7 @@
 """Sensor models: a range–bearing landmark sensor and the beam model of a laser range finder.
 
 Range–bearing landmark sensor (Thrun, Burgard & Fox §6.6; Kulich 2014)
----------------------------------------------------------------------
+-----------------------------------------------------------------------
 A landmark ``m = (m_x, m_y)`` seen from the pose ``(x, y, θ)`` gives::
 
     h(x, m) = ( r, φ ) = ( √q,  wrap(atan2(m_y − y, m_x − x) − θ) ),   q = (m_x − x)² + (m_y − y)²
@@ -13,7 +13,7 @@ plus independent noise ``N(0, σ_r²)`` and ``N(0, σ_φ²)``. Its Jacobian with
 
 (Kulich 2014 prints the second row over ``√q``: wrong — the bearing's derivative
 scales with ``1/r``.) At ``q → 0`` the bearing is undefined; ``q`` is floored at
-:data:`MIN_RANGE`² there. A landmark is seen when ``r ≤ max_range`` and
+:data:`MIN_RANGE` squared there. A landmark is seen when ``r ≤ max_range`` and
 ``|φ| ≤ fov/2``, at the observation instants of the sensor's ``period``.
 Correspondences are known (the column of a measurement is the landmark's index)
 or found by maximum likelihood (:func:`associate`).
@@ -21,7 +21,7 @@ or found by maximum likelihood (:func:`associate`).
 Beam model (Thrun §6.3; Kulich 2014)
 ------------------------------------
 Each beam ``k`` of a scan at relative angle ``β_k`` measures ``z_k`` with, given
-the expected range ``z* `` (ray casting on the occupancy grid, :func:`cast_rays`)::
+the expected range ``z*`` (ray casting on the occupancy grid, :func:`cast_rays`)::
 
     p(z | z*) = z_hit p_hit + z_short p_short + z_max p_max + z_rand p_rand
     p_hit   = η_hit N(z; z*, σ_hit²)                 on [0, z_max]    (η_hit: the truncated mass)

@@ -15,7 +15,7 @@ them whenever the errors respect their bounds. Every step of the loop classifies
 at once (vectorised over boxes and landmarks); the loop runs over bisection depths.
 
 Inclusion functions (exact images of a box)
-------------------------------------------
+--------------------------------------------
 * range: ``[d_min, d_max]`` — distance of the landmark to the nearest and the farthest point of the box;
 * bearing: the angles of the landmark seen from the four corners (measured from the angle seen from
   the box centre, so they do not wrap) give the exact range of ``atan2`` over a box that does not

@@ -6,7 +6,7 @@ detecting the *place feature* ``z`` at node ``l`` — raw sensor data are first 
 features. Far fewer nodes than grid cells, so it is cheap and coarse.
 
 The graph (:func:`place_graph`)
-------------------------------
+-------------------------------
 Built from a world's occupancy grid (:mod:`.world`): the nodes are the points of a square lattice of
 ``spacing`` [m] whose disc of radius ``clearance`` holds no occupied cell; two lattice neighbours are
 joined when the segment between them crosses no occupied cell; nodes without any edge are left out.

@@ -1,7 +1,7 @@
 """The world a robot localizes in: point landmarks with ids and an occupancy grid.
 
 Conventions (SI units, as everywhere)
-------------------------------------
+-------------------------------------
 * A landmark is a point ``(m_x, m_y)`` [m] with an integer id ≥ 0; ids are unique.
 * An :class:`OccupancyGrid` holds square cells of side ``resolution`` [m]; cell
   ``[i, j]`` (x index first, as :class:`~pose_uncertainty.core.grids.Grid`)

@@ -15,8 +15,8 @@ source                    acts on                     per step (variance / bias)
                                                       (:mod:`.wheel_noise`; Šafránek 2022)
 ``steer_var``             every angle channel         ``steer_var`` [rad²], white
 ``steer_bias``            every angle channel         ``+steer_bias`` [rad]
-``slip`` (:class:`IcrSlip`) the ICR of a skid-steer   ``χ ~ N(χ̄, chi_var)``,
-                          drive (not a measurement)   ``x_ICR ~ N(x̄_ICR, x_icr_var)``
+``slip``                  the ICR of a skid-steer     ``χ ~ N(χ̄, chi_var)``,
+(:class:`IcrSlip`)        drive (not a measurement)   ``x_ICR ~ N(x̄_ICR, x_icr_var)``
 ========================  ==========================  ===================================
 
 Per drive: ``differential``, ``skid_steer`` — ``k`` (or ``encoder``) on ``Δs_r, Δs_l``,

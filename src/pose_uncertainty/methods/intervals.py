@@ -19,7 +19,7 @@ the heading known exactly). The true step is the midpoint step of :mod:`pose_unc
     x' = x + (Δs + e_s) cos(θ + (Δθ + e_θ)/2),   y' likewise with sin,   θ' = θ + Δθ + e_θ
 
 Interval boxes (:func:`interval_dead_reckoning`)
------------------------------------------------
+------------------------------------------------
 The natural interval extension of that step: ``[θ_k]`` is exact (a sum of independent errors,
 radius ``R_k = r_θ0 + Σ_{j<k} r_θ,j``), and ``[x_{k+1}] = [x_k] + [Δs_k ± r_s,k]·cos([φ_k])``.
 Because ``x`` enters only its own update, stepping box by box and summing the per-step

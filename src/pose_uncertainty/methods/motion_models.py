@@ -38,7 +38,7 @@ point. At exactly zero displacement ``|V̂|`` is floored at :data:`MIN_SPEED`
 so the value stays finite; maps integrate the start cell exactly instead.
 
 Odometry model, ``u`` = odometry poses ``x̄ → x̄'``
---------------------------------------------------
+---------------------------------------------------
 ``δrot1 = atan2(ȳ'−ȳ, x̄'−x̄) − θ̄``, ``δtrans``, ``δrot2 = θ̄'−θ̄−δrot1`` with these
 conventions (documented deviations from the book, which has none):
 
@@ -116,7 +116,7 @@ __all__ = [
 
 #: Below this translation [m] the odometry rotation δrot1 is undefined and set by convention.
 TRANS_EPS: float = 1e-9
-#: |V̂| [m/s] floor in the corrected velocity density at exactly zero displacement.
+#: The speed floor ``|V̂|`` [m/s] in the corrected velocity density at exactly zero displacement.
 MIN_SPEED: float = 1e-9
 VARIANCE_SOURCES: tuple[str, ...] = ("hypothesis", "odometry")
 

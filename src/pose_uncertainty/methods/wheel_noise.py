@@ -28,7 +28,7 @@ Method A models the travel of a wheel in a step as ``Δs' ~ N(Δs, k|Δs|)``:
 ``k`` is the variance of the wheel's travel *per metre travelled* [m²/m = m].
 In the per-step regime the travel error of one step is ``e_i dt`` with
 variance ``σ_v² dt²``, while the step covers ``|Δs| = |v| dt``. Matching
-``k |v| dt = σ_v² dt²`` gives
+``k |v| dt = σ_v² dt²`` gives::
 
     k = σ_v²(v) · dt / |v|                                           [m]
 

@@ -8,7 +8,7 @@ a zonotope does not (Kühn 1998, "Rigorously computed orbits of dynamical system
 wrapping effect").
 
 Conservative linearisation (Althoff, Stursberg & Buss 2008), on the sum form of the midpoint path
-------------------------------------------------------------------------------------------------
+-------------------------------------------------------------------------------------------------
 With the per-step errors ``(e_s, e_θ)_k = A_k η_k`` of :mod:`~pose_uncertainty.methods.intervals`
 and the start box ``p̄_0 + diag(r_0) ξ_0``, the pose after ``n`` steps is
 ``x_n = x_0 + Σ_{k<n} (Δs_k + e_s,k) cos(φ̄_k + δφ_k)`` (likewise ``y``) with

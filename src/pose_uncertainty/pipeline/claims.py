@@ -1,7 +1,7 @@
 """The claims of the theses (Němec 2012, Šafránek 2022), each evaluated from the collected per-run measures.
 
 :func:`evaluate_claims` takes the per-set tables (rows of
-:func:`pose_uncertainty.present.report.run_measures`, keyed by set name) and returns one
+:func:`pose_uncertainty.pipeline.tables.run_row`, keyed by set name) and returns one
 :class:`Claim` per claim of the theses: what the source showed, what we measured
 (with the numbers), the verdict — ``confirmed``, ``refuted``, ``qualified`` (true
 only in part or under conditions), or ``not measured`` (the sets it needs are not

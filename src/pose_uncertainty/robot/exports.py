@@ -1,7 +1,7 @@
 """YAML files ready to paste into a ROS 2 navigation setup, from a calibration.
 
 Twist covariance of wheel odometry at a nominal speed ``v`` and update rate ``f``
--------------------------------------------------------------------------------
+---------------------------------------------------------------------------------
 Over one update period ``T = 1/f`` at speed ``v`` each wheel travels ``vT`` with variance
 ``k vT`` (Method A), so its speed has variance ``k v / T``. With
 ``V = (v_r + v_l)/2`` and ``ω = (v_r − v_l)/b``::

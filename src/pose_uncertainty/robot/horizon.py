@@ -4,7 +4,7 @@ Method A (:func:`..methods.covariance.propagate_travels`) with the calibrated co
 driving straight, or turning on a circle of radius ``turn_radius``, at the nominal
 speed. The 95 % position error radius ``r95`` is the radius of the circle about the
 odometry's position holding 95 % of the (x, y) Gaussian: with eigenvalues ``λ₁, λ₂``
-of its covariance,
+of its covariance::
 
     P(|e| ≤ r) = (1/2π) ∫₀^{2π} (1 − exp(−r² a(φ)/2)) / (a(φ) √(λ₁λ₂)) dφ,
     a(φ) = cos²φ/λ₁ + sin²φ/λ₂
