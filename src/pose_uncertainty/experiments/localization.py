@@ -57,12 +57,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 from numpy.typing import NDArray
 
 from ..analysis import localization as lm
 from ..analysis import measures
 from ..core import trajectories
+from ..core.input_files import InputFileError, parse_mapping, read_text_file
 from ..core.provenance import provenance
 from ..core.table_io import jsonable
 from ..core.validation import parse_numbers
@@ -200,23 +200,18 @@ def _trajectory(data: Any) -> tuple[dict[str, Any], trajectories.Trajectory]:
 
 def _read_world_file(path: str) -> tuple[dict[str, Any], Path]:
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise _fail("world.file", "a readable world file (YAML or JSON)", f"{path} ({exc.strerror or exc})") from None
-    try:
-        data = copy.deepcopy(_parse_yaml(text))  # (a copy: the caller may change it)
-    except yaml.YAMLError as exc:
-        raise ValueError(f"config key 'world.file' {path!r}: not valid YAML/JSON ({str(exc).splitlines()[0]})") from None
-    if not isinstance(data, Mapping):
-        raise _fail("world.file", "a file holding a mapping", path)
+    try:  # kind and size checked before reading, a repeated key refused
+        text = read_text_file(p, "world")
+        data = copy.deepcopy(_parse_mapping(text, str(p), p.suffix.lower() == ".json"))  # (a copy: the caller may change it)
+    except InputFileError as exc:
+        raise ValueError(f"config key 'world.file': {exc}") from None
     return dict(data), p.parent
 
 
 @functools.lru_cache(maxsize=16)
-def _parse_yaml(text: str) -> Any:
-    """``yaml.safe_load(text)``, once per text: every run of a sweep reads the same world file."""
-    return yaml.safe_load(text)
+def _parse_mapping(text: str, name: str, json_syntax: bool) -> dict[str, Any]:
+    """The mapping of a world file's text, once per text: every run of a sweep reads the same file."""
+    return parse_mapping(text, name, json_syntax, "world")
 
 
 def _random_landmarks(data: Any) -> dict[str, Any]:
