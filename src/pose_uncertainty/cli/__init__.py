@@ -30,6 +30,7 @@ from collections.abc import Sequence
 
 from .. import __version__
 from ..records.run import RunLogError
+from ..experiments.environment import check_environment
 from ._common import EXIT_INPUT, EXIT_OK, CommandError, load_config_file
 
 __all__ = ["COMMANDS", "CommandError", "build_parser", "load_config_file", "main"]
@@ -65,6 +66,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        check_environment()  # every variable the package reads, before any work
         return int(args.func(args))
     except (CommandError, RunLogError) as exc:
         print(f"error: {exc}", file=sys.stderr)

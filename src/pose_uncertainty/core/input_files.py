@@ -144,7 +144,7 @@ def parse_mapping(text: str, name: str, json_syntax: bool = False, what: str = "
         if json_syntax:
             data = json.loads(text, object_pairs_hook=_json_pairs)
         else:
-            data = yaml.load(text, Loader=UniqueKeyLoader)  # noqa: S506 - a SafeLoader subclass
+            data = yaml.load(text, Loader=UniqueKeyLoader)  # a SafeLoader subclass: no arbitrary objects
     except DuplicateKeyError as exc:
         raise InputFileError(f"{name}: {exc}") from None
     except yaml.MarkedYAMLError as exc:

@@ -24,6 +24,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..core.validation import check_choice
 from .config_checks import fail, integer, name, real
 
 __all__ = ["FROM_CODE", "Key", "keys_schema", "units"]
@@ -57,7 +58,8 @@ class Key:
     doc : str — the description (required: the schema and the docs show it)
     default : any — the value of a missing key (:data:`FROM_CODE`: the code's own)
     allowed : tuple — the choices of a ``choice`` key
-    lo, hi : float or None — bounds of a number (``lo`` is the minimum of an integer)
+    lo, hi : float or None — bounds of a number (``lo``, ``hi``: the minimum and maximum of an
+        integer; every count has both, so that no value can ask for unbounded memory or time)
     lo_open, hi_open : bool — whether a bound is excluded
     nullable : bool — null is allowed (and means what ``doc`` says)
     rule : str — the wording of the range in an error, where the plain interval reads badly
@@ -98,9 +100,7 @@ class Key:
         if value is None and self.nullable:
             return None
         if self.kind == "choice":
-            if value not in self.allowed:
-                raise fail(where, "one of " + ", ".join(repr(a) for a in self.allowed), value)
-            return value
+            return check_choice(f"config key {where!r}", value, self.allowed)
         if self.kind == "boolean":
             if not isinstance(value, bool):
                 raise fail(where, "true or false", value)
@@ -108,7 +108,8 @@ class Key:
         if self.kind == "name":
             return name(where, value)
         if self.kind == "integer":
-            return integer(where, value, minimum=0 if self.lo is None else int(self.lo))
+            return integer(where, value, minimum=0 if self.lo is None else int(self.lo),
+                           maximum=None if self.hi is None else int(self.hi))
         if self.kind == "number":
             return self._number(where, value)
         return value

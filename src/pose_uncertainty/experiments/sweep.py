@@ -334,6 +334,16 @@ def _axis_points(where: str, ai: int, axis: Mapping[str, Any]) -> list[_AxisPoin
             f"config key '{where}.sweep[{ai}].labels' has {len(labels)} labels for {n} values; "
             "allowed: one label per value"
         )
+    if labels is None:  # a value given twice would silently give one run fewer
+        rows = [[axis[k][i] for k in keys] for i in range(n)]
+        for i, row in enumerate(rows):
+            if row in rows[:i]:
+                shown = repr(row[0]) if len(keys) == 1 else ", ".join(f"{k} = {v!r}" for k, v in zip(keys, row, strict=True))
+                raise ConfigError(
+                    f"config key '{where}.sweep[{ai}].{keys[0] if len(keys) == 1 else '{' + ', '.join(keys) + '}'}' "
+                    f"repeats the value {shown} (at positions {rows.index(row)} and {i}); "
+                    "allowed: distinct values, each giving one run (or 'labels' to tell repeats apart)"
+                )
     points = []
     for i in range(n):
         values = {k: axis[k][i] for k in keys}
