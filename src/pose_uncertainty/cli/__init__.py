@@ -29,8 +29,8 @@ import sys
 from collections.abc import Sequence
 
 from .. import __version__
-from ..records.run import RunLogError
 from ..experiments.environment import check_environment
+from ..records.run import RunLogError
 from ._common import EXIT_INPUT, EXIT_OK, CommandError, load_config_file
 
 __all__ = ["COMMANDS", "CommandError", "build_parser", "load_config_file", "main"]

@@ -55,11 +55,11 @@ from .drive_config import DRIVE_KEYS, DriveConfig, check_path
 
 __all__ = [
     "MAP_KEYS",
+    "MAP_SAMPLES",
     "MAX_CELLS",
     "MAX_MAPS",
     "MAX_PARTICLES",
     "MAX_SEED",
-    "MAP_SAMPLES",
     "MONTE_CARLO_KEYS",
     "RUN_KEYS",
     "TRAJECTORY_KEYS",
