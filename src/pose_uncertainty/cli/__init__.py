@@ -26,9 +26,12 @@ import argparse
 import importlib
 import os
 import sys
+import warnings
 from collections.abc import Sequence
+from typing import Any
 
 from .. import __version__
+from ..experiments.config_checks import ConfigWarning
 from ..experiments.environment import check_environment
 from ..records.run import RunLogError
 from ._common import EXIT_INPUT, EXIT_OK, CommandError, load_config_file
@@ -61,8 +64,21 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _one_line_warning(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+                      file: Any = None, line: str | None = None) -> None:
+    """A configuration warning as one line on stderr (``warning: ...``); others as Python shows them."""
+    if issubclass(category, ConfigWarning):
+        print(f"warning: {message}", file=sys.stderr if file is None else file)
+    else:
+        _SHOW_WARNING(message, category, filename, lineno, file, line)
+
+
+_SHOW_WARNING = warnings.showwarning
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``pose-uncertainty`` console script; returns the exit status."""
+    warnings.showwarning = _one_line_warning
     parser = build_parser()
     args = parser.parse_args(argv)
     try:

@@ -19,9 +19,13 @@ import numpy as np
 from ..core import trajectories
 from ..core.validation import NUMBER_HINT, check_int, parse_number
 
-__all__ = ["builder_keywords", "check_keys", "fail", "integer", "name", "real"]
+__all__ = ["ConfigWarning", "builder_keywords", "check_keys", "fail", "integer", "name", "real"]
 
 _NAME_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$")
+
+
+class ConfigWarning(UserWarning):
+    """A configuration that can run but is unusual (the message names the key and defines its measure)."""
 
 
 def fail(key: str, rule: str, value: Any) -> ValueError:

@@ -51,6 +51,7 @@ import functools
 import hashlib
 import math
 import time
+import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -73,7 +74,7 @@ from ..localization.result import ASSOCIATIONS, SCENARIOS, FilterResult, Start
 from ..localization.sensors import BeamSensor, RangeBearingSensor
 from ..localization.world import World, world_from_dict
 from ..methods.sampling import REGIMES
-from .config_checks import builder_keywords
+from .config_checks import ConfigWarning, builder_keywords
 from .config_checks import check_keys as _check_keys
 from .config_checks import fail as _fail
 from .config_checks import integer as _int
@@ -258,6 +259,49 @@ def _world(data: Any) -> dict[str, Any]:
     out.update(jsonable(data))
     out["random_landmarks"] = rnd
     return out
+
+
+def _outside(xy: Array, bounds: tuple[float, float, float, float]) -> Array:
+    """Distance [m] of each point (..., 2) outside the box ``bounds`` (0 inside)."""
+    x0, x1, y0, y1 = bounds
+    dx = np.maximum(np.maximum(x0 - xy[..., 0], xy[..., 0] - x1), 0.0)
+    dy = np.maximum(np.maximum(y0 - xy[..., 1], xy[..., 1] - y1), 0.0)
+    return np.asarray(np.hypot(dx, dy), dtype=np.float64)
+
+
+def _check_world(w: World, tr: trajectories.Trajectory, sensors: Mapping[str, Any]) -> None:
+    """Refuse a world the run cannot work in; warn (:class:`ConfigWarning`) of one that is unusual.
+
+    Refused (ValueError, one line): a listed landmark outside the world's bounds; a start pose
+    outside them; a landmark sensor in a world without landmarks (its association rates would be
+    0/0). Warned: a path that leaves the bounds (measure: the largest distance [m] of a path pose
+    outside them), a path through occupied cells (measure: the fraction of its poses in them).
+    """
+    b = w.bounds
+    assert b is not None  # World fills its bounds in
+    box = f"[{b[0]:g}, {b[1]:g}] x [{b[2]:g}, {b[3]:g}] m"
+    far = _outside(w.landmarks, b)
+    if far.size and far.max() > 0:
+        i = int(np.argmax(far))
+        raise _fail(f"world.landmarks[{i}]", f"inside the world's bounds {box}",
+                    {"id": int(w.landmark_ids[i]), "x": float(w.landmarks[i, 0]), "y": float(w.landmarks[i, 1])})
+    start = np.asarray(tr.start, dtype=np.float64)
+    if _outside(start[:2], b) > 0:
+        raise _fail("trajectory.start", f"a pose inside the world's bounds {box}", [float(v) for v in start])
+    if "landmarks" in sensors and w.n_landmarks == 0:
+        raise ValueError("config key 'world.landmarks' holds no landmark (nor world.random_landmarks.count), "
+                         "but sensors.landmarks is configured; allowed: at least one landmark, or no "
+                         "sensors.landmarks")  # fmt: skip
+    out = float(_outside(tr.poses[:, :2], b).max())
+    if out > 0:
+        warnings.warn(f"config key 'trajectory': the path leaves the world's bounds {box} by up to {out:.3g} m "
+                      "(the largest distance of a path pose outside them)", ConfigWarning, stacklevel=3)  # fmt: skip
+    if w.grid is not None:
+        inside = _outside(tr.poses[:, :2], b) == 0
+        occ = float(np.mean(w.grid.is_occupied(tr.poses[inside, :2]))) * inside.mean() if inside.any() else 0.0
+        if occ > 0:
+            warnings.warn(f"config key 'trajectory': {100 * occ:.3g} % of the path's poses lie in occupied cells "
+                          "(walls) of the world", ConfigWarning, stacklevel=3)  # fmt: skip
 
 
 def build_world(spec: Mapping[str, Any]) -> World:
@@ -466,13 +510,14 @@ class LocalizationConfig:
                                  "sensors and filters)")  # fmt: skip
         world = _world(data["world"])
         try:
-            build_world(world)
+            built = build_world(world)
         except ValueError as exc:
             msg = str(exc)
             raise ValueError(msg if msg.startswith("config key") else f"config key 'world': {msg}") from None
         traj, tr = _trajectory(data["trajectory"])
         truth = _truth(data.get("truth", {}))
         sensors = _sensors(data["sensors"])
+        _check_world(built, tr, sensors)
         scenario = _scenario(data.get("scenario", {}), tr.n_steps)
         defaults = {"model": "wheels", "k_r": truth["k_r"], "k_l": truth["k_l"],
                     "velocity_alphas": list(velocity_alphas_for_wheels(truth["k_r"], truth["k_l"], tr.track, tr.dt))}
