@@ -93,12 +93,12 @@ def _mutated(path: str, value: object) -> dict:
 @pytest.mark.parametrize(
     ("path", "value", "pattern"),
     [
-        ("filters.particle.n_particles", 0, r"'filters\.particle\.n_particles' must be an integer >= 1.*got 0"),
+        ("filters.particle.n_particles", 0, r"'filters\.particle\.n_particles' must be an integer in \[1, 1000000000\], got 0"),
         ("sensors.landmarks.range_std", -0.1, r"'sensors\.landmarks\.range_std' must be > 0 \(allowed: \(0, inf\)\), got -0\.1"),
         ("truth.regime", "sometimes", r"'truth\.regime' must be one of 'per_step', 'per_run', got 'sometimes'"),
         ("filters.particle.n_partcles", 10, r"unknown config key\(s\) 'filters\.particle\.n_partcles' \(allowed: .*n_particles"),
         ("success.head_tol", 4.0, r"'success\.head_tol' must be in \(0, 3\.14159\], got 4\.0"),
-        ("repeat", 0, r"'repeat' must be an integer >= 1, got 0"),
+        ("repeat", 0, r"'repeat' must be an integer in \[1, 10000\], got 0"),
         ("filters.ekf.sensor", "beams", r"'filters\.ekf\.sensor' must be one of 'landmarks', got 'beams'"),
         ("filters.histogram.motion", {"model": "wheels"},
          r"'filters\.histogram\.motion\.model' must be one of 'velocity', 'odometry', got 'wheels'"),
@@ -107,7 +107,7 @@ def _mutated(path: str, value: object) -> dict:
         ("scenario.kind", "kidnapped", r"'scenario\.kidnap_pose' is missing"),
         ("scenario.kidnap_step", 3, r"'scenario\.kidnap_step' must be null unless scenario\.kind is 'kidnapped', got 3"),
         ("sensors.landmarks.period", "soon", r"'sensors\.landmarks\.period' must be a real number written like 0\.0005, 5\.0e-4 or 5e-4, got 'soon'"),
-        ("world.random_landmarks", {"count": -1}, r"'world\.random_landmarks\.count' must be an integer >= 0, got -1"),
+        ("world.random_landmarks", {"count": -1}, r"'world\.random_landmarks\.count' must be an integer in \[0, 100000\], got -1"),
         ("filters.particle.resampling", "roulette", r"'filters\.particle\.resampling' must be one of .*'systematic'"),
     ],
 )  # fmt: skip

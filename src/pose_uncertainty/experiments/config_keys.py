@@ -25,9 +25,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..core.validation import check_choice
-from .config_checks import fail, integer, name, real
+from .config_checks import check_keys, fail, integer, name, real
 
-__all__ = ["FROM_CODE", "Key", "keys_schema", "units"]
+__all__ = ["FROM_CODE", "Key", "keys_schema", "section_values", "units", "vector"]
 
 
 class _FromCode:
@@ -195,3 +195,29 @@ def units(keys: tuple[Key, ...]) -> dict[str, Any]:
         else:
             out[k.name] = dict(k.unit) if isinstance(k.unit, Mapping) else k.unit
     return out
+
+
+def section_values(where: str, keys: tuple[Key, ...], data: Any,
+                   code: Mapping[str, Any] | None = None) -> dict[str, Any]:  # fmt: skip
+    """Every key of a section checked by its table, defaults filled in; ``where`` is its dotted key.
+
+    Unknown keys are refused (naming them and the allowed ones); a :data:`FROM_CODE` default is
+    taken from ``code``. Arrays and sections are returned as given (or their default): their
+    owner checks them. ``None`` as ``data`` is the empty section.
+    """
+    data = {} if data is None else data
+    check_keys(where, data, tuple(k.name for k in keys))
+    out: dict[str, Any] = {}
+    for k in keys:
+        value = data.get(k.name, k.default)
+        if value is FROM_CODE:
+            value = (code or {})[k.name]
+        out[k.name] = k.check(f"{where}.{k.name}" if where else k.name, value)
+    return out
+
+
+def vector(key: str, value: Any, n: int, *, nonneg: bool = False) -> list[float]:
+    """A list of ``n`` finite numbers (each >= 0 when ``nonneg``); ValueError naming ``key[i]``."""
+    if not isinstance(value, list | tuple) or len(value) != n:
+        raise fail(key, f"a list of {n} numbers", value)
+    return [real(f"{key}[{i}]", v, nonneg=nonneg) for i, v in enumerate(value)]
