@@ -25,7 +25,12 @@ from hostile import run_cli
 
 from pose_uncertainty.core.input_files import MAX_CONFIG_BYTES
 from pose_uncertainty.experiments import sweep
-from pose_uncertainty.experiments.config import MAP_KEYS, MONTE_CARLO_KEYS, RUN_KEYS, TRAJECTORY_KEYS
+from pose_uncertainty.experiments.config import (
+    MAP_KEYS,
+    MONTE_CARLO_KEYS,
+    RUN_KEYS,
+    TRAJECTORY_KEYS,
+)
 from pose_uncertainty.experiments.config_keys import FROM_CODE, Key
 from pose_uncertainty.experiments.drive_config import DRIVE_KEYS
 from pose_uncertainty.experiments.localization import LOCALIZATION_KEYS
@@ -194,7 +199,8 @@ def test_an_unusual_world_runs_with_a_one_line_warning_defining_its_measure(tmp_
     assert "Traceback" not in out.stderr
     lines = [ln for ln in out.stderr.splitlines() if ln.startswith("warning:")]
     assert len(lines) == 2, out.stderr  # the path leaves the bounds, and crosses the wall
-    assert "leaves the world's bounds" in lines[0] and "largest distance of a path pose outside" in lines[0]
+    assert "leaves the world's bounds" in lines[0]
+    assert "largest distance of a path pose outside" in lines[0]
     assert "% of the path's poses lie in occupied cells" in lines[1]
     assert set(out.after) - set(out.before) == {"o.mcap"}
 
@@ -251,7 +257,9 @@ def test_every_key_has_a_doc_a_unit_a_default_and_a_range(name: str, table: tupl
         assert k.default is FROM_CODE or k.default is not None or k.nullable or k.kind in ("section", "choice") \
             or dotted.endswith("name") or dotted in ("run.drive",), (dotted, k.default)  # fmt: skip
         if k.kind == "integer":  # a count: bounded both ways, so no value can ask for unbounded memory
-            assert k.lo is not None and k.hi is not None and math.isfinite(k.hi), dotted
+            assert k.lo is not None, dotted
+            assert k.hi is not None, dotted
+            assert math.isfinite(k.hi), dotted
         if k.kind == "choice":
             assert k.allowed, dotted
 
@@ -262,8 +270,10 @@ def test_every_integer_key_refuses_its_bounds_plus_one(name: str, table: tuple[K
     for dotted, k in _walk(table):
         if k.kind != "integer":
             continue
-        assert k.lo is not None and k.hi is not None
-        assert k.check(dotted, int(k.lo)) == int(k.lo) and k.check(dotted, int(k.hi)) == int(k.hi)
+        assert k.lo is not None
+        assert k.hi is not None
+        assert k.check(dotted, int(k.lo)) == int(k.lo)
+        assert k.check(dotted, int(k.hi)) == int(k.hi)
         for bad in (int(k.lo) - 1, int(k.hi) + 1):
             with pytest.raises(ValueError, match=rf"config key '{dotted}' must be an integer in \[") as err:
                 k.check(dotted, bad)

@@ -59,9 +59,6 @@ ALLOWED: dict[str, str] = {
     "analysis/studies/gaussian_methods.py:accuracy_vs_distance_study ~ analysis/studies/growth.py:polar_vs_cartesian_study":
         "studies read alike by design",
     "cli/run.py:_run_localization ~ cli/run.py:cmd_run": "the two run commands (dead reckoning, localization)",
-    "core/validation.py:check_choice ~ experiments/localization.py:_choice": "different error contract (config key)",
-    "core/validation.py:check_positive_int ~ experiments/config_checks.py:integer":
-        "different error contract (config key)",
     "methods/drive_covariance.py:propagate_path ~ methods/drive_covariance.py:propagate_path_per_run":
         _PAIR + " (per step vs per run)",
     "core/se2.py:adjoint ~ methods/expcoords.py:to_cartesian_cov": "different maps, alike in shape",

@@ -50,7 +50,7 @@ from .config_checks import check_keys as _check_keys
 from .config_checks import fail as _fail
 from .config_checks import integer as _int
 from .config_checks import name as _name
-from .config_keys import FROM_CODE, Key, units
+from .config_keys import FROM_CODE, Key, key_of, units
 from .drive_config import DRIVE_KEYS, DriveConfig, check_path
 
 __all__ = [
@@ -168,9 +168,6 @@ MAP_KEYS: tuple[Key, ...] = (
 )
 
 
-def _key(table: tuple[Key, ...], name: str) -> Key:
-    return next(k for k in table if k.name == name)
-
 
 @dataclass(frozen=True)
 class MonteCarloConfig:
@@ -188,10 +185,10 @@ class MonteCarloConfig:
         Step indices (1..N) at which the whole cloud is also kept [step].
     """
 
-    n_particles: int = _key(MONTE_CARLO_KEYS, "n_particles").default
-    regime: str = _key(MONTE_CARLO_KEYS, "regime").default
-    method: str = _key(MONTE_CARLO_KEYS, "method").default
-    checkpoints: tuple[int, ...] = _key(MONTE_CARLO_KEYS, "checkpoints").default
+    n_particles: int = key_of(MONTE_CARLO_KEYS, "n_particles").default
+    regime: str = key_of(MONTE_CARLO_KEYS, "regime").default
+    method: str = key_of(MONTE_CARLO_KEYS, "method").default
+    checkpoints: tuple[int, ...] = key_of(MONTE_CARLO_KEYS, "checkpoints").default
 
     KEYS = tuple(k.name for k in MONTE_CARLO_KEYS)
 
@@ -425,15 +422,15 @@ class RunConfig:
     """
 
     trajectory: dict[str, Any]
-    k_r: float = _key(RUN_KEYS, "k_r").default
-    k_l: float = _key(RUN_KEYS, "k_l").default
+    k_r: float = key_of(RUN_KEYS, "k_r").default
+    k_l: float = key_of(RUN_KEYS, "k_l").default
     cov0: tuple[tuple[float, float, float], ...] | None = None
-    pr: float = _key(RUN_KEYS, "pr").default
-    n_ellipses: int = _key(RUN_KEYS, "n_ellipses").default
-    seed: int = _key(RUN_KEYS, "seed").default
+    pr: float = key_of(RUN_KEYS, "pr").default
+    n_ellipses: int = key_of(RUN_KEYS, "n_ellipses").default
+    seed: int = key_of(RUN_KEYS, "seed").default
     monte_carlo: MonteCarloConfig = field(default_factory=MonteCarloConfig)
     maps: tuple[MapConfig, ...] = ()
-    name: str = _key(RUN_KEYS, "name").default
+    name: str = key_of(RUN_KEYS, "name").default
     drive: DriveConfig | None = None
 
     KEYS = tuple(k.name for k in RUN_KEYS)
@@ -452,7 +449,7 @@ class RunConfig:
         if "trajectory" not in data:
             raise ValueError("config key 'trajectory' is missing (e.g. {name: straight})")
         traj, n_steps = _trajectory_params(data["trajectory"])
-        k_r, k_l = _key(RUN_KEYS, "k_r").get("", data), _key(RUN_KEYS, "k_l").get("", data)
+        k_r, k_l = key_of(RUN_KEYS, "k_r").get("", data), key_of(RUN_KEYS, "k_l").get("", data)
         cov0_raw = data.get("cov0")
         cov0 = None
         if cov0_raw is not None:
@@ -465,7 +462,7 @@ class RunConfig:
             if not np.array_equal(arr, arr.T) or np.linalg.eigvalsh(arr).min() < -1e-15:
                 raise _fail("cov0", "symmetric positive semi-definite", cov0_raw)
             cov0 = tuple((float(r[0]), float(r[1]), float(r[2])) for r in arr)
-        pr, n_ell, seed = (_key(RUN_KEYS, k).get("", data) for k in ("pr", "n_ellipses", "seed"))
+        pr, n_ell, seed = (key_of(RUN_KEYS, k).get("", data) for k in ("pr", "n_ellipses", "seed"))
         mc = MonteCarloConfig.from_dict(data.get("monte_carlo", {}))
         late = [c for c in mc.checkpoints if c > n_steps]
         if late:
@@ -481,7 +478,7 @@ class RunConfig:
         names = [m.name for m in maps]
         if len(set(names)) != len(names):
             raise _fail("maps[].name", "unique", names)
-        name = _key(RUN_KEYS, "name").get("", data)
+        name = key_of(RUN_KEYS, "name").get("", data)
         drive = None
         if data.get("drive") is not None:
             drive = DriveConfig.from_dict(data["drive"])

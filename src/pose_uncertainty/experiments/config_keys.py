@@ -27,7 +27,7 @@ from typing import Any
 from ..core.validation import check_choice
 from .config_checks import check_keys, fail, integer, name, real
 
-__all__ = ["FROM_CODE", "Key", "keys_schema", "section_values", "units", "vector"]
+__all__ = ["FROM_CODE", "Key", "key_of", "keys_schema", "section_values", "units", "vector"]
 
 
 class _FromCode:
@@ -221,3 +221,8 @@ def vector(key: str, value: Any, n: int, *, nonneg: bool = False) -> list[float]
     if not isinstance(value, list | tuple) or len(value) != n:
         raise fail(key, f"a list of {n} numbers", value)
     return [real(f"{key}[{i}]", v, nonneg=nonneg) for i, v in enumerate(value)]
+
+
+def key_of(table: tuple[Key, ...], name: str) -> Key:
+    """The key ``name`` of a table."""
+    return next(k for k in table if k.name == name)

@@ -343,7 +343,7 @@ def _map(cfg: RunConfig, i: int, n_steps: int) -> Driver:
     )
 
 
-def _map_sampler(cfg: RunConfig, i: int, n_steps: int) -> list[Driver]:
+def _sampler_driver(cfg: RunConfig, i: int, n_steps: int) -> list[Driver]:
     """The draws of a map's own motion-model sampler along the run (``n_sampler`` × N)."""
     m = cfg.maps[i]
     n = int(m.params.get("n_sampler", 0))
@@ -389,7 +389,7 @@ def estimate(config: RunConfig | Mapping[str, Any]) -> Cost:
         ),
         *_monte_carlo_driver(cfg, n_steps),
         *maps_,
-        *(d for i in range(len(cfg.maps)) for d in _map_sampler(cfg, i, n_steps)),
+        *(d for i in range(len(cfg.maps)) for d in _sampler_driver(cfg, i, n_steps)),
         _ellipses(cfg, n_steps),
     ]
     mem = sum(d.mem_bytes for d in drivers)

@@ -78,7 +78,7 @@ from .config import MAX_PARTICLES, MAX_SEED, TRAJECTORY_KEYS
 from .config_checks import ConfigWarning, builder_keywords
 from .config_checks import check_keys as _check_keys
 from .config_checks import fail as _fail
-from .config_keys import FROM_CODE, Key, section_values, vector
+from .config_keys import FROM_CODE, Key, key_of, section_values, vector
 from .sweep import ConfigError, Run, expand_set
 
 __all__ = [
@@ -364,9 +364,6 @@ def code_defaults() -> dict[str, Any]:
             "filters": {"particle": fields_of(particle.ParticleFilterConfig)}}  # fmt: skip
 
 
-def _key(table: tuple[Key, ...], name: str) -> Key:
-    return next(k for k in table if k.name == name)
-
 
 def _build(where: str, cls: Any, params: Mapping[str, Any]) -> Any:
     """``cls(**params)``, its ValueError re-worded to name the full config key."""
@@ -401,7 +398,7 @@ def _builder_params(where: str, fn: Callable[..., Any], data: Mapping[str, Any])
 def _trajectory(data: Any) -> tuple[dict[str, Any], trajectories.Trajectory]:
     if not isinstance(data, Mapping) or "name" not in data:
         raise _fail("trajectory", "a mapping with a 'name' key (e.g. {name: tour, segments: [[line, 5.0]]})", data)
-    name = _key(LOC_TRAJECTORY_KEYS, "name").check("trajectory.name", data["name"])
+    name = key_of(LOC_TRAJECTORY_KEYS, "name").check("trajectory.name", data["name"])
     full = {"name": name, **_builder_params("trajectory", TRAJECTORY_BUILDERS[name], data)}
     try:
         traj = TRAJECTORY_BUILDERS[name](**{k: v for k, v in full.items() if k != "name"})
@@ -573,7 +570,7 @@ def _scenario(data: Any, n_steps: int) -> dict[str, Any]:
     out: dict[str, Any] = {"kind": kind, "start_std": vector("scenario.start_std", given["start_std"], 3, nonneg=True)}
     step, pose = given["kidnap_step"], given["kidnap_pose"]
     if kind == "kidnapped":
-        out["kidnap_step"] = _key(SCENARIO_KEYS, "kidnap_step").check("scenario.kidnap_step",
+        out["kidnap_step"] = key_of(SCENARIO_KEYS, "kidnap_step").check("scenario.kidnap_step",
                                                                       n_steps // 2 if step is None else step)
         if out["kidnap_step"] > n_steps:
             raise _fail("scenario.kidnap_step", f"a step in 1..{n_steps} (the trajectory's N)", step)

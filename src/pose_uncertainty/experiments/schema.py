@@ -52,13 +52,14 @@ def _code_defaults() -> dict[str, Any]:
     return {"trajectory": traj, "maps": maps, "drive": {"errors": {"encoder": encoder}}}
 
 
-def run_schema() -> dict[str, Any]:
-    """The JSON Schema (2020-12) of a (partial) run configuration, from :data:`RUN_KEYS`."""
-    properties = keys_schema(RUN_KEYS, _code_defaults())
-    # which trajectory keys apply depends on the builder: RunConfig names the builder's in its error
+def _schema_of(keys: tuple[Key, ...], code: Mapping[str, Any], cls: str) -> dict[str, Any]:
+    """The JSON Schema of a (partial) configuration of the key table ``keys`` (class ``cls``)."""
+    properties = keys_schema(keys, code)
+    # which trajectory keys apply depends on the builder: the config class names the builder's in its error
     del properties["trajectory"]["additionalProperties"]
+    kind = "localization run" if "localization" in cls else "run"
     return {
-        "description": "A (partial) run configuration, see pose_uncertainty.experiments.config.RunConfig.",
+        "description": f"A (partial) {kind} configuration, see pose_uncertainty.experiments.{cls}.",
         "x-fill-defaults": False,
         "type": "object",
         "additionalProperties": False,
@@ -66,19 +67,14 @@ def run_schema() -> dict[str, Any]:
     }
 
 
+def run_schema() -> dict[str, Any]:
+    """The JSON Schema (2020-12) of a (partial) run configuration, from :data:`RUN_KEYS`."""
+    return _schema_of(RUN_KEYS, _code_defaults(), "config.RunConfig")
+
+
 def localization_run_schema() -> dict[str, Any]:
     """The JSON Schema of a (partial) localization run configuration, from :data:`LOCALIZATION_KEYS`."""
-    properties = keys_schema(LOCALIZATION_KEYS, localization_code_defaults())
-    # which trajectory keys apply depends on the builder: LocalizationConfig names the builder's in its error
-    del properties["trajectory"]["additionalProperties"]
-    return {
-        "description": "A (partial) localization run configuration, see "
-                       "pose_uncertainty.experiments.localization.LocalizationConfig.",
-        "x-fill-defaults": False,
-        "type": "object",
-        "additionalProperties": False,
-        "properties": properties,
-    }  # fmt: skip
+    return _schema_of(LOCALIZATION_KEYS, localization_code_defaults(), "localization.LocalizationConfig")
 
 
 def _axis_keys() -> list[tuple[str, Key]]:
