@@ -127,15 +127,13 @@ MAX_WORKERS: int = 256
 MAX_EVERY: int = 1_000_000_000
 MAX_LOGGED: int = 1_000_000
 
-_POSITIVE = {"lo": 0.0, "lo_open": True}
-_NONNEG = {"lo": 0.0}
 
 #: The keys of ``world.random_landmarks``.
 RANDOM_LANDMARK_KEYS: tuple[Key, ...] = (
     Key("count", "integer", "1", "Number of random landmarks drawn uniformly in the free space [1].", 0, lo=0,
         hi=MAX_LANDMARKS),
     Key("seed", "integer", "1", "Seed of their numpy Generator [1].", 0, lo=0, hi=MAX_SEED),
-    Key("margin", "number", "m", "Distance from the world's bounds [m].", 0.5, **_NONNEG),
+    Key("margin", "number", "m", "Distance from the world's bounds [m].", 0.5, lo=0.0),
 )
 
 #: The keys of ``world`` (the inline keys are those of a world file,
@@ -157,15 +155,15 @@ WORLD_KEYS: tuple[Key, ...] = (
         "Occupancy grid rasterised from wall segments.", None, nullable=True, keys=(
             Key("segments", "array", "m", "Wall segments [x1, y1, x2, y2] [m].", (),
                 extra={"items": {"type": "array", "items": {"type": "number"}, "minItems": 4, "maxItems": 4}}),
-            Key("resolution", "number", "m", "Cell side [m].", 0.1, **_POSITIVE),
-            Key("thickness", "number", "m", "Wall thickness [m].", 0.0, **_NONNEG),
+            Key("resolution", "number", "m", "Cell side [m].", 0.1, lo=0.0, lo_open=True),
+            Key("thickness", "number", "m", "Wall thickness [m].", 0.0, lo=0.0),
             Key("margin", "number", "m", "Grid margin around the segments [m] (null = one cell).", None,
-                nullable=True, **_NONNEG))),
+                nullable=True, lo=0.0))),
     Key("image", "section", {"path": "- (path)", "resolution": "m", "origin": "m", "occupied_thresh": "1",
                              "free_thresh": "1", "negate": "- (bool)", "sha256": "-"},
         "Occupancy grid read from a PGM or PNG image (ROS map_server conventions).", None, nullable=True, keys=(
             Key("path", "string", "- (path)", "The image file.", ""),
-            Key("resolution", "number", "m", "Cell side [m].", 0.05, **_POSITIVE),
+            Key("resolution", "number", "m", "Cell side [m].", 0.05, lo=0.0, lo_open=True),
             Key("origin", "array", "m", "World position [x, y] [m] of the lower-left pixel.", (0.0, 0.0),
                 extra={"items": {"type": "number"}, "minItems": 2, "maxItems": 2}),
             Key("occupied_thresh", "number", "1", "Occupancy above which a cell is a wall [1].", 0.65,
@@ -184,15 +182,15 @@ LOC_TRAJECTORY_KEYS: tuple[Key, ...] = (
     Key("segments", "array", "[kind, m or rad ...]",
         "Segments of a tour: [line, L], [turn, angle], [arc, radius, angle] (m, rad).", FROM_CODE,
         extra={"maxItems": 100_000}),
-    Key("side", "number", "m", "Side of a square [m].", FROM_CODE, **_POSITIVE),
+    Key("side", "number", "m", "Side of a square [m].", FROM_CODE, lo=0.0, lo_open=True),
     *TRAJECTORY_KEYS[1:],
 )
 
 #: The keys of ``truth`` (the simulated robot).
 TRUTH_KEYS: tuple[Key, ...] = (
     Key("k_r", "number", "m", "Right-wheel error constant of the simulated robot [m] (wheel-travel variance per "
-        "metre).", K_WHEEL, **_NONNEG),
-    Key("k_l", "number", "m", "Left-wheel error constant of the simulated robot [m].", K_WHEEL, **_NONNEG),
+        "metre).", K_WHEEL, lo=0.0),
+    Key("k_l", "number", "m", "Left-wheel error constant of the simulated robot [m].", K_WHEEL, lo=0.0),
     Key("regime", "choice", "- (per_step | per_run)", "Wheel noise drawn every step or once per run.", "per_step",
         allowed=REGIMES),
     Key("path", "choice", "- (commanded | drifts)",
@@ -202,25 +200,25 @@ TRUTH_KEYS: tuple[Key, ...] = (
 
 #: The keys of ``sensors.landmarks`` (the fields of RangeBearingSensor, whose defaults they take).
 LANDMARK_SENSOR_KEYS: tuple[Key, ...] = (
-    Key("range_std", "number", "m", "Range noise std [m].", FROM_CODE, **_POSITIVE),
-    Key("bearing_std", "number", "rad", "Bearing noise std [rad].", FROM_CODE, **_POSITIVE),
-    Key("max_range", "number", "m", "Largest range measured [m].", FROM_CODE, **_POSITIVE),
-    Key("fov", "number", "rad", "Field of view [rad].", FROM_CODE, **_POSITIVE),
-    Key("period", "number", "s", "Time between measurements [s].", FROM_CODE, **_POSITIVE),
+    Key("range_std", "number", "m", "Range noise std [m].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("bearing_std", "number", "rad", "Bearing noise std [rad].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("max_range", "number", "m", "Largest range measured [m].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("fov", "number", "rad", "Field of view [rad].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("period", "number", "s", "Time between measurements [s].", FROM_CODE, lo=0.0, lo_open=True),
 )
 
 #: The keys of ``sensors.beams`` (the fields of BeamSensor, whose defaults they take).
 BEAM_SENSOR_KEYS: tuple[Key, ...] = (
     Key("n_beams", "integer", "1", "Beams per scan [1].", FROM_CODE, lo=1, hi=MAX_BEAMS),
-    Key("fov", "number", "rad", "Field of view [rad].", FROM_CODE, **_POSITIVE),
-    Key("max_range", "number", "m", "Largest range measured [m].", FROM_CODE, **_POSITIVE),
-    Key("sigma_hit", "number", "m", "Std of a hit [m].", FROM_CODE, **_POSITIVE),
-    Key("lambda_short", "number", "1/m", "Rate of short readings [1/m].", FROM_CODE, **_POSITIVE),
-    Key("z_hit", "number", "1", "Weight of hits [1].", FROM_CODE, **_NONNEG),
-    Key("z_short", "number", "1", "Weight of short readings [1].", FROM_CODE, **_NONNEG),
-    Key("z_max", "number", "1", "Weight of max-range readings [1].", FROM_CODE, **_NONNEG),
-    Key("z_rand", "number", "1", "Weight of random readings [1].", FROM_CODE, **_NONNEG),
-    Key("period", "number", "s", "Time between scans [s].", FROM_CODE, **_POSITIVE),
+    Key("fov", "number", "rad", "Field of view [rad].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("max_range", "number", "m", "Largest range measured [m].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("sigma_hit", "number", "m", "Std of a hit [m].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("lambda_short", "number", "1/m", "Rate of short readings [1/m].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("z_hit", "number", "1", "Weight of hits [1].", FROM_CODE, lo=0.0),
+    Key("z_short", "number", "1", "Weight of short readings [1].", FROM_CODE, lo=0.0),
+    Key("z_max", "number", "1", "Weight of max-range readings [1].", FROM_CODE, lo=0.0),
+    Key("z_rand", "number", "1", "Weight of random readings [1].", FROM_CODE, lo=0.0),
+    Key("period", "number", "s", "Time between scans [s].", FROM_CODE, lo=0.0, lo_open=True),
 )
 
 #: The keys of ``sensors``.
@@ -246,8 +244,8 @@ SCENARIO_KEYS: tuple[Key, ...] = (
 MOTION_KEYS: tuple[Key, ...] = (
     Key("model", "choice", "- (wheels | velocity | odometry)", "Motion model (default: the truth's).", None,
         allowed=MOTION_MODELS, nullable=True),
-    Key("k_r", "number", "m", "Right-wheel error constant [m]; null = the truth's.", None, nullable=True, **_NONNEG),
-    Key("k_l", "number", "m", "Left-wheel error constant [m]; null = the truth's.", None, nullable=True, **_NONNEG),
+    Key("k_r", "number", "m", "Right-wheel error constant [m]; null = the truth's.", None, nullable=True, lo=0.0),
+    Key("k_l", "number", "m", "Left-wheel error constant [m]; null = the truth's.", None, nullable=True, lo=0.0),
     Key("alphas", "array", "1", "Error constants [1]: 6 (velocity) or 4 (odometry); null = matched to the truth "
         "(velocity) or 0.05 each.", None, nullable=True, extra={"items": {"type": "number", "minimum": 0}}),
     Key("noise", "choice", "- (normal | triangular)", "Noise density.", None, allowed=("normal", "triangular"),
@@ -273,7 +271,7 @@ HISTOGRAM_KEYS: tuple[Key, ...] = (
     Key("sensor", "choice", "-", "Sensor the filter uses (default: the first configured).", "landmarks",
         allowed=("landmarks", "beams")),
     _MOTION,
-    Key("resolution", "number", "m", "Cell side [m] (null = the world's grid).", None, nullable=True, **_POSITIVE),
+    Key("resolution", "number", "m", "Cell side [m] (null = the world's grid).", None, nullable=True, lo=0.0, lo_open=True),
     Key("ntheta", "integer", "1", "Heading cells [1].", 36, lo=1, hi=MAX_NTHETA),
     Key("mask_occupied", "boolean", "- (bool)", "No belief in occupied cells.", True),
     _ASSOCIATION, _WORKERS,
@@ -291,12 +289,12 @@ PARTICLE_KEYS: tuple[Key, ...] = (
     Key("injection", "choice", "- (none | fixed | augmented)", "Random particles injected.", FROM_CODE,
         allowed=("none", "fixed", "augmented")),
     Key("injection_fraction", "number", "1", "Fraction injected (fixed) [1].", FROM_CODE, lo=0.0, hi=1.0),
-    Key("alpha_slow", "number", "1", "Slow average rate (augmented) [1].", FROM_CODE, **_POSITIVE),
-    Key("alpha_fast", "number", "1", "Fast average rate (augmented) [1].", FROM_CODE, **_POSITIVE),
+    Key("alpha_slow", "number", "1", "Slow average rate (augmented) [1].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("alpha_fast", "number", "1", "Fast average rate (augmented) [1].", FROM_CODE, lo=0.0, lo_open=True),
     _ASSOCIATION,
     Key("dtype", "choice", "-", "Floating type of the particles.", FROM_CODE, allowed=("float64", "float32")),
     Key("hdr_resolution", "number", "m", "Cell of the highest-density region measure [m].", FROM_CODE,
-        **_POSITIVE),
+        lo=0.0, lo_open=True),
     _WORKERS,
 )
 
@@ -312,7 +310,7 @@ FILTER_KEYS: tuple[Key, ...] = (
 
 #: The keys of ``success``.
 SUCCESS_KEYS: tuple[Key, ...] = (
-    Key("pos_tol", "number", "m", "Position error of a success [m].", 0.5, **_POSITIVE),
+    Key("pos_tol", "number", "m", "Position error of a success [m].", 0.5, lo=0.0, lo_open=True),
     Key("head_tol", "number", "rad", "Heading error of a success [rad].", 0.25, lo=0.0, hi=math.pi, lo_open=True),
 )
 
