@@ -27,7 +27,7 @@ from typing import Any
 from ..core.validation import check_choice
 from .config_checks import check_keys, fail, integer, name, real
 
-__all__ = ["FROM_CODE", "Key", "key_of", "keys_schema", "section_values", "units", "vector"]
+__all__ = ["FROM_CODE", "Key", "check_axis", "check_partial", "key_of", "keys_schema", "section_values", "units", "vector"]
 
 
 class _FromCode:
@@ -226,3 +226,47 @@ def vector(key: str, value: Any, n: int, *, nonneg: bool = False) -> list[float]
 def key_of(table: tuple[Key, ...], name: str) -> Key:
     """The key ``name`` of a table."""
     return next(k for k in table if k.name == name)
+
+
+def check_partial(where: str, keys: tuple[Key, ...], data: Any) -> None:
+    """Check every key present in a partial configuration (a set's ``base``, the shared
+    ``defaults``) by its table: unknown keys, types, ranges and choices, each error naming the
+    full dotted key. Arrays are left to the configuration class, which checks them in context
+    (and the whole run once it is complete)."""
+    check_keys(where, data, tuple(k.name for k in keys))
+    for k in keys:
+        if k.name in data:
+            _check_value(f"{where}.{k.name}" if where else k.name, k, data[k.name])
+
+
+def _check_value(path: str, k: Key, value: Any) -> None:
+    if value is None and k.nullable:
+        return
+    if k.kind == "section":
+        check_partial(path, k.keys, {} if value is None else value)
+    elif k.kind == "sections":
+        if not isinstance(value, list | tuple):
+            raise fail(path, "a list of mappings", value)
+        for i, item in enumerate(value):
+            check_partial(f"{path}[{i}]", k.keys, item)
+    elif k.kind != "array":
+        k.check(path, value)
+
+
+def check_axis(where: str, keys: tuple[Key, ...], axis: Mapping[str, Any]) -> None:
+    """Check the values of one sweep axis (dotted keys to lists of values) by the key tables."""
+    for dotted, values in axis.items():
+        if dotted == "labels":
+            continue
+        table, key = keys, None
+        for part in dotted.split("."):
+            key = next((k for k in table if k.name == part), None)
+            if key is None:
+                raise ValueError(f"unknown config key(s) '{where}.{dotted}' "
+                                 f"(allowed: {', '.join(k.name for k in table)})")  # fmt: skip
+            table = key.keys
+        if not isinstance(values, list | tuple):
+            raise fail(f"{where}.{dotted}", "a list of values (one per run)", values)
+        for i, v in enumerate(values):
+            if key is not None:
+                _check_value(f"{where}.{dotted}[{i}]", key, v)

@@ -148,9 +148,10 @@ WORLD_KEYS: tuple[Key, ...] = (
     Key("landmarks", "array", {"id": "1", "x": "m", "y": "m"},
         f"Point landmarks with unique integer ids [m] (at most {MAX_LANDMARKS:,}).", (),
         extra={"maxItems": MAX_LANDMARKS, "items": {
-            "type": "object", "additionalProperties": False, "required": ["x", "y"],
-            "properties": {"id": {"type": "integer", "minimum": 0}, "x": {"type": "number"},
-                           "y": {"type": "number"}}}}),
+            "type": "object", "additionalProperties": False,
+            "properties": {"id": {"description": "Landmark id.", "type": "integer", "minimum": 0, "default": 0},
+                           "x": {"description": "x [m].", "type": "number", "default": 0.0},
+                           "y": {"description": "y [m].", "type": "number", "default": 0.0}}}}),
     Key("walls", "section", {"segments": "m", "resolution": "m", "thickness": "m", "margin": "m"},
         "Occupancy grid rasterised from wall segments.", None, nullable=True, keys=(
             Key("segments", "array", "m", "Wall segments [x1, y1, x2, y2] [m].", (),
