@@ -31,8 +31,6 @@ from collections.abc import Sequence
 from typing import Any
 
 from .. import __version__
-from ..experiments.config_checks import ConfigWarning
-from ..experiments.environment import check_environment
 from ..records.run import RunLogError
 from ._common import EXIT_INPUT, EXIT_OK, CommandError, load_config_file
 
@@ -67,6 +65,8 @@ def build_parser() -> argparse.ArgumentParser:
 def _one_line_warning(message: Warning | str, category: type[Warning], filename: str, lineno: int,
                       file: Any = None, line: str | None = None) -> None:
     """A configuration warning as one line on stderr (``warning: ...``); others as Python shows them."""
+    from ..experiments.config_checks import ConfigWarning
+
     if issubclass(category, ConfigWarning):
         print(f"warning: {message}", file=sys.stderr if file is None else file)
     else:
@@ -82,6 +82,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        from ..experiments.environment import check_environment
+
         check_environment()  # every variable the package reads, before any work
         return int(args.func(args))
     except (CommandError, RunLogError) as exc:
