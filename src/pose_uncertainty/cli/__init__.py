@@ -30,7 +30,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+import warnings
 from collections.abc import Sequence
+from typing import Any
 
 from .. import __version__
 from ._common import CommandError, load_config_file, one_line_errors
@@ -64,15 +66,38 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _one_line_warning(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+                      file: Any = None, line: str | None = None) -> None:
+    """A configuration warning as one line on stderr (``warning: ...``); others as Python shows them."""
+    from ..experiments.config_checks import ConfigWarning
+
+    if issubclass(category, ConfigWarning):
+        print(f"warning: {message}", file=sys.stderr if file is None else file)
+    else:
+        _SHOW_WARNING(message, category, filename, lineno, file, line)
+
+
+_SHOW_WARNING = warnings.showwarning
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``pose-uncertainty`` console script; returns the exit status.
 
-    Every error is one line on stderr (:func:`._common.one_line_errors`); ``--debug`` adds the
-    traceback.
+    Every environment variable the package reads is checked first; every error is one line on
+    stderr (:func:`._common.one_line_errors`), ``--debug`` adds the traceback; configuration
+    warnings are one line each.
     """
+    warnings.showwarning = _one_line_warning
     parser = build_parser()
     args = parser.parse_args(argv)
-    return one_line_errors(lambda: args.func(args), debug=args.debug)
+
+    def run() -> int:
+        from ..experiments.environment import check_environment
+
+        check_environment()  # every variable the package reads, before any work
+        return int(args.func(args))
+
+    return one_line_errors(run, debug=args.debug)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import errno
-import json
 import os
 import sys
 import traceback
@@ -11,9 +10,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from ..core.atomic import OutputError, Terminated, termination_as_exception
+from ..core.input_files import InputFileError, read_mapping_file
 from ..core.validation import first_line
 
 __all__ = [
@@ -98,24 +96,13 @@ def one_line_errors(func: Callable[[], int], *, debug: bool = False) -> int:
 
 
 def load_config_file(path: str | Path) -> dict[str, Any]:
-    """Read a run configuration mapping from a YAML or JSON file (by suffix; YAML otherwise)."""
-    p = Path(path)
+    """Read a run configuration mapping from a YAML or JSON file (by suffix; YAML otherwise).
+
+    The file's kind and size are checked before it is read and a repeated key is refused
+    (:func:`pose_uncertainty.core.input_files.read_mapping_file`); CommandError (one line
+    naming the file) otherwise.
+    """
     try:
-        text = p.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise CommandError(f"{p}: no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CommandError(f"{p}: cannot read ({exc})") from None
-    try:
-        if p.suffix.lower() == ".json":
-            data = json.loads(text)
-        else:
-            data = yaml.safe_load(text)
-    except Exception as exc:  # noqa: BLE001 - any parser error is a bad file
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise CommandError(
-            f"{p}: not valid {'JSON' if p.suffix.lower() == '.json' else 'YAML'} ({first})"
-        ) from None
-    if not isinstance(data, dict):
-        raise CommandError(f"{p}: the config must be a mapping, got {type(data).__name__}")
-    return data
+        return read_mapping_file(path)
+    except InputFileError as exc:
+        raise CommandError(str(exc)) from None

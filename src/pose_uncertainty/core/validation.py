@@ -19,6 +19,7 @@ __all__ = [
     "as_float_array",
     "check_choice",
     "check_finite",
+    "check_int",
     "check_last_axis",
     "check_nonnegative",
     "check_pose_cov",
@@ -112,18 +113,31 @@ def check_probability(name: str, value: ArrayLike) -> NDArray[np.float64]:
     return arr
 
 
-def check_positive_int(name: str, value: Any) -> int:
-    """Return ``value`` as an int, requiring an integer >= 1."""
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-        raise ValueError(f"{name} must be an integer >= 1 (allowed: 1, 2, 3, ...), got {value!r}")
+def check_int(name: str, value: Any, minimum: int = 1, maximum: int | None = None) -> int:
+    """Return ``value`` as an int, requiring an integer (not a bool) in ``[minimum, maximum]``.
+
+    ``maximum`` None: no upper bound. The error reads ``"<name> must be an integer >= 1, got 0"``
+    or ``"<name> must be an integer in [1, 1000000], got 2000000"``.
+    """
+    if (isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum
+            or (maximum is not None and value > maximum)):  # fmt: skip
+        rule = f"an integer >= {minimum}" if maximum is None else f"an integer in [{minimum}, {maximum}]"
+        raise ValueError(f"{name} must be {rule}, got {value!r}")
     return int(value)
 
 
-def check_choice(name: str, value: Any, allowed: tuple[str, ...]) -> str:
+def check_positive_int(name: str, value: Any) -> int:
+    """Return ``value`` as an int, requiring an integer >= 1."""
+    return check_int(name, value)
+
+
+def check_choice(name: str, value: Any, allowed: tuple[Any, ...]) -> Any:
     """Return ``value`` if it is one of ``allowed``, else raise ValueError listing them."""
-    if value not in allowed:
+    # True == 1: a boolean is the choice true or false only, never 1 or 0
+    ok = any(value == a and isinstance(value, bool) == isinstance(a, bool) for a in allowed)
+    if not ok:
         raise ValueError(f"{name} must be one of {', '.join(map(repr, allowed))}, got {value!r}")
-    return str(value)
+    return value
 
 
 def check_last_axis(name: str, value: ArrayLike, n: int) -> NDArray[np.float64]:

@@ -30,6 +30,7 @@ is allocated.
 from __future__ import annotations
 
 import inspect
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -49,12 +50,16 @@ from .config_checks import check_keys as _check_keys
 from .config_checks import fail as _fail
 from .config_checks import integer as _int
 from .config_checks import name as _name
-from .config_keys import FROM_CODE, Key, units
+from .config_keys import FROM_CODE, Key, key_of, units
 from .drive_config import DRIVE_KEYS, DriveConfig, check_path
 
 __all__ = [
     "MAP_KEYS",
     "MAP_SAMPLES",
+    "MAX_CELLS",
+    "MAX_MAPS",
+    "MAX_PARTICLES",
+    "MAX_SEED",
     "MONTE_CARLO_KEYS",
     "RUN_KEYS",
     "TRAJECTORY_KEYS",
@@ -65,6 +70,17 @@ __all__ = [
     "map_kind",
 ]
 
+
+
+#: Largest count of sampled poses (Monte Carlo particles, a map's sampler draws) [1]; the cost
+#: guard refuses far fewer on most machines (140 B each).
+MAX_PARTICLES: int = 1_000_000_000
+#: Largest number of cells of a map grid [1].
+MAX_CELLS: int = 10_000_000_000
+#: Largest seed [1] (numpy takes any non-negative integer; 64 bits are plenty).
+MAX_SEED: int = 2**64 - 1
+#: Largest number of maps of one run [1].
+MAX_MAPS: int = 100
 
 
 #: The keys of ``trajectory``: the keyword parameters of the builders of
@@ -95,7 +111,8 @@ TRAJECTORY_UNITS: dict[str, str] = units(TRAJECTORY_KEYS)
 
 #: The keys of ``monte_carlo`` (:class:`MonteCarloConfig`).
 MONTE_CARLO_KEYS: tuple[Key, ...] = (
-    Key("n_particles", "integer", "1", "Number of sampled runs [1]; 0 disables Monte Carlo.", 1000, lo=0),
+    Key("n_particles", "integer", "1", "Number of sampled runs [1]; 0 disables Monte Carlo.", 1000, lo=0,
+        hi=MAX_PARTICLES),
     Key("regime", "choice", "- (per_step | per_run)",
         "per_step (random walk, Method A's model) or per_run (systematic, as Němec 2012).", "per_step",
         allowed=REGIMES),
@@ -126,17 +143,19 @@ MAP_KEYS: tuple[Key, ...] = (
         "Single-step map: average the density over each cell (null = automatic).", FROM_CODE, nullable=True),
     Key("oversample", "integer", "1 (integer factor)",
         "Multi-step map: compute on cells this many times finer, summed back (for distributions thinner than "
-        "a cell, at about 15-20x the cost for 3) [1].", FROM_CODE, lo=1),
+        "a cell, at about 15-20x the cost for 3) [1].", FROM_CODE, lo=1, hi=16),
     Key("diffusion_compensation", "boolean", "- (bool)", "Multi-step map: compensate the numerical diffusion.",
         FROM_CODE),
-    Key("max_cells", "integer", "1", "Multi-step map: largest number of grid cells [1].", FROM_CODE, lo=1),
-    Key("n_nodes_max", "integer", "1", "Multi-step map: largest number of quadrature nodes [1].", FROM_CODE, lo=1),
+    Key("max_cells", "integer", "1", "Multi-step map: largest number of grid cells [1].", FROM_CODE, lo=1,
+        hi=MAX_CELLS),
+    Key("n_nodes_max", "integer", "1", "Multi-step map: largest number of quadrature nodes [1].", FROM_CODE, lo=1,
+        hi=1_000_000),
     Key("variance_from", "choice", "- (hypothesis | odometry | null)",
         "Odometry model: variances from the hypothesis or from the odometry deltas (null = the module default).",
         FROM_CODE, allowed=("hypothesis", "odometry"), nullable=True),
     Key("n_sampler", "integer", "1 (draws of the model's own sampler)",
         "Draws of the model's own sampler along the run's controls, logged with the map and compared with it "
-        "(0 = none) [1].", FROM_CODE, lo=0),
+        "(0 = none) [1].", FROM_CODE, lo=0, hi=MAX_PARTICLES),
     Key("log_volume", "boolean", "- (bool: the full (x, y, theta) array in the log)",
         "Log the full (x, y, theta) array (lossless, nx*ny*ntheta*8 bytes); false: its exact theta-marginal and "
         "the sha256 of the full array, which replay --verify compares.", FROM_CODE),
@@ -144,12 +163,10 @@ MAP_KEYS: tuple[Key, ...] = (
         "Side of the square grid [m]: single-step map centred on the noiseless end (the thesis: 1 m); "
         "multi-step map null = a grid that grows with the spread.", FROM_CODE, nullable=True, lo=0.0, lo_open=True),
     Key("resolution", "number", "m", "Cell side [m] (the thesis: 1 cm).", FROM_CODE, lo=0.0, lo_open=True),
-    Key("theta_resolution", "number", "rad", "Heading cell width [rad] (default 2 degrees).", FROM_CODE, lo=0.0, lo_open=True),
+    Key("theta_resolution", "number", "rad", "Heading cell width [rad] (default 2 degrees).", FROM_CODE,
+        lo=0.0, hi=2 * math.pi, lo_open=True),
 )
 
-
-def _key(table: tuple[Key, ...], name: str) -> Key:
-    return next(k for k in table if k.name == name)
 
 
 @dataclass(frozen=True)
@@ -168,10 +185,10 @@ class MonteCarloConfig:
         Step indices (1..N) at which the whole cloud is also kept [step].
     """
 
-    n_particles: int = _key(MONTE_CARLO_KEYS, "n_particles").default
-    regime: str = _key(MONTE_CARLO_KEYS, "regime").default
-    method: str = _key(MONTE_CARLO_KEYS, "method").default
-    checkpoints: tuple[int, ...] = _key(MONTE_CARLO_KEYS, "checkpoints").default
+    n_particles: int = key_of(MONTE_CARLO_KEYS, "n_particles").default
+    regime: str = key_of(MONTE_CARLO_KEYS, "regime").default
+    method: str = key_of(MONTE_CARLO_KEYS, "method").default
+    checkpoints: tuple[int, ...] = key_of(MONTE_CARLO_KEYS, "checkpoints").default
 
     KEYS = tuple(k.name for k in MONTE_CARLO_KEYS)
 
@@ -309,8 +326,9 @@ def _map_params(where: str, model: str, params: dict[str, Any], n_steps: int) ->
         )
     params = {k: parse_numbers(v, defaults[k]) for k, v in params.items()}
     full = jsonable({**defaults, **params})
-    for key in ("n_sampler", "log_volume"):
-        full[key] = _key(MAP_KEYS, key).check(f"{where}.{key}", full[key])
+    for key in MAP_KEYS:  # every parameter by its table (alphas below, by the model)
+        if key.name in full and key.name != "alphas":
+            full[key.name] = key.check(f"{where}.{key.name}", full[key.name])
     try:
         motion_models.check_alphas(full["alphas"], 6 if model == "velocity" else 4)
     except ValueError as exc:
@@ -340,7 +358,7 @@ def _trajectory_params(data: Any) -> tuple[dict[str, Any], int]:
 #: The keys of a run configuration (:class:`RunConfig`), in the order of its log.
 RUN_KEYS: tuple[Key, ...] = (
     Key("name", "name", "-", "Run name; set by the sweep to the run id.", "run"),
-    Key("seed", "integer", "1", "Seed of the run's numpy Generator [1].", 0, lo=0),
+    Key("seed", "integer", "1", "Seed of the run's numpy Generator [1].", 0, lo=0, hi=MAX_SEED),
     Key("trajectory", "section", "-",
         "Trajectory builder (pose_uncertainty.core.trajectories.BUILDERS) and its parameters: lengths [m], "
         "angles [rad], speed [m/s], angular_speed [rad/s], dt [s], track [m]; a parameter left out takes the "
@@ -355,7 +373,8 @@ RUN_KEYS: tuple[Key, ...] = (
     Key("pr", "number", "1 (probability inside the ellipse)",
         "Probability inside the drawn ellipses [1]; 0.98889 = radius 3.", PR_3SIGMA,
         lo=0.0, hi=1.0, lo_open=True, hi_open=True, rule="a probability in (0, 1)"),
-    Key("n_ellipses", "integer", "1", "Number of blue ellipses along the path [1].", 10, lo=1),
+    Key("n_ellipses", "integer", "1", "Number of blue ellipses along the path [1] (a figure shows at most "
+        "10,000).", 10, lo=1, hi=10_000),
     Key("monte_carlo", "section", "-", "Monte Carlo sampling under Method A's noise model.", None,
         keys=MONTE_CARLO_KEYS),
     Key("maps", "sections", "-", "Probability maps (Method B) computed for the run.", (),
@@ -403,15 +422,15 @@ class RunConfig:
     """
 
     trajectory: dict[str, Any]
-    k_r: float = _key(RUN_KEYS, "k_r").default
-    k_l: float = _key(RUN_KEYS, "k_l").default
+    k_r: float = key_of(RUN_KEYS, "k_r").default
+    k_l: float = key_of(RUN_KEYS, "k_l").default
     cov0: tuple[tuple[float, float, float], ...] | None = None
-    pr: float = _key(RUN_KEYS, "pr").default
-    n_ellipses: int = _key(RUN_KEYS, "n_ellipses").default
-    seed: int = _key(RUN_KEYS, "seed").default
+    pr: float = key_of(RUN_KEYS, "pr").default
+    n_ellipses: int = key_of(RUN_KEYS, "n_ellipses").default
+    seed: int = key_of(RUN_KEYS, "seed").default
     monte_carlo: MonteCarloConfig = field(default_factory=MonteCarloConfig)
     maps: tuple[MapConfig, ...] = ()
-    name: str = _key(RUN_KEYS, "name").default
+    name: str = key_of(RUN_KEYS, "name").default
     drive: DriveConfig | None = None
 
     KEYS = tuple(k.name for k in RUN_KEYS)
@@ -430,7 +449,7 @@ class RunConfig:
         if "trajectory" not in data:
             raise ValueError("config key 'trajectory' is missing (e.g. {name: straight})")
         traj, n_steps = _trajectory_params(data["trajectory"])
-        k_r, k_l = _key(RUN_KEYS, "k_r").get("", data), _key(RUN_KEYS, "k_l").get("", data)
+        k_r, k_l = key_of(RUN_KEYS, "k_r").get("", data), key_of(RUN_KEYS, "k_l").get("", data)
         cov0_raw = data.get("cov0")
         cov0 = None
         if cov0_raw is not None:
@@ -443,7 +462,7 @@ class RunConfig:
             if not np.array_equal(arr, arr.T) or np.linalg.eigvalsh(arr).min() < -1e-15:
                 raise _fail("cov0", "symmetric positive semi-definite", cov0_raw)
             cov0 = tuple((float(r[0]), float(r[1]), float(r[2])) for r in arr)
-        pr, n_ell, seed = (_key(RUN_KEYS, k).get("", data) for k in ("pr", "n_ellipses", "seed"))
+        pr, n_ell, seed = (key_of(RUN_KEYS, k).get("", data) for k in ("pr", "n_ellipses", "seed"))
         mc = MonteCarloConfig.from_dict(data.get("monte_carlo", {}))
         late = [c for c in mc.checkpoints if c > n_steps]
         if late:
@@ -453,13 +472,13 @@ class RunConfig:
                 late,
             )
         maps_raw = data.get("maps", ())
-        if not isinstance(maps_raw, list | tuple):
-            raise _fail("maps", "a list of map mappings", maps_raw)
+        if not isinstance(maps_raw, list | tuple) or len(maps_raw) > MAX_MAPS:
+            raise _fail("maps", f"a list of at most {MAX_MAPS} map mappings", maps_raw)
         maps = tuple(MapConfig.from_dict(m, i, n_steps) for i, m in enumerate(maps_raw))
         names = [m.name for m in maps]
         if len(set(names)) != len(names):
             raise _fail("maps[].name", "unique", names)
-        name = _key(RUN_KEYS, "name").get("", data)
+        name = key_of(RUN_KEYS, "name").get("", data)
         drive = None
         if data.get("drive") is not None:
             drive = DriveConfig.from_dict(data["drive"])

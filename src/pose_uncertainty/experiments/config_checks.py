@@ -17,11 +17,15 @@ from typing import Any
 import numpy as np
 
 from ..core import trajectories
-from ..core.validation import NUMBER_HINT, parse_number
+from ..core.validation import NUMBER_HINT, check_int, parse_number
 
-__all__ = ["builder_keywords", "check_keys", "fail", "integer", "name", "real"]
+__all__ = ["ConfigWarning", "builder_keywords", "check_keys", "fail", "integer", "name", "real"]
 
 _NAME_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$")
+
+
+class ConfigWarning(UserWarning):
+    """A configuration that can run but is unusual (the message names the key and defines its measure)."""
 
 
 def fail(key: str, rule: str, value: Any) -> ValueError:
@@ -49,7 +53,7 @@ def real(key: str, value: Any, *, positive: bool = False, nonneg: bool = False) 
         raise fail(key, f"a real number {NUMBER_HINT}", value)
     v = float(value)
     if not math.isfinite(v):
-        raise fail(key, "finite", value)
+        raise fail(key, "finite" + (" and > 0" if positive else " and >= 0" if nonneg else ""), value)
     if positive and not v > 0:
         raise fail(key, "> 0 (allowed: (0, inf))", value)
     if nonneg and not v >= 0:
@@ -57,12 +61,9 @@ def real(key: str, value: Any, *, positive: bool = False, nonneg: bool = False) 
     return v
 
 
-def integer(key: str, value: Any, *, minimum: int = 0) -> int:
-    """An integer (not a bool) >= ``minimum``; ``"1e5"`` or ``1e5`` (an integral float) read as 100000."""
-    value = parse_number(value, like=0)
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
-        raise fail(key, f"an integer >= {minimum}", value)
-    return int(value)
+def integer(key: str, value: Any, *, minimum: int = 0, maximum: int | None = None) -> int:
+    """An integer (not a bool) in ``[minimum, maximum]``; ``"1e5"`` or ``1e5`` (an integral float) read as 100000."""
+    return check_int(f"config key {key!r}", parse_number(value, like=0), minimum, maximum)
 
 
 def name(key: str, value: Any) -> str:

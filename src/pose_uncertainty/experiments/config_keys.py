@@ -24,9 +24,10 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from .config_checks import fail, integer, name, real
+from ..core.validation import check_choice
+from .config_checks import check_keys, fail, integer, name, real
 
-__all__ = ["FROM_CODE", "Key", "keys_schema", "units"]
+__all__ = ["FROM_CODE", "Key", "check_axis", "check_partial", "key_of", "keys_schema", "section_values", "units", "vector"]
 
 
 class _FromCode:
@@ -57,7 +58,8 @@ class Key:
     doc : str — the description (required: the schema and the docs show it)
     default : any — the value of a missing key (:data:`FROM_CODE`: the code's own)
     allowed : tuple — the choices of a ``choice`` key
-    lo, hi : float or None — bounds of a number (``lo`` is the minimum of an integer)
+    lo, hi : float or None — bounds of a number (``lo``, ``hi``: the minimum and maximum of an
+        integer; every count has both, so that no value can ask for unbounded memory or time)
     lo_open, hi_open : bool — whether a bound is excluded
     nullable : bool — null is allowed (and means what ``doc`` says)
     rule : str — the wording of the range in an error, where the plain interval reads badly
@@ -98,9 +100,7 @@ class Key:
         if value is None and self.nullable:
             return None
         if self.kind == "choice":
-            if value not in self.allowed:
-                raise fail(where, "one of " + ", ".join(repr(a) for a in self.allowed), value)
-            return value
+            return check_choice(f"config key {where!r}", value, self.allowed)
         if self.kind == "boolean":
             if not isinstance(value, bool):
                 raise fail(where, "true or false", value)
@@ -108,7 +108,8 @@ class Key:
         if self.kind == "name":
             return name(where, value)
         if self.kind == "integer":
-            return integer(where, value, minimum=0 if self.lo is None else int(self.lo))
+            return integer(where, value, minimum=0 if self.lo is None else int(self.lo),
+                           maximum=None if self.hi is None else int(self.hi))
         if self.kind == "number":
             return self._number(where, value)
         return value
@@ -194,3 +195,78 @@ def units(keys: tuple[Key, ...]) -> dict[str, Any]:
         else:
             out[k.name] = dict(k.unit) if isinstance(k.unit, Mapping) else k.unit
     return out
+
+
+def section_values(where: str, keys: tuple[Key, ...], data: Any,
+                   code: Mapping[str, Any] | None = None) -> dict[str, Any]:  # fmt: skip
+    """Every key of a section checked by its table, defaults filled in; ``where`` is its dotted key.
+
+    Unknown keys are refused (naming them and the allowed ones); a :data:`FROM_CODE` default is
+    taken from ``code``. Arrays and sections are returned as given (or their default): their
+    owner checks them. ``None`` as ``data`` is the empty section.
+    """
+    data = {} if data is None else data
+    check_keys(where, data, tuple(k.name for k in keys))
+    out: dict[str, Any] = {}
+    for k in keys:
+        value = data.get(k.name, k.default)
+        if value is FROM_CODE:
+            value = (code or {})[k.name]
+        out[k.name] = k.check(f"{where}.{k.name}" if where else k.name, value)
+    return out
+
+
+def vector(key: str, value: Any, n: int, *, nonneg: bool = False) -> list[float]:
+    """A list of ``n`` finite numbers (each >= 0 when ``nonneg``); ValueError naming ``key[i]``."""
+    if not isinstance(value, list | tuple) or len(value) != n:
+        raise fail(key, f"a list of {n} numbers", value)
+    return [real(f"{key}[{i}]", v, nonneg=nonneg) for i, v in enumerate(value)]
+
+
+def key_of(table: tuple[Key, ...], name: str) -> Key:
+    """The key ``name`` of a table."""
+    return next(k for k in table if k.name == name)
+
+
+def check_partial(where: str, keys: tuple[Key, ...], data: Any) -> None:
+    """Check every key present in a partial configuration (a set's ``base``, the shared
+    ``defaults``) by its table: unknown keys, types, ranges and choices, each error naming the
+    full dotted key. Arrays are left to the configuration class, which checks them in context
+    (and the whole run once it is complete)."""
+    check_keys(where, data, tuple(k.name for k in keys))
+    for k in keys:
+        if k.name in data:
+            _check_value(f"{where}.{k.name}" if where else k.name, k, data[k.name])
+
+
+def _check_value(path: str, k: Key, value: Any) -> None:
+    if value is None and k.nullable:
+        return
+    if k.kind == "section":
+        check_partial(path, k.keys, {} if value is None else value)
+    elif k.kind == "sections":
+        if not isinstance(value, list | tuple):
+            raise fail(path, "a list of mappings", value)
+        for i, item in enumerate(value):
+            check_partial(f"{path}[{i}]", k.keys, item)
+    elif k.kind != "array":
+        k.check(path, value)
+
+
+def check_axis(where: str, keys: tuple[Key, ...], axis: Mapping[str, Any]) -> None:
+    """Check the values of one sweep axis (dotted keys to lists of values) by the key tables."""
+    for dotted, values in axis.items():
+        if dotted == "labels":
+            continue
+        table, key = keys, None
+        for part in dotted.split("."):
+            key = next((k for k in table if k.name == part), None)
+            if key is None:
+                raise ValueError(f"unknown config key(s) '{where}.{dotted}' "
+                                 f"(allowed: {', '.join(k.name for k in table)})")  # fmt: skip
+            table = key.keys
+        if not isinstance(values, list | tuple):
+            raise fail(f"{where}.{dotted}", "a list of values (one per run)", values)
+        for i, v in enumerate(values):
+            if key is not None:
+                _check_value(f"{where}.{dotted}[{i}]", key, v)

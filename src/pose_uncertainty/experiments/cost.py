@@ -20,9 +20,10 @@ single-step map           cells × 50 B (velocity), 160 B (odometry)    cells ×
                                                                        (cell-averaged), 700 ns (odometry)
 multi-step map            64 MiB + (24 + 0.5 M) B × padded cells: the  cells × N × 120 ns (velocity),
                           final grid (fixed ``size``, or the spread    600 ns (odometry), + 5 ms × N
-                          of the noise, at most ``max_cells``)
-                          widened by the kernel's window, M its
-                          heading offsets
+                          of the noise, at most ``max_cells``) widened
+                          by the kernel's window, M its heading offsets
+map sampler               140 B × n_sampler                            400 ns × n_sampler × N
+ellipses                  40 B × min(n_ellipses, N)                    20 µs × min(n_ellipses, N) (figures)
 ========================  ===========================================  ==================================
 
 (N steps, n particles, C checkpoints; cells = nx·ny·nθ.) The coefficients were
@@ -88,6 +89,9 @@ ENV_MAX_MEMORY = "POSE_UNCERTAINTY_MAX_MEMORY"
 ENV_MAX_SECONDS = "POSE_UNCERTAINTY_MAX_SECONDS"
 DEFAULT_MAX_MEMORY = "50%"
 DEFAULT_MAX_SECONDS = "1h"
+#: The largest limits that can be set (beyond them a limit means nothing; ``none`` disables one).
+MAX_MEMORY_LIMIT = 1 << 60
+MAX_SECONDS_LIMIT = 1e9
 
 MiB = 1 << 20
 #: runs estimated to take longer than this [s] say so on stderr before they start
@@ -105,6 +109,8 @@ _SINGLE_CELL_BYTES = {"velocity": 50.0, "odometry": 160.0}
 _SINGLE_CELL_S = {"velocity": 80e-9, "averaged": 150e-9, "odometry": 700e-9}
 _MULTI_MAP_BYTES, _MULTI_PADDED_BYTES, _MULTI_OFFSET_BYTES, _MULTI_STEP_S = 64 * MiB, 24.0, 0.5, 5e-3
 _MULTI_CELL_STEP_S = {"velocity": 120e-9, "odometry": 600e-9}
+_SAMPLER_BYTES, _SAMPLER_S = 140.0, 400e-9
+_ELLIPSE_BYTES, _ELLIPSE_S = 40.0, 20e-6
 #: the spread a growing map grid holds, in standard deviations of the model's noise, each side
 _SPREAD_SIGMAS = 6.0
 #: trajectories longer than this are not built to predict a growing map grid (its cap is used)
@@ -341,6 +347,23 @@ def _map(cfg: RunConfig, i: int, n_steps: int) -> Driver:
     )
 
 
+def _sampler_driver(cfg: RunConfig, i: int, n_steps: int) -> list[Driver]:
+    """The draws of a map's own motion-model sampler along the run (``n_sampler`` × N)."""
+    m = cfg.maps[i]
+    n = int(m.params.get("n_sampler", 0))
+    if n == 0:
+        return []
+    return [Driver(f"map {m.name} sampler", f"maps[{i}].n_sampler = {n:,} × N = {n_steps:,} steps",
+                   _SAMPLER_BYTES * n, _SAMPLER_S * n * n_steps)]  # fmt: skip
+
+
+def _ellipses(cfg: RunConfig, n_steps: int) -> Driver:
+    """The ellipses drawn along the path: one per mark, at most one a step."""
+    n = min(cfg.n_ellipses, n_steps)
+    return Driver("ellipses", f"n_ellipses = {cfg.n_ellipses:,} (at most one a step: {n:,})",
+                  _ELLIPSE_BYTES * n, _ELLIPSE_S * n)  # fmt: skip
+
+
 def estimate(config: RunConfig | Mapping[str, Any]) -> Cost:
     """Peak memory and time of computing and logging a run, from its parameters alone.
 
@@ -370,6 +393,8 @@ def estimate(config: RunConfig | Mapping[str, Any]) -> Cost:
         ),
         *_monte_carlo_driver(cfg, n_steps),
         *maps_,
+        *(d for i in range(len(cfg.maps)) for d in _sampler_driver(cfg, i, n_steps)),
+        _ellipses(cfg, n_steps),
     ]
     mem = sum(d.mem_bytes for d in drivers)
     if len(maps_) > 1:
@@ -410,6 +435,9 @@ def _parse_memory(text: str) -> tuple[int | None, str]:
         return None, f"{ENV_MAX_MEMORY}={text}"
     m = re.fullmatch(r"(\d+(?:\.\d*)?)\s*%", t)
     if m:
+        if not 0 < float(m.group(1)) <= 100:
+            raise ValueError(f"{ENV_MAX_MEMORY} must be a percentage in (0, 100] of the available memory "
+                             f"(allowed: e.g. 80%, a size such as 64G, or none), got {text!r}")  # fmt: skip
         avail = mem_available()
         if avail is None:
             return None, "unknown available memory"
@@ -422,7 +450,13 @@ def _parse_memory(text: str) -> tuple[int | None, str]:
             f"{ENV_MAX_MEMORY} must be a size such as 64G, 500M, 2TiB, a percentage such as 80% "
             f"or none (allowed: bytes with an optional unit), got {text!r}"
         )
-    return int(float(m.group(1)) * _UNITS[m.group(2)]), f"{ENV_MAX_MEMORY}={text}"
+    size = float(m.group(1)) * _UNITS[m.group(2)]
+    if not 1 <= size <= MAX_MEMORY_LIMIT:  # 1e400 is inf: no int of it
+        raise ValueError(
+            f"{ENV_MAX_MEMORY} must be a size from 1 B to 1 EiB (allowed: bytes with an "
+            f"optional unit such as 64G, a percentage such as 80%, or none), got {text!r}"
+        )
+    return int(size), f"{ENV_MAX_MEMORY}={text}"
 
 
 def _parse_seconds(text: str) -> tuple[float | None, str]:
@@ -436,7 +470,13 @@ def _parse_seconds(text: str) -> tuple[float | None, str]:
             f"(allowed: seconds with an optional unit s, m, h, d), got {text!r}"
         )
     scale = {None: 1, "s": 1, "m": 60, "min": 60, "h": 3600, "d": 86400}[m.group(2)]
-    return float(m.group(1)) * scale, f"{ENV_MAX_SECONDS}={text}"
+    secs = float(m.group(1)) * scale
+    if not 0 < secs <= MAX_SECONDS_LIMIT:
+        raise ValueError(
+            f"{ENV_MAX_SECONDS} must be a duration in (0, {MAX_SECONDS_LIMIT:g}] s (allowed: seconds with an "
+            f"optional unit s, m, h, d, e.g. 90m, or none), got {text!r}"
+        )
+    return secs, f"{ENV_MAX_SECONDS}={text}"
 
 
 def limits(env: Mapping[str, str] | None = None) -> Limits:

@@ -71,7 +71,8 @@ _NUMBERS = {"items": {"type": "number", "minimum": 0}}  # one number per channel
 #: The keys of ``drive.errors.encoder``: the fields of WheelErrorSources, whose defaults (the
 #: chassis of Němec 2012) they take.
 ENCODER_KEYS: tuple[Key, ...] = (
-    Key("pulses_per_rev", "integer", "1/rev", "Encoder pulses per wheel revolution [1/rev].", FROM_CODE, lo=1),
+    Key("pulses_per_rev", "integer", "1/rev", "Encoder pulses per wheel revolution [1/rev].", FROM_CODE, lo=1,
+        hi=10_000_000),
     Key("wheel_diameter", "number", "m", "Wheel diameter [m].", FROM_CODE, lo=0.0, lo_open=True),
     Key("integration_time", "number", "s", "Time over which pulses are counted [s].", FROM_CODE, lo=0.0, lo_open=True),
     Key("surface_rel_std", "number", "1 (relative to the speed)",

@@ -51,21 +51,22 @@ import functools
 import hashlib
 import math
 import time
+import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 from numpy.typing import NDArray
 
 from ..analysis import localization as lm
 from ..analysis import measures
 from ..core import trajectories
+from ..core.input_files import InputFileError, parse_mapping, read_text_file
 from ..core.provenance import provenance
 from ..core.table_io import jsonable
-from ..core.validation import parse_numbers
+from ..core.validation import check_choice, parse_numbers
 from ..localization import ekf, histogram, particle, simulate
 from ..localization.motion import K_WHEEL, MOTION_MODELS, Motion, velocity_alphas_for_wheels
 from ..localization.resampling import SCHEMES
@@ -74,12 +75,11 @@ from ..localization.sensors import BeamSensor, RangeBearingSensor
 from ..localization.world import World, world_from_dict
 from ..methods.sampling import REGIMES
 from . import cost
-from .config_checks import builder_keywords
+from .config import MAX_PARTICLES, MAX_SEED, TRAJECTORY_KEYS
+from .config_checks import ConfigWarning, builder_keywords
 from .config_checks import check_keys as _check_keys
 from .config_checks import fail as _fail
-from .config_checks import integer as _int
-from .config_checks import name as _name
-from .config_checks import real as _float
+from .config_keys import FROM_CODE, Key, key_of, section_values, vector
 from .progress import Progress
 from .sweep import ConfigError, Run, expand_set
 
@@ -114,36 +114,256 @@ def is_localization_config(data: Any) -> bool:
     return isinstance(data, Mapping) and data.get("kind") == KIND
 
 
-def _num(key: str, value: Any, lo: float | None = None, hi: float | None = None,
-         *, lo_open: bool = False, hi_open: bool = False) -> float:  # fmt: skip
-    """A finite number in a range; one line naming the key, the value and the range otherwise."""
-    v = _float(key, value)
-    below = lo is not None and (v <= lo if lo_open else v < lo)
-    above = hi is not None and (v >= hi if hi_open else v > hi)
-    if below or above:
-        left = "(" if lo_open else "["
-        right = ")" if hi_open else "]"
-        rng = f"{left}{'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'}{right}"
-        raise _fail(key, f"in {rng}", value)
-    return v
+# ============================================================================= key tables
+
+#: Largest number of landmarks of a world (listed and random) [1].
+MAX_LANDMARKS: int = 100_000
+#: Largest number of simulated runs R [1].
+MAX_REPEAT: int = 10_000
+#: Largest heading count of the histogram filter, beams of the laser [1].
+MAX_NTHETA: int = 3600
+MAX_BEAMS: int = 100_000
+#: Largest thread count a filter may be given [1].
+MAX_WORKERS: int = 256
+#: Largest interval [step] of the logged particles and grids, and particles logged a step [1].
+MAX_EVERY: int = 1_000_000_000
+MAX_LOGGED: int = 1_000_000
 
 
-def _vector(key: str, value: Any, n: int, *, nonneg: bool = False) -> list[float]:
-    if not isinstance(value, list | tuple) or len(value) != n:
-        raise _fail(key, f"a list of {n} numbers", value)
-    return [_num(f"{key}[{i}]", v, 0.0 if nonneg else None) for i, v in enumerate(value)]
+#: The keys of ``world.random_landmarks``.
+RANDOM_LANDMARK_KEYS: tuple[Key, ...] = (
+    Key("count", "integer", "1", "Number of random landmarks drawn uniformly in the free space [1].", 0, lo=0,
+        hi=MAX_LANDMARKS),
+    Key("seed", "integer", "1", "Seed of their numpy Generator [1].", 0, lo=0, hi=MAX_SEED),
+    Key("margin", "number", "m", "Distance from the world's bounds [m].", 0.5, lo=0.0),
+)
+
+#: The keys of ``world`` (the inline keys are those of a world file,
+#: :data:`pose_uncertainty.localization.world.WORLD_SCHEMA`, which checks them further).
+WORLD_KEYS: tuple[Key, ...] = (
+    Key("file", "string", "- (path)", "World file (YAML or JSON), relative to the working directory; null = inline "
+        "only.", None, nullable=True),
+    Key("source", "string", "- (path)", "The file the world was read from (set by the run; informational).", ""),
+    Key("name", "string", "-", "Name of the world.", ""),
+    Key("bounds", "array", "m", "[x_min, x_max, y_min, y_max] [m] of a world without walls or image.", None,
+        nullable=True, extra={"items": {"type": "number"}, "minItems": 4, "maxItems": 4}),
+    Key("landmarks", "array", {"id": "1", "x": "m", "y": "m"},
+        f"Point landmarks with unique integer ids [m] (at most {MAX_LANDMARKS:,}).", (),
+        extra={"maxItems": MAX_LANDMARKS, "items": {
+            "type": "object", "additionalProperties": False,
+            "properties": {"id": {"description": "Landmark id.", "type": "integer", "minimum": 0, "default": 0},
+                           "x": {"description": "x [m].", "type": "number", "default": 0.0},
+                           "y": {"description": "y [m].", "type": "number", "default": 0.0}}}}),
+    Key("walls", "section", {"segments": "m", "resolution": "m", "thickness": "m", "margin": "m"},
+        "Occupancy grid rasterised from wall segments.", None, nullable=True, keys=(
+            Key("segments", "array", "m", "Wall segments [x1, y1, x2, y2] [m].", (),
+                extra={"items": {"type": "array", "items": {"type": "number"}, "minItems": 4, "maxItems": 4}}),
+            Key("resolution", "number", "m", "Cell side [m].", 0.1, lo=0.0, lo_open=True),
+            Key("thickness", "number", "m", "Wall thickness [m].", 0.0, lo=0.0),
+            Key("margin", "number", "m", "Grid margin around the segments [m] (null = one cell).", None,
+                nullable=True, lo=0.0))),
+    Key("image", "section", {"path": "- (path)", "resolution": "m", "origin": "m", "occupied_thresh": "1",
+                             "free_thresh": "1", "negate": "- (bool)", "sha256": "-"},
+        "Occupancy grid read from a PGM or PNG image (ROS map_server conventions).", None, nullable=True, keys=(
+            Key("path", "string", "- (path)", "The image file.", ""),
+            Key("resolution", "number", "m", "Cell side [m].", 0.05, lo=0.0, lo_open=True),
+            Key("origin", "array", "m", "World position [x, y] [m] of the lower-left pixel.", (0.0, 0.0),
+                extra={"items": {"type": "number"}, "minItems": 2, "maxItems": 2}),
+            Key("occupied_thresh", "number", "1", "Occupancy above which a cell is a wall [1].", 0.65,
+                lo=0.0, hi=1.0),
+            Key("free_thresh", "number", "1", "Occupancy below which a cell is free [1].", 0.196, lo=0.0, hi=1.0),
+            Key("negate", "boolean", "- (bool)", "Whether white means occupied.", False),
+            Key("sha256", "string", "-", "sha256 of the image (set by the run; a mismatch is refused).", ""))),
+    Key("random_landmarks", "section", "-", "Landmarks drawn at random in the free space, after the listed ones.",
+        None, keys=RANDOM_LANDMARK_KEYS),
+)
+
+#: The keys of ``trajectory``: the dead-reckoning runs' and those of a room tour and a square.
+LOC_TRAJECTORY_KEYS: tuple[Key, ...] = (
+    Key("name", "choice", "-", "Path builder (required): a dead-reckoning builder, square or tour.",
+        allowed=tuple(TRAJECTORY_BUILDERS)),
+    Key("segments", "array", "[kind, m or rad ...]",
+        "Segments of a tour: [line, L], [turn, angle], [arc, radius, angle] (m, rad).", FROM_CODE,
+        extra={"maxItems": 100_000}),
+    Key("side", "number", "m", "Side of a square [m].", FROM_CODE, lo=0.0, lo_open=True),
+    *TRAJECTORY_KEYS[1:],
+)
+
+#: The keys of ``truth`` (the simulated robot).
+TRUTH_KEYS: tuple[Key, ...] = (
+    Key("k_r", "number", "m", "Right-wheel error constant of the simulated robot [m] (wheel-travel variance per "
+        "metre).", K_WHEEL, lo=0.0),
+    Key("k_l", "number", "m", "Left-wheel error constant of the simulated robot [m].", K_WHEEL, lo=0.0),
+    Key("regime", "choice", "- (per_step | per_run)", "Wheel noise drawn every step or once per run.", "per_step",
+        allowed=REGIMES),
+    Key("path", "choice", "- (commanded | drifts)",
+        "commanded: the robot follows the path and its odometry drifts; drifts: the reverse.", "commanded",
+        allowed=simulate.TRUTHS),
+)
+
+#: The keys of ``sensors.landmarks`` (the fields of RangeBearingSensor, whose defaults they take).
+LANDMARK_SENSOR_KEYS: tuple[Key, ...] = (
+    Key("range_std", "number", "m", "Range noise std [m].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("bearing_std", "number", "rad", "Bearing noise std [rad].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("max_range", "number", "m", "Largest range measured [m].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("fov", "number", "rad", "Field of view [rad].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("period", "number", "s", "Time between measurements [s].", FROM_CODE, lo=0.0, lo_open=True),
+)
+
+#: The keys of ``sensors.beams`` (the fields of BeamSensor, whose defaults they take).
+BEAM_SENSOR_KEYS: tuple[Key, ...] = (
+    Key("n_beams", "integer", "1", "Beams per scan [1].", FROM_CODE, lo=1, hi=MAX_BEAMS),
+    Key("fov", "number", "rad", "Field of view [rad].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("max_range", "number", "m", "Largest range measured [m].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("sigma_hit", "number", "m", "Std of a hit [m].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("lambda_short", "number", "1/m", "Rate of short readings [1/m].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("z_hit", "number", "1", "Weight of hits [1].", FROM_CODE, lo=0.0),
+    Key("z_short", "number", "1", "Weight of short readings [1].", FROM_CODE, lo=0.0),
+    Key("z_max", "number", "1", "Weight of max-range readings [1].", FROM_CODE, lo=0.0),
+    Key("z_rand", "number", "1", "Weight of random readings [1].", FROM_CODE, lo=0.0),
+    Key("period", "number", "s", "Time between scans [s].", FROM_CODE, lo=0.0, lo_open=True),
+)
+
+#: The keys of ``sensors``.
+SENSOR_KEYS: tuple[Key, ...] = (
+    Key("landmarks", "section", "-", "Range-bearing sensor of point landmarks.", None, nullable=True,
+        keys=LANDMARK_SENSOR_KEYS),
+    Key("beams", "section", "-", "Laser scanner (the beam model).", None, nullable=True, keys=BEAM_SENSOR_KEYS),
+)
+
+#: The keys of ``scenario``.
+SCENARIO_KEYS: tuple[Key, ...] = (
+    Key("kind", "choice", "- (tracking | global | kidnapped)", "What the filters know of the start.", "tracking",
+        allowed=SCENARIOS),
+    Key("start_std", "array", "(m, m, rad)", "Std of the filters' initial belief about the start (tracking).",
+        (0.05, 0.05, 0.02), extra={"items": {"type": "number", "minimum": 0}, "minItems": 3, "maxItems": 3}),
+    Key("kidnap_step", "integer", "step", "Step at which the robot is carried away (kidnapped; default N/2).",
+        None, nullable=True, lo=1, hi=MAX_EVERY),
+    Key("kidnap_pose", "array", "(m, m, rad)", "Where it is carried (kidnapped).", None, nullable=True,
+        extra={"items": {"type": "number"}, "minItems": 3, "maxItems": 3}),
+)
+
+#: The keys of a filter's ``motion`` (Motion); null = the truth's own model.
+MOTION_KEYS: tuple[Key, ...] = (
+    Key("model", "choice", "- (wheels | velocity | odometry)", "Motion model (default: the truth's).", None,
+        allowed=MOTION_MODELS, nullable=True),
+    Key("k_r", "number", "m", "Right-wheel error constant [m]; null = the truth's.", None, nullable=True, lo=0.0),
+    Key("k_l", "number", "m", "Left-wheel error constant [m]; null = the truth's.", None, nullable=True, lo=0.0),
+    Key("alphas", "array", "1", "Error constants [1]: 6 (velocity) or 4 (odometry); null = matched to the truth "
+        "(velocity) or 0.05 each.", None, nullable=True, extra={"items": {"type": "number", "minimum": 0}}),
+    Key("noise", "choice", "- (normal | triangular)", "Noise density.", None, allowed=("normal", "triangular"),
+        nullable=True),
+    Key("scaling", "choice", "- (squared | abs)", "Variance scaling: alpha*u^2 (squared) or alpha*|u| (abs).", None,
+        allowed=("squared", "abs"), nullable=True),
+)
+
+_MOTION = Key("motion", "section", {k.name: k.unit for k in MOTION_KEYS},
+              "The filter's motion model; left out, the truth's own.", None, nullable=True, keys=MOTION_KEYS)
+_ASSOCIATION = Key("association", "choice", "- (known | ml)",
+                   "Landmark association: known ids or maximum likelihood.", "known", allowed=ASSOCIATIONS)
+_WORKERS = Key("workers", "integer", "1", "Threads [1] (results do not depend on it).", 1, lo=1, hi=MAX_WORKERS)
+
+#: The keys of ``filters.ekf``.
+EKF_KEYS: tuple[Key, ...] = (
+    Key("sensor", "choice", "-", "Sensor the filter uses.", "landmarks", allowed=("landmarks",)),
+    _MOTION, _ASSOCIATION,
+)
+
+#: The keys of ``filters.histogram``.
+HISTOGRAM_KEYS: tuple[Key, ...] = (
+    Key("sensor", "choice", "-", "Sensor the filter uses (default: the first configured).", "landmarks",
+        allowed=("landmarks", "beams")),
+    _MOTION,
+    Key("resolution", "number", "m", "Cell side [m] (null = the world's grid).", None, nullable=True, lo=0.0, lo_open=True),
+    Key("ntheta", "integer", "1", "Heading cells [1].", 36, lo=1, hi=MAX_NTHETA),
+    Key("mask_occupied", "boolean", "- (bool)", "No belief in occupied cells.", True),
+    _ASSOCIATION, _WORKERS,
+)
+
+#: The keys of ``filters.particle`` (the fields of ParticleFilterConfig, whose defaults they take).
+PARTICLE_KEYS: tuple[Key, ...] = (
+    Key("sensor", "choice", "-", "Sensor the filter uses (default: the first configured).", "landmarks",
+        allowed=("landmarks", "beams")),
+    _MOTION,
+    Key("n_particles", "integer", "1", "Particles [1].", FROM_CODE, lo=1, hi=MAX_PARTICLES),
+    Key("resampling", "choice", "-", "Resampling scheme.", FROM_CODE, allowed=tuple(SCHEMES)),
+    Key("ess_threshold", "number", "1 (fraction of n)", "Resample when the effective sample size falls below this "
+        "fraction of n [1].", FROM_CODE, lo=0.0, hi=1.0, lo_open=True),
+    Key("injection", "choice", "- (none | fixed | augmented)", "Random particles injected.", FROM_CODE,
+        allowed=("none", "fixed", "augmented")),
+    Key("injection_fraction", "number", "1", "Fraction injected (fixed) [1].", FROM_CODE, lo=0.0, hi=1.0),
+    Key("alpha_slow", "number", "1", "Slow average rate (augmented) [1].", FROM_CODE, lo=0.0, lo_open=True),
+    Key("alpha_fast", "number", "1", "Fast average rate (augmented) [1].", FROM_CODE, lo=0.0, lo_open=True),
+    _ASSOCIATION,
+    Key("dtype", "choice", "-", "Floating type of the particles.", FROM_CODE, allowed=("float64", "float32")),
+    Key("hdr_resolution", "number", "m", "Cell of the highest-density region measure [m].", FROM_CODE,
+        lo=0.0, lo_open=True),
+    _WORKERS,
+)
+
+#: The keys of ``filters``.
+FILTER_KEYS: tuple[Key, ...] = (
+    Key("ekf", "section", "-", "The extended Kalman filter (Method A's prediction).", None, nullable=True,
+        keys=EKF_KEYS),
+    Key("histogram", "section", "-", "The histogram filter (Method B's).", None, nullable=True,
+        keys=HISTOGRAM_KEYS),
+    Key("particle", "section", "-", "The particle filter (Monte Carlo's).", None, nullable=True,
+        keys=PARTICLE_KEYS),
+)
+
+#: The keys of ``success``.
+SUCCESS_KEYS: tuple[Key, ...] = (
+    Key("pos_tol", "number", "m", "Position error of a success [m].", 0.5, lo=0.0, lo_open=True),
+    Key("head_tol", "number", "rad", "Heading error of a success [rad].", 0.25, lo=0.0, hi=math.pi, lo_open=True),
+)
+
+#: The keys of ``log``.
+LOG_KEYS: tuple[Key, ...] = (
+    Key("particles_every", "integer", "step", "Particles logged every this many steps (0: none) [step].", 1, lo=0,
+        hi=MAX_EVERY),
+    Key("max_particles_logged", "integer", "1", "Particles logged a step, at most [1].", 500, lo=1,
+        hi=MAX_LOGGED),
+    Key("grid_every", "integer", "step", "Histogram grids logged every this many steps (0: none) [step].", 10,
+        lo=0, hi=MAX_EVERY),
+)
+
+#: The keys of a localization run configuration (:class:`LocalizationConfig`), in the order of its log.
+LOCALIZATION_KEYS: tuple[Key, ...] = (
+    Key("kind", "choice", "-", "The run kind (a run configuration file with kind localization is a localization "
+        "run).", KIND, allowed=(KIND,)),
+    Key("name", "name", "-", "Run name; set by the sweep to the run id.", "localization"),
+    Key("seed", "integer", "1", "Seed of the run [1]; run r of R draws its data from default_rng([seed, 0, r]), "
+        "the particle filter from [seed, 1, r].", 0, lo=0, hi=MAX_SEED),
+    Key("repeat", "integer", "1", "Number R of simulated runs (independent noise) the measures cover; the NEES is "
+        "averaged over them, success is counted in them [1].", 1, lo=1, hi=MAX_REPEAT),
+    Key("world", "section", "-", "The world: {file: PATH} (YAML/JSON, read in and logged inline) and/or inline "
+        "keys of a world file, plus random landmarks (required).", None, keys=WORLD_KEYS),
+    Key("trajectory", "section", "-", "The commanded path: a builder and its parameters (required).", None,
+        keys=LOC_TRAJECTORY_KEYS),
+    Key("truth", "section", "-", "The simulated robot's wheel noise and which path it follows.", None,
+        keys=TRUTH_KEYS),
+    Key("sensors", "section", "-", "The sensors (required: landmarks, beams or both).", None, keys=SENSOR_KEYS),
+    Key("scenario", "section", "-", "What the filters know of the start: tracking, global or kidnapped.", None,
+        keys=SCENARIO_KEYS),
+    Key("filters", "section", "-", "The filters run on the same data (required: at least one).", None,
+        keys=FILTER_KEYS),
+    Key("success", "section", "-", "When a filter's estimate counts as a success.", None, keys=SUCCESS_KEYS),
+    Key("log", "section", "-", "What the log keeps of the filters' beliefs.", None, keys=LOG_KEYS),
+)
 
 
-def _choice(key: str, value: Any, allowed: tuple[str, ...]) -> str:
-    if value not in allowed:
-        raise _fail(key, f"one of {', '.join(repr(a) for a in allowed)}", value)
-    return str(value)
+def code_defaults() -> dict[str, Any]:
+    """The defaults the localization keys take from the code they configure (builders, dataclasses)."""
+    traj: dict[str, Any] = {}
+    for name, fn in TRAJECTORY_BUILDERS.items():
+        for k, v in builder_keywords("trajectory", fn, {"name": name})[0].items():
+            traj.setdefault(k, v)
+    def fields_of(cls: Any) -> dict[str, Any]:
+        return {f.name: f.default for f in dataclasses.fields(cls) if f.default is not dataclasses.MISSING}
+    return {"trajectory": jsonable(traj), "sensors": {"landmarks": fields_of(RangeBearingSensor),
+                                                      "beams": fields_of(BeamSensor)},
+            "filters": {"particle": fields_of(particle.ParticleFilterConfig)}}  # fmt: skip
 
-
-def _bool(key: str, value: Any) -> bool:
-    if not isinstance(value, bool):
-        raise _fail(key, "true or false", value)
-    return value
 
 
 def _build(where: str, cls: Any, params: Mapping[str, Any]) -> Any:
@@ -158,24 +378,12 @@ def _build(where: str, cls: Any, params: Mapping[str, Any]) -> Any:
         raise ValueError(f"config key '{where}': {msg}") from None
 
 
-def _dataclass_params(where: str, cls: Any, data: Any, skip: tuple[str, ...] = ()) -> dict[str, Any]:
-    """Validate ``data`` against a frozen dataclass's fields (numbers by their default's type) and fill defaults."""
-    fields = {f.name: f for f in dataclasses.fields(cls) if f.name not in skip}
-    _check_keys(where, data if data is not None else {}, tuple(fields))
-    out: dict[str, Any] = {}
-    for name, f in fields.items():
-        default = f.default if f.default is not dataclasses.MISSING else f.default_factory()  # type: ignore[misc,operator]
-        value = (data or {}).get(name, default)
-        key = f"{where}.{name}"
-        if isinstance(default, bool):
-            out[name] = _bool(key, value)
-        elif isinstance(default, int):
-            out[name] = _int(key, value)
-        elif isinstance(default, float):
-            out[name] = _float(key, value)
-        else:
-            out[name] = value
-    _build(where, cls, out)  # the dataclass's own range checks, with the full key in the message
+def _dataclass_params(where: str, cls: Any, keys: tuple[Key, ...], data: Any) -> dict[str, Any]:
+    """A section configuring a frozen dataclass: checked by its key table, the dataclass's defaults
+    filled in, then the dataclass's own checks (with the full key in the message)."""
+    code = {f.name: f.default for f in dataclasses.fields(cls) if f.default is not dataclasses.MISSING}
+    out = section_values(where, keys, data, code)
+    _build(where, cls, out)
     return out
 
 
@@ -191,7 +399,7 @@ def _builder_params(where: str, fn: Callable[..., Any], data: Mapping[str, Any])
 def _trajectory(data: Any) -> tuple[dict[str, Any], trajectories.Trajectory]:
     if not isinstance(data, Mapping) or "name" not in data:
         raise _fail("trajectory", "a mapping with a 'name' key (e.g. {name: tour, segments: [[line, 5.0]]})", data)
-    name = _choice("trajectory.name", data["name"], tuple(TRAJECTORY_BUILDERS))
+    name = key_of(LOC_TRAJECTORY_KEYS, "name").check("trajectory.name", data["name"])
     full = {"name": name, **_builder_params("trajectory", TRAJECTORY_BUILDERS[name], data)}
     try:
         traj = TRAJECTORY_BUILDERS[name](**{k: v for k, v in full.items() if k != "name"})
@@ -202,30 +410,22 @@ def _trajectory(data: Any) -> tuple[dict[str, Any], trajectories.Trajectory]:
 
 def _read_world_file(path: str) -> tuple[dict[str, Any], Path]:
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise _fail("world.file", "a readable world file (YAML or JSON)", f"{path} ({exc.strerror or exc})") from None
-    try:
-        data = copy.deepcopy(_parse_yaml(text))  # (a copy: the caller may change it)
-    except yaml.YAMLError as exc:
-        raise ValueError(f"config key 'world.file' {path!r}: not valid YAML/JSON ({str(exc).splitlines()[0]})") from None
-    if not isinstance(data, Mapping):
-        raise _fail("world.file", "a file holding a mapping", path)
+    try:  # kind and size checked before reading, a repeated key refused
+        text = read_text_file(p, "world")
+        data = copy.deepcopy(_parse_mapping(text, str(p), p.suffix.lower() == ".json"))  # (a copy: the caller may change it)
+    except InputFileError as exc:
+        raise ValueError(f"config key 'world.file': {exc}") from None
     return dict(data), p.parent
 
 
 @functools.lru_cache(maxsize=16)
-def _parse_yaml(text: str) -> Any:
-    """``yaml.safe_load(text)``, once per text: every run of a sweep reads the same world file."""
-    return yaml.safe_load(text)
+def _parse_mapping(text: str, name: str, json_syntax: bool) -> dict[str, Any]:
+    """The mapping of a world file's text, once per text: every run of a sweep reads the same file."""
+    return parse_mapping(text, name, json_syntax, "world")
 
 
 def _random_landmarks(data: Any) -> dict[str, Any]:
-    _check_keys("world.random_landmarks", data, ("count", "seed", "margin"))
-    return {"count": _int("world.random_landmarks.count", data.get("count", 10)),
-            "seed": _int("world.random_landmarks.seed", data.get("seed", 0)),
-            "margin": _num("world.random_landmarks.margin", data.get("margin", 0.5), 0.0)}  # fmt: skip
+    return section_values("world.random_landmarks", RANDOM_LANDMARK_KEYS, data)
 
 
 def _world(data: Any) -> dict[str, Any]:
@@ -246,6 +446,10 @@ def _world(data: Any) -> dict[str, Any]:
         src_given = str(data.pop("source"))
         out.setdefault("source", src_given)
     rnd = _random_landmarks(data.pop("random_landmarks", {"count": 0}))
+    listed = data.get("landmarks") or []
+    if isinstance(listed, list | tuple) and len(listed) + rnd["count"] > MAX_LANDMARKS:
+        raise _fail("world.landmarks", f"at most {MAX_LANDMARKS:,} landmarks, listed and random",
+                    f"{len(listed):,} listed and {rnd['count']:,} random")  # fmt: skip
     sha = None
     if isinstance(data.get("image"), Mapping):
         img = dict(data["image"])
@@ -265,6 +469,49 @@ def _world(data: Any) -> dict[str, Any]:
     out.update(jsonable(data))
     out["random_landmarks"] = rnd
     return out
+
+
+def _outside(xy: Array, bounds: tuple[float, float, float, float]) -> Array:
+    """Distance [m] of each point (..., 2) outside the box ``bounds`` (0 inside)."""
+    x0, x1, y0, y1 = bounds
+    dx = np.maximum(np.maximum(x0 - xy[..., 0], xy[..., 0] - x1), 0.0)
+    dy = np.maximum(np.maximum(y0 - xy[..., 1], xy[..., 1] - y1), 0.0)
+    return np.asarray(np.hypot(dx, dy), dtype=np.float64)
+
+
+def _check_world(w: World, tr: trajectories.Trajectory, sensors: Mapping[str, Any]) -> None:
+    """Refuse a world the run cannot work in; warn (:class:`ConfigWarning`) of one that is unusual.
+
+    Refused (ValueError, one line): a listed landmark outside the world's bounds; a start pose
+    outside them; a landmark sensor in a world without landmarks (its association rates would be
+    0/0). Warned: a path that leaves the bounds (measure: the largest distance [m] of a path pose
+    outside them), a path through occupied cells (measure: the fraction of its poses in them).
+    """
+    b = w.bounds
+    assert b is not None  # World fills its bounds in
+    box = f"[{b[0]:g}, {b[1]:g}] x [{b[2]:g}, {b[3]:g}] m"
+    far = _outside(w.landmarks, b)
+    if far.size and far.max() > 0:
+        i = int(np.argmax(far))
+        raise _fail(f"world.landmarks[{i}]", f"inside the world's bounds {box}",
+                    {"id": int(w.landmark_ids[i]), "x": float(w.landmarks[i, 0]), "y": float(w.landmarks[i, 1])})
+    start = np.asarray(tr.start, dtype=np.float64)
+    if _outside(start[:2], b) > 0:
+        raise _fail("trajectory.start", f"a pose inside the world's bounds {box}", [float(v) for v in start])
+    if "landmarks" in sensors and w.n_landmarks == 0:
+        raise ValueError("config key 'world.landmarks' holds no landmark (nor world.random_landmarks.count), "
+                         "but sensors.landmarks is configured; allowed: at least one landmark, or no "
+                         "sensors.landmarks")  # fmt: skip
+    out = float(_outside(tr.poses[:, :2], b).max())
+    if out > 0:
+        warnings.warn(f"config key 'trajectory': the path leaves the world's bounds {box} by up to {out:.3g} m "
+                      "(the largest distance of a path pose outside them)", ConfigWarning, stacklevel=3)  # fmt: skip
+    if w.grid is not None:
+        inside = _outside(tr.poses[:, :2], b) == 0
+        occ = float(np.mean(w.grid.is_occupied(tr.poses[inside, :2]))) * inside.mean() if inside.any() else 0.0
+        if occ > 0:
+            warnings.warn(f"config key 'trajectory': {100 * occ:.3g} % of the path's poses lie in occupied cells "
+                          "(walls) of the world", ConfigWarning, stacklevel=3)  # fmt: skip
 
 
 def build_world(spec: Mapping[str, Any]) -> World:
@@ -302,38 +549,35 @@ def build_world(spec: Mapping[str, Any]) -> World:
 
 
 def _truth(data: Any) -> dict[str, Any]:
-    _check_keys("truth", data, ("k_r", "k_l", "regime", "path"))
-    return {"k_r": _num("truth.k_r", data.get("k_r", K_WHEEL), 0.0), "k_l": _num("truth.k_l", data.get("k_l", K_WHEEL), 0.0),
-            "regime": _choice("truth.regime", data.get("regime", "per_step"), REGIMES),
-            "path": _choice("truth.path", data.get("path", "commanded"), simulate.TRUTHS)}  # fmt: skip
+    return section_values("truth", TRUTH_KEYS, data)
 
 
 def _sensors(data: Any) -> dict[str, Any]:
-    _check_keys("sensors", data, ("landmarks", "beams"))
+    _check_keys("sensors", data, tuple(k.name for k in SENSOR_KEYS))
     out: dict[str, Any] = {}
     if data.get("landmarks") is not None:
-        out["landmarks"] = _dataclass_params("sensors.landmarks", RangeBearingSensor, data["landmarks"])
+        out["landmarks"] = _dataclass_params("sensors.landmarks", RangeBearingSensor, LANDMARK_SENSOR_KEYS,
+                                             data["landmarks"])  # fmt: skip
     if data.get("beams") is not None:
-        out["beams"] = _dataclass_params("sensors.beams", BeamSensor, data["beams"])
+        out["beams"] = _dataclass_params("sensors.beams", BeamSensor, BEAM_SENSOR_KEYS, data["beams"])
     if not out:
         raise ValueError("config key 'sensors' must configure landmarks or beams (allowed: one or both), got none")
     return out
 
 
 def _scenario(data: Any, n_steps: int) -> dict[str, Any]:
-    _check_keys("scenario", data, ("kind", "start_std", "kidnap_step", "kidnap_pose"))
-    kind = _choice("scenario.kind", data.get("kind", "tracking"), SCENARIOS)
-    out: dict[str, Any] = {"kind": kind,
-                           "start_std": _vector("scenario.start_std", data.get("start_std", [0.05, 0.05, 0.02]), 3,
-                                                nonneg=True)}  # fmt: skip
-    step, pose = data.get("kidnap_step"), data.get("kidnap_pose")
+    given = section_values("scenario", SCENARIO_KEYS, data)
+    kind = given["kind"]
+    out: dict[str, Any] = {"kind": kind, "start_std": vector("scenario.start_std", given["start_std"], 3, nonneg=True)}
+    step, pose = given["kidnap_step"], given["kidnap_pose"]
     if kind == "kidnapped":
-        out["kidnap_step"] = _int("scenario.kidnap_step", n_steps // 2 if step is None else step, minimum=1)
+        out["kidnap_step"] = key_of(SCENARIO_KEYS, "kidnap_step").check("scenario.kidnap_step",
+                                                                      n_steps // 2 if step is None else step)
         if out["kidnap_step"] > n_steps:
             raise _fail("scenario.kidnap_step", f"a step in 1..{n_steps} (the trajectory's N)", step)
         if pose is None:
             raise ValueError("config key 'scenario.kidnap_pose' is missing (allowed: [x, y, theta] for kind kidnapped)")
-        out["kidnap_pose"] = _vector("scenario.kidnap_pose", pose, 3)
+        out["kidnap_pose"] = vector("scenario.kidnap_pose", pose, 3)
     else:
         for key, value in (("kidnap_step", step), ("kidnap_pose", pose)):
             if value is not None:
@@ -344,22 +588,19 @@ def _scenario(data: Any, n_steps: int) -> dict[str, Any]:
 
 def _motion(where: str, data: Any, models: tuple[str, ...], default: dict[str, Any]) -> dict[str, Any]:
     """A filter's motion model, its defaults from the truth (``default``)."""
-    data = {} if data is None else data
-    _check_keys(where, data, ("model", "k_r", "k_l", "alphas", "noise", "scaling"))
-    model = _choice(f"{where}.model", data.get("model", default["model"]), models)
+    data = {k: v for k, v in section_values(where, MOTION_KEYS, data).items() if v is not None}  # null: not given
+    model = check_choice(f"config key '{where}.model'", data.get("model", default["model"]), models)
     base = default if model == default["model"] else {"model": model, "k_r": default["k_r"], "k_l": default["k_l"]}
     if model == "velocity" and "alphas" not in data and "alphas" not in base:
         base = {**base, "alphas": default["velocity_alphas"], "scaling": "abs"}
-    out = {"model": model,
-           "k_r": _num(f"{where}.k_r", base["k_r"] if data.get("k_r") is None else data["k_r"], 0.0),  # null: the truth's
-           "k_l": _num(f"{where}.k_l", base["k_l"] if data.get("k_l") is None else data["k_l"], 0.0),
+    out = {"model": model, "k_r": data.get("k_r", base["k_r"]), "k_l": data.get("k_l", base["k_l"]),  # the truth's
            "noise": data.get("noise", base.get("noise", "normal")),
            "scaling": data.get("scaling", base.get("scaling", "squared"))}  # fmt: skip
     alphas = data.get("alphas", base.get("alphas"))
     if alphas is not None:
         if not isinstance(alphas, list | tuple):
             raise _fail(f"{where}.alphas", "a list of numbers >= 0", alphas)
-        alphas = [_num(f"{where}.alphas[{i}]", a, 0.0) for i, a in enumerate(alphas)]
+        alphas = vector(f"{where}.alphas", alphas, len(alphas), nonneg=True)
     m = _build(where, Motion, {**out, "alphas": None if alphas is None else tuple(alphas)})
     out["alphas"] = None if m.alphas is None else list(m.alphas)
     return out
@@ -369,7 +610,7 @@ def _sensor_choice(where: str, data: Mapping[str, Any], sensors: Mapping[str, An
     have = [s for s in allowed if s in sensors]
     if not have:
         raise _fail(f"{where}.sensor", f"a configured sensor among {allowed} (configure sensors.{allowed[0]})", None)
-    s = _choice(f"{where}.sensor", data.get("sensor", have[0]), allowed)
+    s = check_choice(f"config key '{where}.sensor'", data.get("sensor", have[0]), allowed)
     if s not in sensors:
         raise _fail(f"{where}.sensor", f"a configured sensor (configured: {', '.join(sensors)})", s)
     return s
@@ -381,25 +622,17 @@ def _filters(data: Any, sensors: Mapping[str, Any], defaults: Mapping[str, Any])
         raise ValueError(f"config key 'filters' must configure at least one filter (allowed: {', '.join(lm.FILTERS)})")
     out: dict[str, Any] = {}
     if data.get("ekf") is not None:
-        d = data["ekf"]
-        _check_keys("filters.ekf", d, ("sensor", "motion", "association"))
-        out["ekf"] = {"sensor": _sensor_choice("filters.ekf", d, sensors, ("landmarks",)),
-                      "motion": _motion("filters.ekf.motion", d.get("motion"), ("wheels", "velocity"), dict(defaults)),
-                      "association": _choice("filters.ekf.association", d.get("association", "known"), ASSOCIATIONS)}  # fmt: skip
+        d = section_values("filters.ekf", EKF_KEYS, {"sensor": "landmarks", **data["ekf"]})
+        out["ekf"] = {"sensor": _sensor_choice("filters.ekf", data["ekf"], sensors, ("landmarks",)),
+                      "motion": _motion("filters.ekf.motion", d["motion"], ("wheels", "velocity"), dict(defaults)),
+                      "association": d["association"]}  # fmt: skip
     if data.get("histogram") is not None:
-        d = data["histogram"]
-        _check_keys("filters.histogram", d, ("sensor", "motion", "resolution", "ntheta", "mask_occupied", "association",
-                                              "workers"))  # fmt: skip
-        res = d.get("resolution")
+        d = section_values("filters.histogram", HISTOGRAM_KEYS, {"sensor": "landmarks", **data["histogram"]})
         out["histogram"] = {
-            "sensor": _sensor_choice("filters.histogram", d, sensors, ("landmarks", "beams")),
-            "motion": _motion("filters.histogram.motion", d.get("motion"), ("velocity", "odometry"),
+            "sensor": _sensor_choice("filters.histogram", data["histogram"], sensors, ("landmarks", "beams")),
+            "motion": _motion("filters.histogram.motion", d["motion"], ("velocity", "odometry"),
                               {**defaults, "model": "velocity", "alphas": defaults["velocity_alphas"], "scaling": "abs"}),
-            "resolution": None if res is None else _num("filters.histogram.resolution", res, 0.0, lo_open=True),
-            "ntheta": _int("filters.histogram.ntheta", d.get("ntheta", 36), minimum=1),
-            "mask_occupied": _bool("filters.histogram.mask_occupied", d.get("mask_occupied", True)),
-            "association": _choice("filters.histogram.association", d.get("association", "known"), ASSOCIATIONS),
-            "workers": _int("filters.histogram.workers", d.get("workers", 1), minimum=1),
+            **{k: d[k] for k in ("resolution", "ntheta", "mask_occupied", "association", "workers")},
         }  # fmt: skip
     if data.get("particle") is not None:
         d = dict(data["particle"])
@@ -407,8 +640,8 @@ def _filters(data: Any, sensors: Mapping[str, Any], defaults: Mapping[str, Any])
         sensor = _sensor_choice(where, d, sensors, ("landmarks", "beams"))
         motion = _motion(f"{where}.motion", d.pop("motion", None), MOTION_MODELS, dict(defaults))
         d.pop("sensor", None)
-        opts = _dataclass_params(where, particle.ParticleFilterConfig, d, skip=("motion",))
-        opts["resampling"] = _choice(f"{where}.resampling", opts["resampling"], SCHEMES)
+        opts = _dataclass_params(where, particle.ParticleFilterConfig,
+                                 tuple(k for k in PARTICLE_KEYS if k.name not in ("sensor", "motion")), d)
         out["particle"] = {"sensor": sensor, "motion": motion, **opts}
     return out
 
@@ -464,38 +697,30 @@ class LocalizationConfig:
         if not isinstance(data, Mapping):
             raise _fail("config", "a mapping", data)
         data = parse_numbers(data)
-        _check_keys("", data, cls.KEYS)
-        if data.get("kind", KIND) != KIND:
-            raise _fail("kind", f"{KIND!r}", data.get("kind"))
+        top = section_values("", tuple(k for k in LOCALIZATION_KEYS if k.kind != "section"),
+                             {k: v for k, v in data.items() if k not in cls.KEYS[4:]})
         for key in ("world", "trajectory", "sensors", "filters"):
             if key not in data:
                 raise ValueError(f"config key {key!r} is missing (a localization run needs world, trajectory, "
                                  "sensors and filters)")  # fmt: skip
         world = _world(data["world"])
         try:
-            build_world(world)
+            built = build_world(world)
         except ValueError as exc:
             msg = str(exc)
             raise ValueError(msg if msg.startswith("config key") else f"config key 'world': {msg}") from None
         traj, tr = _trajectory(data["trajectory"])
         truth = _truth(data.get("truth", {}))
         sensors = _sensors(data["sensors"])
+        _check_world(built, tr, sensors)
         scenario = _scenario(data.get("scenario", {}), tr.n_steps)
         defaults = {"model": "wheels", "k_r": truth["k_r"], "k_l": truth["k_l"],
                     "velocity_alphas": list(velocity_alphas_for_wheels(truth["k_r"], truth["k_l"], tr.track, tr.dt))}
         filters = _filters(data["filters"], sensors, defaults)
-        succ = data.get("success", {})
-        _check_keys("success", succ, ("pos_tol", "head_tol"))
-        success = {"pos_tol": _num("success.pos_tol", succ.get("pos_tol", 0.5), 0.0, lo_open=True),
-                   "head_tol": _num("success.head_tol", succ.get("head_tol", 0.25), 0.0, math.pi, lo_open=True)}
-        lg = data.get("log", {})
-        _check_keys("log", lg, ("particles_every", "max_particles_logged", "grid_every"))
-        log = {"particles_every": _int("log.particles_every", lg.get("particles_every", 1)),
-               "max_particles_logged": _int("log.max_particles_logged", lg.get("max_particles_logged", 500), minimum=1),
-               "grid_every": _int("log.grid_every", lg.get("grid_every", 10))}  # fmt: skip
+        success = section_values("success", SUCCESS_KEYS, data.get("success"))
+        log = section_values("log", LOG_KEYS, data.get("log"))
         return cls(
-            name=_name("name", data.get("name", "localization")), seed=_int("seed", data.get("seed", 0)),
-            repeat=_int("repeat", data.get("repeat", 1), minimum=1), world=world, trajectory=traj,
+            name=top["name"], seed=top["seed"], repeat=top["repeat"], world=world, trajectory=traj,
             truth=truth, sensors=sensors, scenario=scenario, filters=filters, success=success, log=log,
         )  # fmt: skip
 

@@ -99,6 +99,8 @@ class RunResult:
     def ellipse_steps(self) -> list[int]:
         """Steps at which ellipses are drawn: ``n_ellipses`` regular intervals, the last = N."""
         n = self.n_steps
+        if self.config.n_ellipses >= n:  # marks closer than a step: every step (no array of n_ellipses)
+            return list(range(1, n + 1))
         marks = np.linspace(0, n, self.config.n_ellipses + 1).round().astype(int)[1:]
         return sorted({int(m) for m in marks if m > 0})
 

@@ -28,13 +28,16 @@ from ..methods.wheel_noise import WheelErrorSources
 from .config import RUN_KEYS, _map_defaults
 from .config_checks import builder_keywords
 from .config_keys import Key, keys_schema
+from .localization import LOCALIZATION_KEYS
+from .localization import code_defaults as localization_code_defaults
 
-__all__ = ["HEADER", "config_schema", "render", "run_schema", "sweep_axis_schema"]
+__all__ = ["HEADER", "config_schema", "localization_run_schema", "render", "run_schema", "sweep_axis_schema"]
 
 HEADER = (
-    "# GENERATED in part: $defs.run and the sweep axes of $defs.set come from the key tables of\n"
-    "# pose_uncertainty.experiments.config and .drive_config (python -m pose_uncertainty.experiments.schema\n"
-    "# workflow/schemas/config.schema.yaml, or make schema). Edit the key tables, not those parts.\n"
+    "# GENERATED in part: $defs.run, $defs.localization_run and the sweep axes of $defs.set and\n"
+    "# $defs.localization_set come from the key tables of pose_uncertainty.experiments.config, .drive_config\n"
+    "# and .localization (python -m pose_uncertainty.experiments.schema workflow/schemas/config.schema.yaml,\n"
+    "# or make schema). Edit the key tables, not those parts.\n"
 )
 
 
@@ -49,18 +52,29 @@ def _code_defaults() -> dict[str, Any]:
     return {"trajectory": traj, "maps": maps, "drive": {"errors": {"encoder": encoder}}}
 
 
-def run_schema() -> dict[str, Any]:
-    """The JSON Schema (2020-12) of a (partial) run configuration, from :data:`RUN_KEYS`."""
-    properties = keys_schema(RUN_KEYS, _code_defaults())
-    # which trajectory keys apply depends on the builder: RunConfig names the builder's in its error
+def _schema_of(keys: tuple[Key, ...], code: Mapping[str, Any], cls: str) -> dict[str, Any]:
+    """The JSON Schema of a (partial) configuration of the key table ``keys`` (class ``cls``)."""
+    properties = keys_schema(keys, code)
+    # which trajectory keys apply depends on the builder: the config class names the builder's in its error
     del properties["trajectory"]["additionalProperties"]
+    kind = "localization run" if "localization" in cls else "run"
     return {
-        "description": "A (partial) run configuration, see pose_uncertainty.experiments.config.RunConfig.",
+        "description": f"A (partial) {kind} configuration, see pose_uncertainty.experiments.{cls}.",
         "x-fill-defaults": False,
         "type": "object",
         "additionalProperties": False,
         "properties": properties,
     }
+
+
+def run_schema() -> dict[str, Any]:
+    """The JSON Schema (2020-12) of a (partial) run configuration, from :data:`RUN_KEYS`."""
+    return _schema_of(RUN_KEYS, _code_defaults(), "config.RunConfig")
+
+
+def localization_run_schema() -> dict[str, Any]:
+    """The JSON Schema of a (partial) localization run configuration, from :data:`LOCALIZATION_KEYS`."""
+    return _schema_of(LOCALIZATION_KEYS, localization_code_defaults(), "localization.LocalizationConfig")
 
 
 def _axis_keys() -> list[tuple[str, Key]]:
@@ -98,6 +112,11 @@ def config_schema(current: Mapping[str, Any]) -> dict[str, Any]:
     out = copy.deepcopy(dict(current))
     out["$defs"]["run"] = run_schema()
     out["$defs"]["set"]["properties"]["sweep"]["items"] = sweep_axis_schema()
+    out["$defs"]["localization_run"] = localization_run_schema()
+    out["$defs"].pop("localization_motion", None)  # now inline, from the key table
+    names = "|".join(["labels", *(k.name for k in LOCALIZATION_KEYS)])
+    loc_axis = out["$defs"]["localization_set"]["properties"]["sweep"]["items"]
+    loc_axis["propertyNames"] = {"pattern": f"^({names})(\\.[A-Za-z_0-9]+)*$"}
     return out
 
 

@@ -38,7 +38,8 @@ from typing import Any
 from ..core import trajectories
 from ..core.schema import first_error
 from ..core.validation import parse_numbers
-from .config import RunConfig
+from .config import RUN_KEYS, RunConfig
+from .config_keys import check_axis, check_partial
 
 __all__ = [
     "ConfigError",
@@ -48,6 +49,7 @@ __all__ = [
     "expand_set",
     "label_value",
     "n_steps",
+    "pipeline_structure",
     "run_label",
     "validate_config",
 ]
@@ -144,7 +146,15 @@ def _fill_defaults(schema: Mapping[str, Any], instance: Any, root: Mapping[str, 
 
 
 def validate_config(config: Mapping[str, Any], schema: Mapping[str, Any]) -> dict[str, Any]:
-    """Validate a pipeline config against its JSON Schema (2020-12), fill defaults, expand the sets.
+    """Validate a pipeline config, fill defaults, expand the sets.
+
+    The run keys (the shared ``defaults``, each set's ``base`` and sweep axes, and their
+    localization counterparts) are validated by their key tables
+    (:data:`~pose_uncertainty.experiments.config.RUN_KEYS`,
+    :data:`~pose_uncertainty.experiments.localization.LOCALIZATION_KEYS`) — the one validator
+    of a run key, which ``RunConfig.from_dict`` applies again to each complete run. The JSON
+    Schema (generated from the same tables for editors and documentation) checks only the
+    pipeline's own structure: the sets, studies, report.
 
     Parameters
     ----------
@@ -158,18 +168,51 @@ def validate_config(config: Mapping[str, Any], schema: Mapping[str, Any]) -> dic
     Raises
     ------
     ConfigError
-        On the first schema violation (the most specific one) or when a set's
-        runs are not valid run configurations; the message names the key, the
-        value and what is allowed.
+        On the first violation; the message names the key (dotted path), the value and what
+        is allowed.
     """
     config = coerce_numbers(config)
-    problem = first_error(schema, config)
+    structure = pipeline_structure(schema)
+    problem = first_error(structure, config)
     if problem is not None:
         raise ConfigError(problem)
+    try:
+        _check_run_keys(config)
+    except ValueError as exc:
+        raise ConfigError(str(exc)) from None
     filled = copy.deepcopy(dict(config))
-    _fill_defaults(schema, filled)
+    _fill_defaults(structure, filled)
     expand_all(filled)  # raises ConfigError for bad runs
     return filled
+
+
+def pipeline_structure(schema: Mapping[str, Any]) -> dict[str, Any]:
+    """The pipeline schema without its run keys: a run configuration is any mapping and a sweep
+    axis any mapping of lists, since the key tables check them (:func:`validate_config`)."""
+    out = copy.deepcopy(dict(schema))
+    defs = out["$defs"]
+    for name in ("run", "localization_run"):
+        defs[name] = {"description": defs[name].get("description", ""), "type": "object", "x-fill-defaults": False}
+    for name in ("set", "localization_set"):
+        defs[name]["properties"]["sweep"]["items"] = {
+            "type": "object", "minProperties": 1, "additionalProperties": {"type": "array", "minItems": 1},
+        }  # fmt: skip
+    return out
+
+
+def _check_run_keys(config: Mapping[str, Any]) -> None:
+    """The run keys of the pipeline config, by their key tables (ValueError naming the dotted key)."""
+    from .localization import LOCALIZATION_KEYS
+
+    for section, keys, sets in ((config, RUN_KEYS, "experiment_sets"),
+                                (config.get("localization") or {}, LOCALIZATION_KEYS, "sets")):  # fmt: skip
+        where = "" if sets == "experiment_sets" else "localization."
+        if section.get("defaults") is not None:
+            check_partial(f"{where}defaults", keys, section["defaults"])
+        for name, spec in (section.get(sets) or {}).items():
+            check_partial(f"{where}{sets}.{name}.base", keys, spec.get("base") or {})
+            for ai, axis in enumerate(spec.get("sweep") or []):
+                check_axis(f"{where}{sets}.{name}.sweep[{ai}]", keys, axis)
 
 
 #: Keys whose values are text even when they look like numbers (``labels: ["1", "2"]``).
@@ -334,6 +377,16 @@ def _axis_points(where: str, ai: int, axis: Mapping[str, Any]) -> list[_AxisPoin
             f"config key '{where}.sweep[{ai}].labels' has {len(labels)} labels for {n} values; "
             "allowed: one label per value"
         )
+    if labels is None:  # a value given twice would silently give one run fewer
+        rows = [[axis[k][i] for k in keys] for i in range(n)]
+        for i, row in enumerate(rows):
+            if row in rows[:i]:
+                shown = repr(row[0]) if len(keys) == 1 else ", ".join(f"{k} = {v!r}" for k, v in zip(keys, row, strict=True))
+                raise ConfigError(
+                    f"config key '{where}.sweep[{ai}].{keys[0] if len(keys) == 1 else '{' + ', '.join(keys) + '}'}' "
+                    f"repeats the value {shown} (at positions {rows.index(row)} and {i}); "
+                    "allowed: distinct values, each giving one run (or 'labels' to tell repeats apart)"
+                )
     points = []
     for i in range(n):
         values = {k: axis[k][i] for k in keys}

@@ -30,7 +30,6 @@ raises one ``ValueError`` line naming the key, the value and what is allowed.
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -38,10 +37,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 from numpy.typing import ArrayLike, NDArray
 
 from ..core.grids import Grid
+from ..core.input_files import read_mapping_file
 from ..core.schema import first_error
 from ..core.validation import check_finite, check_last_axis, check_positive, check_positive_int
 
@@ -478,10 +477,5 @@ def world_from_dict(data: Mapping[str, Any], base_dir: str | Path = ".") -> Worl
 def load_world(path: str | Path) -> World:
     """Read a world file (``.yaml``, ``.yml`` or ``.json``), validate it and build the :class:`World`."""
     p = Path(path)
-    text = p.read_text(encoding="utf-8")
-    try:
-        data = json.loads(text) if p.suffix.lower() == ".json" else yaml.safe_load(text)
-    except (json.JSONDecodeError, yaml.YAMLError) as exc:
-        first = str(exc).splitlines()[0]
-        raise ValueError(f"world file {p.name} must be valid YAML/JSON, got: {first}") from exc
+    data = read_mapping_file(p, "world")  # kind and size checked first, a repeated key refused
     return world_from_dict(data, p.parent)

@@ -47,7 +47,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
+from ..core.input_files import read_mapping_file
 
 __all__ = ["ROBOT_KEYS", "RobotConfig", "read_robot_file", "robot_from_mapping"]
 
@@ -190,13 +190,7 @@ def robot_from_mapping(data: Mapping[str, Any], where: str = "robot file") -> Ro
 def read_robot_file(path: str | Path) -> RobotConfig:
     """Read and check a robot YAML file; ValueError (one line, naming the file) when it is bad."""
     p = Path(path)
-    try:
-        data = yaml.safe_load(p.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ValueError(f"{p}: no such robot file") from None
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise ValueError(f"{p}: not a readable YAML robot file ({first})") from None
+    data = read_mapping_file(p, "robot", empty_ok=True)  # kind and size checked first, a repeated key refused
     try:
         return robot_from_mapping(data if data is not None else {}, str(p))
     except ValueError as exc:
