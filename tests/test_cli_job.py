@@ -48,3 +48,14 @@ def test_bad_usage_exits_2_and_says_why(tmp_path: Path, argv: list[str], says: s
     assert res.returncode == 2
     assert says in res.stderr.strip().splitlines()[-1]
     assert not list(tmp_path.iterdir())  # nothing written
+
+
+def test_a_job_checks_the_environment_before_any_work(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    # as the CLI: a limit that cannot be a number is one line naming the variable, and nothing is written
+    monkeypatch.setenv("POSE_UNCERTAINTY_MAX_MEMORY", "1e400")
+    spec = {"study": "integration_vs_step"}
+    assert main(["run-study", "ivs", json.dumps(spec), str(tmp_path / "a.json")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "POSE_UNCERTAINTY_MAX_MEMORY" in err[0] and "1e400" in err[0]
+    assert not list(tmp_path.iterdir())

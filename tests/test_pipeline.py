@@ -227,6 +227,19 @@ def test_bad_config_fails_before_any_rule_runs(tmp_path: Path) -> None:
     assert not (work / "data").exists(), "a rule ran although the config is invalid"
 
 
+@pytest.mark.slow
+def test_a_repeated_key_in_the_config_file_fails_before_any_rule_runs(tmp_path: Path) -> None:
+    # Snakemake's own YAML loader would take the second value silently
+    work = copy_workflow(tmp_path / "dup")
+    text = (work / "config/quick.yaml").read_text(encoding="utf-8")
+    (work / "config/dup.yaml").write_text(text + "\nreport:\n  title: again\n", encoding="utf-8")
+    proc = snakemake(work, "--configfile", "config/dup.yaml", "-n", timeout=120)
+    out = proc.stdout + proc.stderr
+    assert proc.returncode != 0
+    assert "dup.yaml" in out and "'report'" in out
+    assert not (work / "data").exists()
+
+
 def test_quick_pipeline_end_to_end(quick: Path) -> None:
     from pose_uncertainty.present import figures
     from pose_uncertainty.records.run import open_run

@@ -21,6 +21,18 @@ if workflow.overwrite_configfiles:
     config.clear()
     config.update(_copy.deepcopy(workflow.config_settings.overwrite_config))
 
+# Snakemake reads the config files with its own YAML loader, which takes the last of two equal
+# keys: read each once more with the package's reader, which refuses a repeated key (naming both
+# lines), a file that is not a regular one and one over its size limit.
+from pose_uncertainty.core.input_files import InputFileError as _InputFileError
+from pose_uncertainty.core.input_files import read_mapping_file as _read_mapping_file
+
+for _configfile in workflow.configfiles:
+    try:
+        _read_mapping_file(_configfile, "config")
+    except _InputFileError as _exc:
+        raise WorkflowError(f"invalid config: {_exc}") from None
+
 _SCHEMA = load_schema(workflow.source_path("../schemas/config.schema.yaml"))
 try:
     _validated = _sweep.validate_config(config, _SCHEMA)

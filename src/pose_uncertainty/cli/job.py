@@ -69,7 +69,10 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _dispatch(args: argparse.Namespace) -> int:
+    from ..experiments.environment import check_environment
     from ..pipeline import jobs
+
+    check_environment()  # every variable the package reads, before any work (as the CLI)
 
     if args.kind == "simulate-run":
         jobs.simulate_run(args.config, args.log, args.timings)
