@@ -201,3 +201,31 @@ def test_bad_propagation_input(kwargs, match):
 def test_empty_travels_rejected():
     with pytest.raises(ValueError, match="N >= 1"):
         cv.propagate_travels(np.array([]), np.array([]), 0.2, 1e-4, 1e-4)
+
+
+def test_a_circle_within_rounding_has_no_orientation_and_a_segment_no_width() -> None:
+    # A rotation in place gives an exactly circular (x, y) covariance, computed with rounding:
+    # its orientation is then rounding noise (0.135 vs 0.148 rad between two exact-equal
+    # programs). Every perturbation of a circle at the last bits gives α = 0 and equal axes.
+    rng = np.random.default_rng(3)
+    a = 7.0e-5
+    for _ in range(20):
+        S = a * np.eye(2) + a * 1e-15 * rng.standard_normal((2, 2))
+        S = 0.5 * (S + S.T)
+        e = cv.ellipse(S)
+        assert e.alpha == 0.0
+        assert e.a_major == e.a_minor
+    # a segment (rank 1) perturbed at the last bits: no width, and its polyline moves by
+    # rounding only (without the cut, √ of a ±1e-20 eigenvalue made it move by 1e-9 of its size)
+    u = np.array([np.cos(0.5), np.sin(0.5)])
+    base = 2.5e-5 * np.outer(u, u)
+    ref = cv.ellipse_polyline(base)
+    for _ in range(20):
+        S = base + 2.5e-5 * 1e-15 * rng.standard_normal((2, 2))
+        S = 0.5 * (S + S.T)
+        assert cv.ellipse(S).a_minor == 0.0
+        assert np.max(np.abs(cv.ellipse_polyline(S) - ref)) <= 1e-13 * np.max(np.abs(ref))
+    # a genuine ellipse keeps its orientation and both axes
+    e = cv.ellipse(np.array([[4.0, 1.0], [1.0, 2.0]]))
+    assert e.alpha == pytest.approx(0.5 * np.arctan2(2.0, 2.0))
+    assert e.a_minor > 0.0

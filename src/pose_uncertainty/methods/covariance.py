@@ -52,6 +52,7 @@ from .drive_covariance import (
 )
 
 __all__ = [
+    "ELLIPSE_ROUNDING",
     "PR_3SIGMA",
     "CovarianceResult",
     "Ellipse",
@@ -283,6 +284,12 @@ def propagate(
 # --- ellipses ---------------------------------------------------------------------------
 
 
+#: Relative size [1] below which an ellipse's axis difference (a circle) or its minor axis (a
+#: segment) is rounding: 1e-9 of the trace, far above what 10⁴ steps of float64 recursion
+#: accumulate (~1e-11, the reproducibility contract) and far below any width a run resolves.
+ELLIPSE_ROUNDING = 1e-9
+
+
 class Ellipse(NamedTuple):
     """A Pr-ellipse: orientation ``alpha`` [rad] of the major axis and semi-axes [m]."""
 
@@ -302,7 +309,8 @@ def ellipse(cov_xy: ArrayLike, pr: ArrayLike = PR_3SIGMA) -> Ellipse:
     """Closed-form Pr-ellipse of a 2-D covariance (Němec 2012 §2.1.1).
 
     ``k = −2 ln(1 − Pr)``, ``τ = √((σx² − σy²)² + 4σxy²)``,
-    ``α = ½ atan2(2σxy, σx² − σy²)``, ``a = √(k/2 (σx²+σy² ± τ))``.
+    ``α = ½ atan2(2σxy, σx² − σy²)``, ``a = √(k/2 (σx²+σy² ± τ))``. A circle within
+    :data:`ELLIPSE_ROUNDING` of the trace gets ``α = 0``, a segment a zero minor axis.
 
     Parameters
     ----------
@@ -317,9 +325,16 @@ def ellipse(cov_xy: ArrayLike, pr: ArrayLike = PR_3SIGMA) -> Ellipse:
     k = pr_to_k(pr)
     sxx, syy, sxy = S[..., 0, 0], S[..., 1, 1], S[..., 0, 1]
     tau = np.sqrt((sxx - syy) ** 2 + 4.0 * sxy**2)
-    alpha = 0.5 * np.arctan2(2.0 * sxy, sxx - syy)
+    # Within rounding of the trace, a circle has no orientation and a segment no width: their
+    # α and minor axis would be rounding noise (a rotation in place gives an exact circle), so
+    # they are set to 0, and the result moves by rounding only, as its inputs do.
+    rounding = ELLIPSE_ROUNDING * np.abs(sxx + syy)
+    circular = tau <= rounding
+    tau = np.where(circular, 0.0, tau)
+    alpha = np.where(circular, 0.0, 0.5 * np.arctan2(2.0 * sxy, sxx - syy))
+    minor_sq = sxx + syy - tau
     a_major = np.sqrt(np.maximum(k / 2.0 * (sxx + syy + tau), 0.0))
-    a_minor = np.sqrt(np.maximum(k / 2.0 * (sxx + syy - tau), 0.0))  # rounding can dip below 0
+    a_minor = np.sqrt(np.where(minor_sq <= rounding, 0.0, k / 2.0 * minor_sq))
     return Ellipse(alpha, a_major, a_minor)
 
 
@@ -336,7 +351,8 @@ def _sqrt_factor(S: NDArray) -> NDArray:
     chol = np.zeros(S.shape)
     chol[..., 0, 0], chol[..., 1, 0], chol[..., 1, 1] = l11, l21, l22
     w, V = np.linalg.eigh(S)
-    sym = (V * np.sqrt(np.maximum(w, 0.0))[..., None, :]) @ np.swapaxes(V, -1, -2)
+    w = np.where(w <= ELLIPSE_ROUNDING * w[..., -1:], 0.0, w)  # a width within rounding is none
+    sym = (V * np.sqrt(w)[..., None, :]) @ np.swapaxes(V, -1, -2)
     return np.where(regular[..., None, None], chol, sym)
 
 
