@@ -370,7 +370,7 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None) -> None:
         for i, k in enumerate(keys):
             glyphs[k].visible = i in shown.active
 
-    def update(attr: Any = None, old: Any = None, new: Any = None) -> None:
+    def update(attr: Any, old: Any, new: Any) -> None:
         try:
             view = compute(run_config(settings_now(), state["base"]))
         except ValueError as exc:  # the one-line error; the last good picture stays
@@ -412,7 +412,7 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None) -> None:
                 fields[k].remove_on_change("value", update)
                 fields[k].value = v
                 fields[k].on_change("value", update)
-        update()
+        update(None, None, None)
 
     save_btn.on_click(on_save)
     open_btn.on_click(on_open)
@@ -420,7 +420,7 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None) -> None:
     views = column(error, status, xy, cov_div, spread_fig, growth_div)
     doc.add_root(row(controls, views))
     doc.title = "pose-uncertainty explorer"
-    update()
+    update(None, None, None)
 
 
 def free_port(host: str) -> int:
