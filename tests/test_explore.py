@@ -30,7 +30,14 @@ from pose_uncertainty.present import explore
 from pose_uncertainty.records.formats import open_run
 
 SRC = Path(__file__).resolve().parents[1] / "src"
-SMALL = {"path": "arc", "size": "1.0", "dt": "0.02", "n_particles": "400", "k_r": "2e-3", "seed": "5"}
+SMALL = {
+    "path": "arc",
+    "size": "1.0",
+    "dt": "0.02",
+    "n_particles": "400",
+    "k_r": "2e-3",
+    "seed": "5",
+}
 
 
 @pytest.fixture(scope="module")
@@ -41,7 +48,9 @@ def view() -> explore.View:
 def test_compute_equals_the_library_called_directly(view: explore.View) -> None:
     """Cloud, Method A, Method C and their coverages recomputed without the run's executor."""
     cfg = RunConfig.from_dict(explore.run_config(SMALL))
-    assert cfg.k_r == 2e-3 and cfg.trajectory["radius"] == 1.0 and cfg.monte_carlo.n_particles == 400
+    assert cfg.k_r == 2e-3
+    assert cfg.trajectory["radius"] == 1.0
+    assert cfg.monte_carlo.n_particles == 400
     traj = trajectories.from_config(cfg.trajectory)
     a = covariance.propagate(traj, cfg.k_r, cfg.k_l)
     c = unscented.propagate(traj, cfg.k_r, cfg.k_l)
@@ -63,9 +72,12 @@ def test_compute_equals_the_library_called_directly(view: explore.View) -> None:
         ring = view.regions[key][0]
         d2 = mahalanobis_sq(ring, res.poses[-1, :2], res.covs[-1, :2, :2])
         np.testing.assert_allclose(d2, float(pr_to_k(pr)), rtol=1e-6)
-    assert "e" in view.regions and view.regions["e"][0].shape[1] == 2
+    assert "e" in view.regions
+    assert view.regions["e"][0].shape[1] == 2
     # σ along/across: the final value is Method A's logged measure
-    assert view.spreads["sigma_along"][-1] == pytest.approx(view.result.metrics["A_sigma_along"], rel=1e-12)
+    assert view.spreads["sigma_along"][-1] == pytest.approx(
+        view.result.metrics["A_sigma_along"], rel=1e-12
+    )
     assert view.distance[-1] == pytest.approx(view.result.metrics["path_length"], rel=1e-9)
 
 
@@ -76,7 +88,9 @@ def test_same_settings_same_picture(view: explore.View) -> None:
     assert again.coverage == view.coverage
 
 
-def test_saved_config_runs_and_its_log_holds_the_numbers(view: explore.View, tmp_path: Path) -> None:
+def test_saved_config_runs_and_its_log_holds_the_numbers(
+    view: explore.View, tmp_path: Path
+) -> None:
     cfg = tmp_path / "explored.yaml"
     explore.save_run_config(cfg, explore.run_config(SMALL))
     out = tmp_path / "run.mcap"
@@ -90,28 +104,40 @@ def test_saved_config_runs_and_its_log_holds_the_numbers(view: explore.View, tmp
     settings, base = explore.load_log_settings(out)
     assert {k: settings[k] for k in ("path", "n_particles", "seed", "regime")} == {
         "path": "arc", "n_particles": "400", "seed": "5", "regime": "per_step"}  # fmt: skip
-    assert float(settings["k_r"]) == 2e-3 and float(settings["size"]) == 1.0
+    assert float(settings["k_r"]) == 2e-3
+    assert float(settings["size"]) == 1.0
     reopened = explore.compute(explore.run_config(settings, base))
     assert reopened.coverage == view.coverage
 
 
 @pytest.mark.parametrize(
     ("field", "value", "words"),
-    [("k_r", "-1", "'k_r'"), ("k_l", "abc", "'k_l'"), ("track", "0", "track"), ("n_particles", "2.5", "n_particles")],
+    [
+        ("k_r", "-1", "'k_r'"),
+        ("k_l", "abc", "'k_l'"),
+        ("track", "0", "track"),
+        ("n_particles", "2.5", "n_particles"),
+    ],
 )
 def test_bad_value_gives_the_run_config_one_line_error(field: str, value: str, words: str) -> None:
     data = explore.run_config({**SMALL, field: value})
-    with pytest.raises(ValueError) as exc:
+    with pytest.raises(ValueError, match=field) as exc:
         explore.compute(data)
     msg = str(exc.value)
-    assert "\n" not in msg and words in msg and repr(value).strip("'") in msg
-    with pytest.raises(ValueError) as same:  # the same line as the run's own validation
+    assert "\n" not in msg
+    assert words in msg
+    assert repr(value).strip("'") in msg
+    with pytest.raises(
+        ValueError, match=field
+    ) as same:  # the same line as the run's own validation
         RunConfig.from_dict(data)
     assert str(same.value) == msg
 
 
 def test_cost_guard_refuses_in_the_explorer() -> None:
-    data = explore.run_config({**SMALL, "n_particles": "100000000", "size": "50", "path": "straight"})
+    data = explore.run_config(
+        {**SMALL, "n_particles": "100000000", "size": "50", "path": "straight"}
+    )
     RunConfig.from_dict(data)  # valid, but too costly
     with pytest.raises(ValueError, match="limit"):
         explore.compute(data)
@@ -125,12 +151,16 @@ def test_page_shows_the_error_and_keeps_the_last_picture() -> None:
     explore.make_document(doc, SMALL)
     k_r, err, cov = (doc.select_one({"name": n}) for n in ("field-k_r", "error", "coverage"))
     good = cov.text
-    assert err.text == "" and re.search(r'id="coverage-a">[0-9.]+<', good)
+    assert err.text == ""
+    assert re.search(r'id="coverage-a">[0-9.]+<', good)
     k_r.value = "-3"
-    assert "k_r" in err.text and "-3" in err.text and "\n" not in err.text
+    assert "k_r" in err.text
+    assert "-3" in err.text
+    assert "\n" not in err.text
     assert cov.text == good  # the last good picture stays
     k_r.value = "8e-3"  # a larger k_r: the numbers change
-    assert err.text == "" and cov.text != good
+    assert err.text == ""
+    assert cov.text != good
 
 
 def _listening(pid: int) -> list[tuple[str, int]]:

@@ -17,7 +17,9 @@ def add_parser(sub: Any) -> None:
         description="Move a control, see every method's region and its coverage against Monte Carlo. "
         "Binds 127.0.0.1 (this machine only) unless --host is given.",
     )
-    p.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1: this machine only)")
+    p.add_argument(
+        "--host", default="127.0.0.1", help="address to bind (default 127.0.0.1: this machine only)"
+    )
     p.add_argument("--port", type=int, default=0, help="TCP port (default 0: a free one)")
     p.set_defaults(func=cmd_explore)
 
@@ -27,6 +29,8 @@ def cmd_explore(args: argparse.Namespace) -> int:
     from ..present.explore import serve
 
     if not 0 <= args.port <= 65535:
-        raise ValueError(f"--port {args.port} is not a TCP port (allowed: 0..65535, 0 = a free one)")
+        raise ValueError(
+            f"--port {args.port} is not a TCP port (allowed: 0..65535, 0 = a free one)"
+        )
     serve(args.host, args.port, announce=lambda line: print(line, flush=True))
     return EXIT_OK

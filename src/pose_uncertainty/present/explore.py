@@ -48,7 +48,15 @@ __all__ = [
 ]
 
 #: The paths offered (names of :data:`pose_uncertainty.core.trajectories.BUILDERS`).
-PATHS: tuple[str, ...] = ("straight", "arc", "circle", "s_curve", "right_angles", "direct", "rotation")
+PATHS: tuple[str, ...] = (
+    "straight",
+    "arc",
+    "circle",
+    "s_curve",
+    "right_angles",
+    "direct",
+    "rotation",
+)
 
 #: The methods that can be shown: key → label.
 METHODS: dict[str, str] = {
@@ -86,7 +94,9 @@ def _pr_of(label: str) -> float:
     raise ValueError(f"probability level {label!r} is not offered (allowed: {allowed} %)")
 
 
-def run_config(settings: Mapping[str, str], base: Mapping[str, Any] | None = None) -> dict[str, Any]:
+def run_config(
+    settings: Mapping[str, str], base: Mapping[str, Any] | None = None
+) -> dict[str, Any]:
     """The run configuration mapping of the explorer's settings (not yet validated).
 
     Parameters
@@ -106,14 +116,24 @@ def run_config(settings: Mapping[str, str], base: Mapping[str, Any] | None = Non
     s = {**DEFAULTS, **settings}
     out: dict[str, Any] = {k: v for k, v in (base or {}).items() if k not in ("drive", "maps")}
     path = s["path"]
-    size_key = {"straight": ("length",), "arc": ("radius",), "circle": ("radius",), "s_curve": ("radius",),
-                "right_angles": ("dx", "dy"), "direct": ("dx", "dy"), "rotation": ("angle",)}.get(path, ())
+    size_key = {
+        "straight": ("length",),
+        "arc": ("radius",),
+        "circle": ("radius",),
+        "s_curve": ("radius",),
+        "right_angles": ("dx", "dy"),
+        "direct": ("dx", "dy"),
+        "rotation": ("angle",),
+    }.get(path, ())
     traj: dict[str, Any] = {"name": path, "dt": s["dt"], "track": s["track"]}
     traj["angular_speed" if path == "rotation" else "speed"] = s["speed"]
     traj.update({k: s["size"] for k in size_key})
     old = (base or {}).get("trajectory")
     if isinstance(old, Mapping) and old.get("name") == path:
-        traj = {**{k: v for k, v in old.items() if k in ("start", "profile", "laps", "direction")}, **traj}
+        traj = {
+            **{k: v for k, v in old.items() if k in ("start", "profile", "laps", "direction")},
+            **traj,
+        }
     out.update({
         "name": str(out.get("name", "explore")),
         "seed": s["seed"],
@@ -278,7 +298,8 @@ def coverage_html(view: View) -> str:
         f"<p>Coverage: the share of the {n} Monte Carlo end poses inside each method's "
         f"{100 * pr:.4g} % region (nominal {100 * pr:.4g} %), with its 95 % Wilson interval.</p>"
         "<table><tr><th>region</th><th>inside [%]</th><th>95 % interval [%]</th></tr>"
-        + "".join(rows) + "</table>"
+        + "".join(rows)
+        + "</table>"
     )
 
 
@@ -291,7 +312,8 @@ def growth_html(view: View) -> str:
     return (
         "<p>Growth exponents: p of σ ∝ s^p (Method A, fitted log-log over the path) and its "
         "local value over the last fifth.</p><table><tr><th>spread</th><th>p</th><th>p at the end</th></tr>"
-        + "".join(rows) + "</table>"
+        + "".join(rows)
+        + "</table>"
     )
 
 
@@ -316,12 +338,16 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None) -> None:
                        ("speed", "speed [m/s] (rotation: [rad/s])"), ("dt", "step dt [s]"),
                        ("n_particles", "Monte Carlo particles"), ("seed", "seed")):  # fmt: skip
         fields[key] = TextInput(title=title, value=settings[key], name=f"field-{key}")
-    fields["path"] = Select(title="path", value=settings["path"], options=list(PATHS), name="field-path")
+    fields["path"] = Select(
+        title="path", value=settings["path"], options=list(PATHS), name="field-path"
+    )
     fields["pr"] = Select(title="probability level [%]", value=settings["pr"],
                           options=[pr_label(p) for p in PRS], name="field-pr")  # fmt: skip
     fields["regime"] = Select(title="Monte Carlo regime", value=settings["regime"],
                               options=["per_step", "per_run"], name="field-regime")  # fmt: skip
-    shown = CheckboxGroup(labels=list(METHODS.values()), active=list(range(len(METHODS))), name="methods")
+    shown = CheckboxGroup(
+        labels=list(METHODS.values()), active=list(range(len(METHODS))), name="methods"
+    )
     error = Div(text="", name="error", styles={"color": "#b00"})
     status = Div(text="", name="status")
     cov_div = Div(text="", name="coverage")
@@ -339,7 +365,9 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None) -> None:
     glyphs = {"mc": xy.scatter("x", "y", source=src["mc"], size=2, alpha=0.3, color=_COLOURS["mc"],
                                legend_label=METHODS["mc"])}  # fmt: skip
     for k in ("a", "c", "e"):
-        glyphs[k] = xy.multi_line("xs", "ys", source=src[k], color=_COLOURS[k], line_width=2, legend_label=METHODS[k])
+        glyphs[k] = xy.multi_line(
+            "xs", "ys", source=src[k], color=_COLOURS[k], line_width=2, legend_label=METHODS[k]
+        )
     xy.legend.location = "top_left"
     xy.legend.label_text_font_size = "8pt"
     spread_fig = figure(title="σ along and across the path against distance (Method A)", width=620, height=300,
@@ -360,7 +388,11 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None) -> None:
         for k in ("a", "c", "e"):
             lines = view.regions.get(k, [])
             src[k].data = {"xs": [ln[:, 0] for ln in lines], "ys": [ln[:, 1] for ln in lines]}
-        sp_src.data = {"s": view.distance, "along": view.spreads["sigma_along"], "across": view.spreads["sigma_across"]}
+        sp_src.data = {
+            "s": view.distance,
+            "along": view.spreads["sigma_along"],
+            "across": view.spreads["sigma_across"],
+        }
         cov_div.text = coverage_html(view)
         growth_div.text = growth_html(view)
         show(None, None, None)
