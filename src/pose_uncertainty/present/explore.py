@@ -19,7 +19,7 @@ from __future__ import annotations
 import html
 import math
 import socket
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -277,7 +277,7 @@ def load_log_settings(path: str | Path) -> tuple[dict[str, str], dict[str, Any]]
 _COLOURS = {"mc": "#555555", "a": "#d62728", "c": "#2ca02c", "e": "#1f77b4"}
 
 
-def _fmt(x: float) -> str:
+def _number(x: float) -> str:
     return "nan" if not math.isfinite(x) else f"{x:.4g}"
 
 
@@ -307,8 +307,8 @@ def growth_html(view: View) -> str:
     """The growth exponents of Method A's σ along and across the path."""
     rows = []
     for k, g in view.growth.items():
-        rows.append(f'<tr><td>{k.replace("_", " ")}</td><td id="growth-{k}">{_fmt(g["power_exponent"])}</td>'
-                    f"<td>{_fmt(g['local_exponent_end'])}</td></tr>")  # fmt: skip
+        rows.append(f'<tr><td>{k.replace("_", " ")}</td><td id="growth-{k}">{_number(g["power_exponent"])}</td>'
+                    f"<td>{_number(g['local_exponent_end'])}</td></tr>")  # fmt: skip
     return (
         "<p>Growth exponents: p of σ ∝ s^p (Method A, fitted log-log over the path) and its "
         "local value over the last fifth.</p><table><tr><th>spread</th><th>p</th><th>p at the end</th></tr>"
@@ -317,17 +317,16 @@ def growth_html(view: View) -> str:
     )
 
 
+def _options(values: Iterable[str]) -> list[str | tuple[Any, str]]:
+    """A Select's options (the type its stubs ask for)."""
+    return list(values)
+
+
 def make_document(doc: Any, initial: Mapping[str, str] | None = None) -> None:
     """Build the explorer's Bokeh document: controls, the x–y overlay, coverage, σ vs distance."""
     from bokeh.layouts import column, row
-    from bokeh.models import (
-        Button,
-        CheckboxGroup,
-        ColumnDataSource,
-        Div,
-        Select,
-        TextInput,
-    )
+    from bokeh.models import ColumnDataSource
+    from bokeh.models.widgets import Button, CheckboxGroup, Div, Select, TextInput
     from bokeh.plotting import figure
 
     settings = {**DEFAULTS, **(initial or {})}
@@ -338,13 +337,14 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None) -> None:
                        ("speed", "speed [m/s] (rotation: [rad/s])"), ("dt", "step dt [s]"),
                        ("n_particles", "Monte Carlo particles"), ("seed", "seed")):  # fmt: skip
         fields[key] = TextInput(title=title, value=settings[key], name=f"field-{key}")
+    path_options: list[str | tuple[Any, str]] = [*PATHS]
     fields["path"] = Select(
-        title="path", value=settings["path"], options=list(PATHS), name="field-path"
+        title="path", value=settings["path"], options=path_options, name="field-path"
     )
     fields["pr"] = Select(title="probability level [%]", value=settings["pr"],
-                          options=[pr_label(p) for p in PRS], name="field-pr")  # fmt: skip
+                          options=_options(pr_label(p) for p in PRS), name="field-pr")  # fmt: skip
     fields["regime"] = Select(title="Monte Carlo regime", value=settings["regime"],
-                              options=["per_step", "per_run"], name="field-regime")  # fmt: skip
+                              options=_options(("per_step", "per_run")), name="field-regime")  # fmt: skip
     shown = CheckboxGroup(
         labels=list(METHODS.values()), active=list(range(len(METHODS))), name="methods"
     )
@@ -362,7 +362,7 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None) -> None:
         **{k: ColumnDataSource({"xs": [], "ys": []}) for k in ("a", "c", "e")},
     }
     xy.line("x", "y", source=src["path"], color="#999999", legend_label="nominal path")
-    glyphs = {"mc": xy.scatter("x", "y", source=src["mc"], size=2, alpha=0.3, color=_COLOURS["mc"],
+    glyphs: dict[str, Any] = {"mc": xy.scatter("x", "y", source=src["mc"], size=2, alpha=0.3, color=_COLOURS["mc"],
                                legend_label=METHODS["mc"])}  # fmt: skip
     for k in ("a", "c", "e"):
         glyphs[k] = xy.multi_line(
