@@ -107,7 +107,9 @@ def run_config(
         [m] (arc, circle, S-curve), target offset ``dx = dy`` [m] (right angles, direct) or
         angle [rad] (rotation: turning in place).
     base : mapping, optional
-        A full run configuration (e.g. a logged run's) whose other keys are kept.
+        A full run configuration (e.g. a logged run's) whose other keys (``cov0``,
+        ``n_ellipses``, ``name``, the trajectory's start and profile) are kept; its ``drive``
+        and ``maps`` are not (the explorer shows the differential drive, without maps).
 
     Returns
     -------
