@@ -7,6 +7,8 @@ Commands
 ``replay RUN.mcap [--figures DIR] [--verify] [--at TIME] [--recover] [--to-rosbag DIR]``
     Summarise a log; re-render its figures from the log alone; recompute and
     compare; print the state at a simulated time; export it as a ROS 2 bag.
+``explore [--host HOST] [--port PORT]``
+    Start the interactive explorer (a local web page) and print its address.
 ``robot calibrate BAG [--robot ROBOT.yaml] -o OUTDIR``
     Calibrate a robot from a ROS bag: constants, nav2 and ros2_control parameters.
 
@@ -49,6 +51,7 @@ COMMANDS: dict[str, str] = {
     "replay": "replay",
     "calibrate": "calibrate",
     "robot": "robot",
+    "explore": "explore",
 }
 
 

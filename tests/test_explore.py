@@ -1,0 +1,210 @@
+"""The interactive explorer: its numbers are the library's, its config is the run's, it binds loopback.
+
+The settings → numbers function (:func:`pose_uncertainty.present.explore.compute`) is checked
+against routes that do not go through the run: the sampler, Method A's and Method C's
+propagation and the coverage function called directly. The saved configuration is run with
+``pose-uncertainty run`` and its log read back; a bad value gives the run's one-line error
+(in the page too, keeping the last picture); the server, started as the command, listens on
+127.0.0.1 only (the socket's address read from /proc).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pose_uncertainty.analysis.accuracy import coverage_ellipse, pr_label
+from pose_uncertainty.cli import main
+from pose_uncertainty.core import trajectories
+from pose_uncertainty.core.stats import mahalanobis_sq, pr_to_k, wilson_interval
+from pose_uncertainty.experiments.config import RunConfig
+from pose_uncertainty.methods import covariance, sampling, unscented
+from pose_uncertainty.present import explore
+from pose_uncertainty.records.formats import open_run
+
+SRC = Path(__file__).resolve().parents[1] / "src"
+SMALL = {
+    "path": "arc",
+    "size": "1.0",
+    "dt": "0.02",
+    "n_particles": "400",
+    "k_r": "2e-3",
+    "seed": "5",
+}
+
+
+@pytest.fixture(scope="module")
+def view() -> explore.View:
+    return explore.compute(explore.run_config(SMALL))
+
+
+def test_compute_equals_the_library_called_directly(view: explore.View) -> None:
+    """Cloud, Method A, Method C and their coverages recomputed without the run's executor."""
+    cfg = RunConfig.from_dict(explore.run_config(SMALL))
+    assert cfg.k_r == 2e-3
+    assert cfg.trajectory["radius"] == 1.0
+    assert cfg.monte_carlo.n_particles == 400
+    traj = trajectories.from_config(cfg.trajectory)
+    a = covariance.propagate(traj, cfg.k_r, cfg.k_l)
+    c = unscented.propagate(traj, cfg.k_r, cfg.k_l)
+    cloud = sampling.sample_end_poses(traj, cfg.k_r, cfg.k_l, 400, np.random.default_rng(cfg.seed),
+                                      regime=cfg.monte_carlo.regime, method=cfg.monte_carlo.method)  # fmt: skip
+    np.testing.assert_array_equal(view.result.end_poses, cloud)
+    np.testing.assert_allclose(view.result.covs[-1], a.covs[-1], rtol=1e-12, atol=0)
+    pr = cfg.pr
+    label = pr_label(pr)
+    want_a = coverage_ellipse(cloud[:, :2], a.poses[-1, :2], a.covs[-1, :2, :2], (pr,))[label]
+    want_c = coverage_ellipse(cloud[:, :2], c.poses[-1, :2], c.covs[-1, :2, :2], (pr,))[label]
+    assert view.coverage["a"]["fraction"] == pytest.approx(want_a, abs=0.5 / 400)
+    assert view.coverage["c"]["fraction"] == pytest.approx(want_c, abs=0.5 / 400)
+    lo, hi = wilson_interval(round(want_a * 400), 400)
+    assert (view.coverage["a"]["low"], view.coverage["a"]["high"]) == pytest.approx((lo, hi))
+    assert view.coverage["a"]["low"] < view.coverage["a"]["fraction"] < view.coverage["a"]["high"]
+    # the drawn regions: A's and C's boundaries lie on their own Pr-ellipses
+    for key, res in (("a", a), ("c", c)):
+        ring = view.regions[key][0]
+        d2 = mahalanobis_sq(ring, res.poses[-1, :2], res.covs[-1, :2, :2])
+        np.testing.assert_allclose(d2, float(pr_to_k(pr)), rtol=1e-6)
+    assert "e" in view.regions
+    assert view.regions["e"][0].shape[1] == 2
+    # σ along/across: the final value is Method A's logged measure
+    assert view.spreads["sigma_along"][-1] == pytest.approx(
+        view.result.metrics["A_sigma_along"], rel=1e-12
+    )
+    assert view.distance[-1] == pytest.approx(view.result.metrics["path_length"], rel=1e-9)
+
+
+def test_same_settings_same_picture(view: explore.View) -> None:
+    again = explore.compute(explore.run_config(SMALL))
+    np.testing.assert_array_equal(again.result.end_poses, view.result.end_poses)
+    np.testing.assert_array_equal(again.regions["e"][0], view.regions["e"][0])
+    assert again.coverage == view.coverage
+
+
+def test_saved_config_runs_and_its_log_holds_the_numbers(
+    view: explore.View, tmp_path: Path
+) -> None:
+    cfg = tmp_path / "explored.yaml"
+    explore.save_run_config(cfg, explore.run_config(SMALL))
+    out = tmp_path / "run.mcap"
+    assert main(["run", str(cfg), "-o", str(out)]) == 0
+    log = open_run(out)
+    shown = view.result.metrics
+    for key in ("accuracy_cartesian_coverage_xy_98_89", "accuracy_unscented_coverage_xy_98_89",
+                "accuracy_expcoords_coverage_xy_98_89", "A_sigma_along", "MC_coverage_pr"):  # fmt: skip
+        assert log.metrics[key] == shown[key], key
+    # "Open a log": the explorer's settings come back from the log
+    settings, base = explore.load_log_settings(out)
+    assert {k: settings[k] for k in ("path", "n_particles", "seed", "regime")} == {
+        "path": "arc", "n_particles": "400", "seed": "5", "regime": "per_step"}  # fmt: skip
+    assert float(settings["k_r"]) == 2e-3
+    assert float(settings["size"]) == 1.0
+    reopened = explore.compute(explore.run_config(settings, base))
+    assert reopened.coverage == view.coverage
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "words"),
+    [
+        ("k_r", "-1", "'k_r'"),
+        ("k_l", "abc", "'k_l'"),
+        ("track", "0", "track"),
+        ("n_particles", "2.5", "n_particles"),
+    ],
+)
+def test_bad_value_gives_the_run_config_one_line_error(field: str, value: str, words: str) -> None:
+    data = explore.run_config({**SMALL, field: value})
+    with pytest.raises(ValueError, match=field) as exc:
+        explore.compute(data)
+    msg = str(exc.value)
+    assert "\n" not in msg
+    assert words in msg
+    assert repr(value).strip("'") in msg
+    with pytest.raises(
+        ValueError, match=field
+    ) as same:  # the same line as the run's own validation
+        RunConfig.from_dict(data)
+    assert str(same.value) == msg
+
+
+def test_cost_guard_refuses_in_the_explorer() -> None:
+    data = explore.run_config(
+        {**SMALL, "n_particles": "100000000", "size": "50", "path": "straight"}
+    )
+    RunConfig.from_dict(data)  # valid, but too costly
+    with pytest.raises(ValueError, match="limit"):
+        explore.compute(data)
+
+
+def test_page_shows_the_error_and_keeps_the_last_picture() -> None:
+    pytest.importorskip("bokeh")
+    from bokeh.document import Document
+
+    doc = Document()
+    explore.make_document(doc, SMALL)
+    k_r, err, cov = (doc.select_one({"name": n}) for n in ("field-k_r", "error", "coverage"))
+    good = cov.text
+    assert err.text == ""
+    assert re.search(r'id="coverage-a">[0-9.]+<', good)
+    k_r.value = "-3"
+    assert "k_r" in err.text
+    assert "-3" in err.text
+    assert "\n" not in err.text
+    assert cov.text == good  # the last good picture stays
+    k_r.value = "8e-3"  # a larger k_r: the numbers change
+    assert err.text == ""
+    assert cov.text != good
+
+
+def _listening(pid: int) -> list[tuple[str, int]]:
+    """(address, port) of the TCP sockets the process listens on, from /proc."""
+    inodes = set()
+    for fd in os.listdir(f"/proc/{pid}/fd"):
+        try:
+            link = os.readlink(f"/proc/{pid}/fd/{fd}")
+        except OSError:
+            continue
+        if link.startswith("socket:["):
+            inodes.add(link[8:-1])
+    out = []
+    for table, width in (("tcp", 8), ("tcp6", 32)):
+        for line in Path(f"/proc/{pid}/net/{table}").read_text().splitlines()[1:]:
+            f = line.split()
+            if f[3] == "0A" and f[9] in inodes:  # LISTEN
+                addr, port = f[1].split(":")
+                raw = bytes.fromhex(addr)
+                if width == 8:
+                    ip = ".".join(str(b) for b in raw[::-1])
+                else:
+                    words = [raw[i : i + 4][::-1] for i in range(0, 16, 4)]
+                    ip = ":".join(b"".join(words).hex()[i : i + 4] for i in range(0, 32, 4))
+                out.append((ip, int(port, 16)))
+    return out
+
+
+def test_server_binds_loopback_by_default() -> None:
+    pytest.importorskip("bokeh")
+    env = {**os.environ, "PYTHONPATH": f"{SRC}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
+    proc = subprocess.Popen([sys.executable, "-m", "pose_uncertainty.cli", "explore"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=env)  # fmt: skip
+    try:
+        line = proc.stdout.readline() if proc.stdout else ""
+        m = re.search(r"http://127\.0\.0\.1:(\d+)/", line)
+        assert m, line
+        port = int(m.group(1))
+        assert _listening(proc.pid) == [("127.0.0.1", port)]
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.communicate(timeout=20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 130  # interrupted: the CLI's status for SIGINT
