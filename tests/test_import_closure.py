@@ -147,4 +147,5 @@ def test_every_workflow_script_imports_package_modules_that_exist():
         assert names, script.name  # each script runs package code: its rule's source is not empty
         assert import_closure(*names)  # raises on a name that resolves to no module
     assert imports_of(SCRIPTS / "evaluate_claims.py") == (
-        "pose_uncertainty.pipeline.claims", "pose_uncertainty.pipeline.claims.write_claims")
+        "pose_uncertainty.pipeline.claims", "pose_uncertainty.pipeline.claims.ClaimDataError",
+        "pose_uncertainty.pipeline.claims.write_claims")
