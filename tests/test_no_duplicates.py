@@ -48,7 +48,6 @@ ALLOWED: dict[str, str] = {
     "experiments/localization.py:<module> ~ experiments/run.py:<module>": "the two result dataclasses' fields",
     "analysis/studies/gaussian_methods.py:accuracy_vs_distance_study ~ analysis/studies/growth.py:polar_vs_cartesian_study":
         "two studies' parameter declarations (the logged defaults), each body a different one-line study",
-    "cli/run.py:_run_localization ~ cli/run.py:cmd_run": "the two run commands (dead reckoning, localization)",
     "core/se2.py:adjoint ~ methods/expcoords.py:to_cartesian_cov": "different maps, alike in shape",
     "core/se2.py:exp ~ core/se2.py:log": "a map and its inverse, alike in shape",
     "methods/unscented.py:propagate ~ methods/unscented.py:propagate_se2": _PAIR + " (x-y-θ vs SE(2))",

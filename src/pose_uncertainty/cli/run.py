@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
-from typing import Any
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, NamedTuple
 
 from ..core.atomic import check_destination
 from ..experiments.config import RunConfig
@@ -41,39 +43,48 @@ def add_parser(sub: Any) -> None:
     p.set_defaults(func=cmd_run)
 
 
+class _Kind(NamedTuple):
+    """What ``run`` does with one kind of configuration: read it, execute it, log it, draw it."""
+
+    parse: Callable[[dict[str, Any]], Any]
+    execute: Callable[[Any], Any]
+    write: Callable[[str, Any, bool, Any], Path]  # (out, result, timings, config) -> the log
+    describe: Callable[[Any], str]  # what the summary line says of the result
+    render: Callable[[Any, str], list[Path]]
+
+
+_DEAD_RECKONING = _Kind(
+    parse=RunConfig.from_dict,
+    execute=execute,
+    write=lambda out, result, timings, config: write_run(
+        out, result, include_timings=timings, progress=Progress(f"{config.name}: writing the log")),
+    describe=lambda result: f"{result.n_steps} steps",
+    render=render_figures,
+)
+_LOCALIZATION = _Kind(
+    parse=LocalizationConfig.from_dict,
+    execute=execute_localization,
+    write=lambda out, result, timings, config: write_localization(out, result, include_timings=timings),
+    describe=lambda result: f"{result.n_steps} steps, filters {', '.join(result.filters)}",
+    render=render_localization_figures,
+)
+
+
 def cmd_run(args: argparse.Namespace) -> int:
-    """``run``: config file → execute → write log (→ figures)."""
+    """``run``: config file → execute → write log (→ figures); a dead-reckoning run, or a
+    localization run (``kind: localization``)."""
     # refuse a special file or an unchosen link at OUT before the run costs anything
     args.output = check_destination(args.output, follow_symlinks=args.follow_symlink)
     data = load_config_file(args.config)
-    if is_localization_config(data):  # kind: localization
-        return _run_localization(args, data)
+    kind = _LOCALIZATION if is_localization_config(data) else _DEAD_RECKONING
     try:
-        config = RunConfig.from_dict(data)
+        config = kind.parse(data)
     except ValueError as exc:
         raise CommandError(f"{args.config}: {exc}") from None
-    result = execute(config)
-    path = write_run(
-        args.output, result, include_timings=args.timings,
-        progress=Progress(f"{config.name}: writing the log"),
-    )  # fmt: skip
-    print(f"wrote {path} ({path.stat().st_size} bytes, {result.n_steps} steps)")
+    result = kind.execute(config)
+    path = kind.write(args.output, result, args.timings, config)
+    print(f"wrote {path} ({path.stat().st_size} bytes, {kind.describe(result)})")
     if args.figures:
-        for fig in render_figures(result, args.figures):
-            print(f"wrote {fig}")
-    return EXIT_OK
-
-
-def _run_localization(args: argparse.Namespace, data: dict[str, Any]) -> int:
-    """``run`` of a localization configuration (``kind: localization``)."""
-    try:
-        config = LocalizationConfig.from_dict(data)
-    except ValueError as exc:
-        raise CommandError(f"{args.config}: {exc}") from None
-    result = execute_localization(config)
-    path = write_localization(args.output, result, include_timings=args.timings)
-    print(f"wrote {path} ({path.stat().st_size} bytes, {result.n_steps} steps, filters {', '.join(result.filters)})")
-    if args.figures:
-        for fig in render_localization_figures(result, args.figures):
+        for fig in kind.render(result, args.figures):
             print(f"wrote {fig}")
     return EXIT_OK

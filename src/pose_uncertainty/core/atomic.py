@@ -47,6 +47,7 @@ __all__ = [
     "atomic_write_bytes",
     "atomic_write_text",
     "check_destination",
+    "file_kind",
     "live_parts",
     "remove_stale_parts",
     "termination_as_exception",
@@ -116,7 +117,9 @@ _KINDS = (
 )
 
 
-def _kind(mode: int) -> str:
+def file_kind(mode: int) -> str:
+    """What a file that is not a regular one is, from its ``st_mode``, for a one-line error
+    (``"a directory"``, ``"a FIFO (named pipe)"``, …; ``"not a regular file"`` otherwise)."""
     return next((what for test, what in _KINDS if test(mode)), "not a regular file")
 
 
@@ -161,7 +164,7 @@ def check_destination(path: str | os.PathLike[str], *, follow_symlinks: bool = F
         return dest
     if not directory and stat.S_ISREG(st.st_mode):
         return dest
-    what = "a regular file" if directory else _kind(st.st_mode)
+    what = "a regular file" if directory else file_kind(st.st_mode)
     allowed = "a folder or a new path" if directory else "a regular file or a new path"
     code = errno.EISDIR if stat.S_ISDIR(st.st_mode) else errno.EEXIST
     raise OutputError(dest, f"is {what}; refusing to replace it (the output must be {allowed})", code)

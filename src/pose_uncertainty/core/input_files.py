@@ -23,6 +23,8 @@ from typing import Any
 
 import yaml
 
+from .atomic import file_kind
+
 __all__ = ["MAX_CONFIG_BYTES", "InputFileError", "UniqueKeyLoader", "parse_mapping", "read_mapping_file",
            "read_text_file"]  # fmt: skip
 
@@ -33,14 +35,6 @@ MAX_CONFIG_BYTES = 4 * 1024 * 1024
 
 class InputFileError(ValueError):
     """A configuration file that cannot be used: one line naming the file and what is allowed."""
-
-
-def _kind(mode: int) -> str:
-    for test, word in ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device"),
-                       (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket")):  # fmt: skip
-        if test(mode):
-            return word
-    return "not a regular file"
 
 
 def read_text_file(path: str | Path, what: str = "config", limit: int = MAX_CONFIG_BYTES) -> str:
@@ -64,7 +58,7 @@ def read_text_file(path: str | Path, what: str = "config", limit: int = MAX_CONF
     except OSError as exc:
         raise InputFileError(f"{p}: cannot read ({exc.strerror or exc})") from None
     if not stat.S_ISREG(st.st_mode):
-        raise InputFileError(f"{p}: not a {what} file ({_kind(st.st_mode)}); allowed: a regular file")
+        raise InputFileError(f"{p}: not a {what} file ({file_kind(st.st_mode)}); allowed: a regular file")
     _check_size(p, what, st.st_size, limit)
     try:
         # O_NONBLOCK: a path swapped for a FIFO between stat and open cannot block the open
@@ -72,7 +66,7 @@ def read_text_file(path: str | Path, what: str = "config", limit: int = MAX_CONF
         with os.fdopen(fd, "rb") as fh:
             st = os.fstat(fh.fileno())
             if not stat.S_ISREG(st.st_mode):
-                raise InputFileError(f"{p}: not a {what} file ({_kind(st.st_mode)}); allowed: a regular file")
+                raise InputFileError(f"{p}: not a {what} file ({file_kind(st.st_mode)}); allowed: a regular file")
             data = fh.read(limit + 1)
     except OSError as exc:
         raise InputFileError(f"{p}: cannot read ({exc.strerror or exc})") from None
