@@ -246,6 +246,27 @@ def localization_config(wildcards):
     return LOC_BY_ID[(wildcards.set, wildcards.run)].config
 
 
+@_functools.cache
+def _localization_resources(set_name, run_id):
+    from pose_uncertainty.experiments import cost as _cost
+
+    config = _loc.LocalizationConfig.from_dict(LOC_BY_ID[(set_name, run_id)].config)
+    return _cost.resources_of(_cost.estimate_localization(config))
+
+
+def localization_resources(wildcards):
+    """The cluster resources (mem_mb, runtime) of one localization run, from its cost estimate."""
+    return _localization_resources(wildcards.set, wildcards.run)
+
+
+def study_resources(wildcards):
+    """The cluster resources (mem_mb, runtime) of one study, from its cost bound."""
+    from pose_uncertainty.experiments import cost as _cost
+
+    kind, params = STUDIES[wildcards.study]
+    return _cost.resources_of(_cost.estimate_study(wildcards.study, kind, params))
+
+
 def localization_log(set_name, run_id):
     return f"data/localization/{set_name}/{run_id}.mcap"
 

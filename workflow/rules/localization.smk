@@ -10,6 +10,10 @@ rule simulate_localization:
     params:
         config=as_json(localization_config),
         source=SOURCE_JOB,
+    resources:
+        # what the run estimates it needs, each filter included (a cluster job's --mem and --time)
+        mem_mb=lambda wc: localization_resources(wc)["mem_mb"],
+        runtime=lambda wc: localization_resources(wc)["runtime"],
     log:
         "logs/simulate_localization/{set}/{run}.log",
     benchmark:

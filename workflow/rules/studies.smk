@@ -8,6 +8,10 @@ rule run_study:
     params:
         spec=as_json(study_config),
         source=SOURCE_JOB,
+    resources:
+        # the study's bound from its sampling size (a cluster job's --mem and --time)
+        mem_mb=lambda wc: study_resources(wc)["mem_mb"],
+        runtime=lambda wc: study_resources(wc)["runtime"],
     log:
         "logs/run_study/{study}.log",
     benchmark:

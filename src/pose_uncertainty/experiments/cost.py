@@ -81,6 +81,7 @@ __all__ = [
     "estimate_localization",
     "estimate_study",
     "job_resources",
+    "resources_of",
     "limits",
     "mem_available",
 ]
@@ -525,7 +526,13 @@ def job_resources(config: RunConfig | Mapping[str, Any]) -> dict[str, int]:
     dict with ``mem_mb`` [MB] (the estimate + 25 % + the job's own Snakemake) and
     ``runtime`` [min] (3 × the estimated time + 5 min, at least 10 min)
     """
-    cost = estimate(config)
+    return resources_of(estimate(config))
+
+
+def resources_of(cost: Cost) -> dict[str, int]:
+    """A cluster job's ``resources:`` for an estimate: ``mem_mb`` [MB] (the estimate + 25 % + the
+    job's own Snakemake) and ``runtime`` [min] (3 × the estimated time + 5 min, at least 10 min).
+    Every computing rule (runs, localization runs, studies) asks this of its own estimate."""
     mem_mb = math.ceil(cost.mem_bytes * 1.25 / 1e6) + _JOB_OVERHEAD_MB
     runtime = max(10, math.ceil(3.0 * cost.seconds / 60.0) + 5)
     return {"mem_mb": int(mem_mb), "runtime": int(runtime)}
