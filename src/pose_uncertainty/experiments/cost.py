@@ -81,9 +81,9 @@ __all__ = [
     "estimate_localization",
     "estimate_study",
     "job_resources",
-    "resources_of",
     "limits",
     "mem_available",
+    "resources_of",
 ]
 
 ENV_MAX_MEMORY = "POSE_UNCERTAINTY_MAX_MEMORY"

@@ -80,6 +80,7 @@ from .config_checks import ConfigWarning, builder_keywords
 from .config_checks import check_keys as _check_keys
 from .config_checks import fail as _fail
 from .config_keys import FROM_CODE, Key, key_of, section_values, vector
+from .outcome import Measured
 from .progress import Progress
 from .sweep import ConfigError, Run, expand_set
 
@@ -827,7 +828,7 @@ class FilterTrack:
 
 
 @dataclass(frozen=True, eq=False)
-class LocalizationResult:
+class LocalizationResult(Measured):
     """The outcome of a localization run: the first simulated run's data and every filter on it.
 
     Attributes
@@ -859,11 +860,6 @@ class LocalizationResult:
     beam_valid: NDArray[np.bool_]
     filters: dict[str, FilterTrack]
     series: dict[str, Array] = field(default_factory=dict)
-    metrics: dict[str, float] = field(default_factory=dict)
-    metric_units: dict[str, str] = field(default_factory=dict)
-    metric_definitions: dict[str, str] = field(default_factory=dict)
-    timings: dict[str, float] = field(default_factory=dict)
-    provenance: dict[str, str] = field(default_factory=dict)
 
     @property
     def n_steps(self) -> int:

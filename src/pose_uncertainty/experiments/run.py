@@ -41,6 +41,7 @@ from .drive_run import measures as drive_measures
 from .drive_run import method_a as drive_method_a
 from .drive_run import sample as drive_sample
 from .drive_run import setup as drive_setup
+from .outcome import Measured
 from .progress import Progress
 
 __all__ = [
@@ -55,7 +56,7 @@ __all__ = [
 
 
 @dataclass(frozen=True, eq=False)
-class RunResult:
+class RunResult(Measured):
     """The outcome of one run.
 
     Attributes
@@ -85,11 +86,6 @@ class RunResult:
     checkpoints: dict[int, NDArray[np.float64]] = field(default_factory=dict)
     maps: tuple[ProbabilityMap, ...] = ()
     map_samplers: dict[str, NDArray[np.float64]] = field(default_factory=dict)
-    metrics: dict[str, float] = field(default_factory=dict)
-    metric_units: dict[str, str] = field(default_factory=dict)
-    metric_definitions: dict[str, str] = field(default_factory=dict)
-    timings: dict[str, float] = field(default_factory=dict)
-    provenance: dict[str, str] = field(default_factory=dict)
 
     @property
     def n_steps(self) -> int:
