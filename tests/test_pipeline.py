@@ -99,7 +99,7 @@ def test_default_config_holds_every_experiment_of_the_theses() -> None:
     sets = sweep.expand_all(sweep.validate_config(_config(), SCHEMA))
     expected = {
         "A1_shape": 6, "A2_profile": 6, "A3_parameters": 12, "A4_distribution": 2,
-        "B1_trajectory": 3, "B2_distance": 6, "B3_speed": 6, "B4_alpha": 10, "S001_seed001": 32,
+        "B1_trajectory": 3, "B2_distance": 6, "B3_speed": 6, "B4_alpha": 10, "S_chassis": 32,
     }
     for name, n in expected.items():
         assert len(sets[name]) == n, name
