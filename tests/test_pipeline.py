@@ -284,6 +284,29 @@ def test_report_cites_only_what_a_reader_can_look_up(quick: Path) -> None:
             for n, line in enumerate(text.splitlines(), 1)
             for kind, pattern in FORBIDDEN.items() for m in pattern.finditer(line)]
     assert not hits, "\n".join(hits)
+    # and none of our development words (issue, SPEC, seed001 as a document), in the report's text
+    from test_report_document import report_words
+
+    assert report_words(html) == []
+
+
+def test_the_quick_reports_abstract_links_and_references(quick: Path) -> None:
+    """Every number of the abstract is the logged value it names; every internal link resolves; the
+    sources are cited with full entries."""
+    from test_report_document import abstract_mismatches, unresolved_links
+
+    from pose_uncertainty.core.table_io import read_table
+
+    html = (quick / "reports/comparison.html").read_text(encoding="utf-8")
+    tables = {f"localization/{p.stem}": read_table(p) for p in (quick / "reports/tables/localization").glob("*.csv")}
+    files = {"claims": json.loads((quick / "reports/claims.json").read_text(encoding="utf-8")),
+             "studies": json.loads((quick / "reports/studies.json").read_text(encoding="utf-8")), "tables": tables}
+    abstract = html[html.index('<section class="abstract"'):html.index("</figcaption></figure>")]
+    assert abstract.count('class="num"') >= 8  # 4–6 findings, most with two numbers, and the headline figure's
+    assert abstract_mismatches(abstract, files) == []
+    assert unresolved_links(html) == []
+    for key in ("nemec2012", "safranek2022", "skalka2011", "kulich2014", "motion-lecture", "thrun2005", "long2012"):
+        assert f'<li id="ref-{key}">' in html and f'href="#ref-{key}"' in html, key
 
 
 def test_report_has_the_studies_sections(quick: Path) -> None:

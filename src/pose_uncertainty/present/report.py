@@ -56,45 +56,45 @@ __all__ = ["REFERENCES", "RUN_COLUMNS", "SUMMARY_COLUMNS", "build_report", "cite
 #: the report's prose that matches one becomes a link to its entry (:func:`cite`).
 REFERENCES: tuple[tuple[str, tuple[str, ...], str], ...] = (
     ("nemec2012", ("Němec 2012",),
-     "Jakub Němec. <i>Analýza neurčitosti pozice kolového robota</i> (Analysis of robot position errors). Bachelor's "
+     ("Jakub Němec. <i>Analýza neurčitosti pozice kolového robota</i> (Analysis of robot position errors). Bachelor's "
      "thesis, Brno University of Technology, Faculty of Electrical Engineering and Communication, Department of Control "
-     "and Instrumentation, 2012. Supervisor František Šolc. In Czech."),
+     "and Instrumentation, 2012. Supervisor František Šolc. In Czech.")),
     ("safranek2022", ("Šafránek 2022",),
-     "Petr Šafránek. <i>Analýza kinematiky diferenciálního robotu</i> (A kinematic analysis of a skid-steer wheeled "
+     ("Petr Šafránek. <i>Analýza kinematiky diferenciálního robotu</i> (A kinematic analysis of a skid-steer wheeled "
      "mobile robot). Bachelor's thesis, Brno University of Technology, Faculty of Electrical Engineering and "
-     "Communication, Department of Control and Instrumentation, 2022. Supervisor František Burian. In Czech."),
+     "Communication, Department of Control and Instrumentation, 2022. Supervisor František Burian. In Czech.")),
     ("skalka2011", ("Skalka 2011",),
-     "Marek Skalka. <i>Srovnání lokalizačních technik</i> (A comparison of localization techniques). Master's thesis, "
+     ("Marek Skalka. <i>Srovnání lokalizačních technik</i> (A comparison of localization techniques). Master's thesis, "
      "Charles University in Prague, Faculty of Mathematics and Physics, Department of Software Engineering, 2011. "
-     "Supervisor David Obdržálek. In Czech."),
+     "Supervisor David Obdržálek. In Czech.")),
     ("kulich2014", ("Kulich 2014",),
-     "Miroslav Kulich. <i>Pravděpodobnostní metody lokalizace v mobilní robotice</i> (Probabilistic localization "
+     ("Miroslav Kulich. <i>Pravděpodobnostní metody lokalizace v mobilní robotice</i> (Probabilistic localization "
      "methods in mobile robotics). Lecture slides, Intelligent and Mobile Robotics Group, Gerstner Laboratory, Czech "
-     "Technical University in Prague, 27 February 2014. In Czech."),
+     "Technical University in Prague, 27 February 2014. In Czech.")),
     ("motion-lecture", ("the Russian lecture deck on motion models", "Russian lecture deck on motion models"),
-     "<i>Мобильная робототехника: Вероятностные модели движения</i> (Mobile robotics: probabilistic motion models). "
+     ("<i>Мобильная робототехника: Вероятностные модели движения</i> (Mobile robotics: probabilistic motion models). "
      "Lecture slides of a mobile-robotics course, in Russian; the slides name no author, institution or year. They "
-     "follow Thrun, Burgard &amp; Fox 2005, ch. 5 (odometry and velocity motion models)."),
+     "follow Thrun, Burgard &amp; Fox 2005, ch. 5 (odometry and velocity motion models).")),
     ("thrun2005", ("Thrun, Burgard & Fox 2005", "Thrun, Burgard & Fox"),
-     "Sebastian Thrun, Wolfram Burgard, Dieter Fox. <i>Probabilistic Robotics</i>. MIT Press, Cambridge, MA, 2005."),
+     ("Sebastian Thrun, Wolfram Burgard, Dieter Fox. <i>Probabilistic Robotics</i>. MIT Press, Cambridge, MA, 2005.")),
     ("siegwart2004", ("Siegwart & Nourbakhsh 2004", "Siegwart & Nourbakhsh"),
-     "Roland Siegwart, Illah R. Nourbakhsh. <i>Introduction to Autonomous Mobile Robots</i>. MIT Press, Cambridge, "
-     "MA, 2004 (§5.2.4: odometric position error model)."),
+     ("Roland Siegwart, Illah R. Nourbakhsh. <i>Introduction to Autonomous Mobile Robots</i>. MIT Press, Cambridge, "
+     "MA, 2004 (§5.2.4: odometric position error model).")),
     ("long2012", ("Long et al. RSS 2012", "Long et al., RSS 2012", "Long et al. 2012"),
-     "Andrew W. Long, Kevin C. Wolfe, Michael J. Mashner, Gregory S. Chirikjian. The banana distribution is Gaussian: "
-     "a localization study with exponential coordinates. In <i>Robotics: Science and Systems VIII</i> (RSS), Sydney, 2012."),
+     ("Andrew W. Long, Kevin C. Wolfe, Michael J. Mashner, Gregory S. Chirikjian. The banana distribution is Gaussian: "
+     "a localization study with exponential coordinates. In <i>Robotics: Science and Systems VIII</i> (RSS), Sydney, 2012.")),
     ("borenstein1996", ("Borenstein & Feng 1996", "Borenstein & Feng"),
-     "Johann Borenstein, Liqiang Feng. Measurement and correction of systematic odometry errors in mobile robots. "
-     "<i>IEEE Transactions on Robotics and Automation</i> 12(6), 869–880, 1996."),
+     ("Johann Borenstein, Liqiang Feng. Measurement and correction of systematic odometry errors in mobile robots. "
+     "<i>IEEE Transactions on Robotics and Automation</i> 12(6), 869–880, 1996.")),
     ("julier2004", ("Julier & Uhlmann 2004", "Julier & Uhlmann"),
-     "Simon J. Julier, Jeffrey K. Uhlmann. Unscented filtering and nonlinear estimation. <i>Proceedings of the IEEE</i> "
-     "92(3), 401–422, 2004."),
+     ("Simon J. Julier, Jeffrey K. Uhlmann. Unscented filtering and nonlinear estimation. <i>Proceedings of the IEEE</i> "
+     "92(3), 401–422, 2004.")),
     ("vandermerwe2004", ("van der Merwe 2004", "van der Merwe"),
-     "Rudolph van der Merwe. <i>Sigma-point Kalman filters for probabilistic inference in dynamic state-space "
-     "models</i>. PhD thesis, OGI School of Science &amp; Engineering, Oregon Health &amp; Science University, 2004."),
+     ("Rudolph van der Merwe. <i>Sigma-point Kalman filters for probabilistic inference in dynamic state-space "
+     "models</i>. PhD thesis, OGI School of Science &amp; Engineering, Oregon Health &amp; Science University, 2004.")),
     ("wilson1927", ("Wilson 1927",),
-     "Edwin B. Wilson. Probable inference, the law of succession, and statistical inference. <i>Journal of the "
-     "American Statistical Association</i> 22(158), 209–212, 1927."),
+     ("Edwin B. Wilson. Probable inference, the law of succession, and statistical inference. <i>Journal of the "
+     "American Statistical Association</i> 22(158), 209–212, 1927.")),
 )
 
 _CITE_NAMES = sorted(((html.escape(name, quote=False), key) for key, names, _ in REFERENCES for name in names),
