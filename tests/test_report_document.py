@@ -220,3 +220,25 @@ def test_the_quick_tables_match_the_abstract_format(small_report: tuple[str, Pat
         rows = list(csv.DictReader(f))
     assert rows[0]["run"] == "r1"
     assert float(rows[0]["path_length"]) == pytest.approx(1.0)
+
+
+def test_log_axes_show_every_point_with_room() -> None:
+    """The accuracy-against-time figure's limits hold every finite point (the histogram filter's far to
+    the right included), checked against the points' own extent."""
+    from pose_uncertainty.present import figures
+    from pose_uncertainty.present.localization import _fit_log_limits
+
+    fig = figures.new_figure((4.0, 3.0))
+    ax = fig.add_subplot()
+    pts = [(0.05, 0.03), (0.2, 0.02), (40.0, 0.5), (float("nan"), 1.0), (0.0, 2.0)]
+    for x, y in pts:
+        ax.plot([x], [y], ls="none", marker="o")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    _fit_log_limits(ax, [p for line in ax.lines for p in zip(line.get_xdata(), line.get_ydata(), strict=True)])
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    for x, y in pts[:3]:
+        assert x0 < x < x1
+        assert y0 < y < y1
+    assert x1 >= 40.0 * 1.6  # room on the right for the run's label
+    assert y1 < 2.0  # the points it cannot draw on log axes do not stretch them

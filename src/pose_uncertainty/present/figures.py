@@ -41,6 +41,8 @@ from ..methods.maps import ProbabilityMap
 
 __all__ = [
     "FORMATS",
+    "HIDPI",
+    "METHOD_COLOURS",
     "Margins",
     "cloud_figure",
     "figure_set",
@@ -73,7 +75,12 @@ _RC: dict[str, Any] = {
     "pdf.fonttype": 42,
     "path.simplify": False,
 }
-_BLUE, _RED, _BLACK = "blue", "red", "black"
+#: One colour per method in every figure and in the report's text (Okabe–Ito: told apart with any
+#: colour vision): Method A vermillion, Method B bluish green, Method C reddish purple, the
+#: exponential-coordinates Gaussian blue, Monte Carlo grey; sky blue for what a sample itself gives
+METHOD_COLOURS: dict[str, str] = {"A": "#D55E00", "B": "#009E73", "C": "#CC79A7", "expcoords": "#0072B2",
+                                  "MC": "#555555", "sample": "#56B4E9"}  # fmt: skip
+_BLUE, _RED, _BLACK = METHOD_COLOURS["sample"], METHOD_COLOURS["A"], "black"
 _MAP_WINDOW = 1.0  # [m], side of the map window (the thesis's 1 m × 1 m)
 
 
@@ -289,8 +296,9 @@ def trajectory_figure(run: RunResult) -> Figure:
         ax.plot(
             pts[:, 0],
             pts[:, 1],
-            color=_BLUE,
-            lw=0.9,
+            color=_RED,
+            lw=0.7,
+            alpha=0.55,
             label="ellipses along the path" if j == 0 else None,
         )
     n = run.n_steps
@@ -370,7 +378,7 @@ def cloud_figure(run: RunResult) -> Figure | None:
 
 # --- Method C, the unscented transform ---------------------------------------------------------
 
-_GREEN = "tab:green"
+_GREEN = METHOD_COLOURS["C"]
 _C_KEYS = ("C_mean_x", "C_mean_y", "C_cov_xx", "C_cov_xy", "C_cov_yy")
 
 
