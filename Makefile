@@ -10,7 +10,7 @@ CORES  ?= all
 # holds a flock for the whole run, clears what a killed run left (workflow/run-locked.sh)
 LOCKED := workflow/run-locked.sh
 
-.PHONY: report test quick bench bench-regenerate lint venv lock clean slurm-up slurm-down
+.PHONY: report test quick bench bench-report bench-regenerate lint venv lock clean slurm-up slurm-down
 
 venv: $(STAMP)
 
@@ -35,6 +35,12 @@ lint: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python -m benchmarks
+
+# the report in a browser: Lighthouse (npm, pinned in benchmarks/lighthouse/package-lock.json) with Debian's
+# chromium on reports/comparison.html served from 127.0.0.1 -> benchmarks/results/report.json
+bench-report: $(STAMP)
+	npm ci --prefix benchmarks/lighthouse --no-audit --no-fund --silent
+	CHROME_PATH=$${CHROME_PATH:-/usr/bin/chromium} $(BIN)/python -m benchmarks.report_lighthouse $(REPORT)
 
 # a full regeneration in a fresh clone: times and sizes -> benchmarks/results/regenerate.json
 bench-regenerate: $(STAMP)
