@@ -46,6 +46,13 @@ AUDITS = {
 }
 
 
+class _Quiet(http.server.SimpleHTTPRequestHandler):
+    """The static file server, without a log line per request."""
+
+    def log_message(self, format: str, *args: Any) -> None:
+        pass
+
+
 def _version() -> str:
     lock = json.loads((HERE / "package-lock.json").read_text(encoding="utf-8"))
     return str(lock["packages"]["node_modules/lighthouse"]["version"])
@@ -93,9 +100,7 @@ def main(argv: list[str] | None = None) -> Path:
         raise SystemExit(f"lighthouse is not installed in {HERE}: run `npm ci --prefix {HERE}` (make bench-report does)")
     if not shutil.which(chrome):
         raise SystemExit(f"no Chromium at {chrome}: apt-get install -y chromium, or set CHROME_PATH")
-    handler = functools.partial(http.server.SimpleHTTPRequestHandler, directory=str(report.parent))
-    handler.log_message = lambda *a, **k: None  # type: ignore[attr-defined]
-    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), functools.partial(_Quiet, directory=str(report.parent)))
     threading.Thread(target=server.serve_forever, daemon=True).start()
     try:
         port = server.server_address[1]
