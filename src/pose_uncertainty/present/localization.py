@@ -226,7 +226,7 @@ def accuracy_time_figure(logs: Sequence[str | os.PathLike[str]], timings: Sequen
             sec = tim.get(f"{name}_step_s", math.nan)
             ax.plot([1e3 * sec], [err], ls="none", marker="o", ms=7, color=COLORS[name],
                     label=None if name in seen else LABELS[name])  # fmt: skip
-            ax.annotate(log.config.name, (1e3 * sec, err), fontsize=8, color="0.25", xytext=(4, 2),
+            ax.annotate(log.config.name, (1e3 * sec, err), fontsize=9, color="0.25", xytext=(4, 2),
                         textcoords="offset points")  # fmt: skip
             seen.add(name)
     dr = [lg.metrics.get("loc_dead_reckoning_rms_position_error", math.nan) for lg in runs]
