@@ -234,7 +234,7 @@ def accuracy_time_figure(logs: Sequence[str | os.PathLike[str]], timings: Sequen
         ax.plot([], [], ls="none", label=f"dead reckoning: {float(np.nanmedian(dr)):.3g} m (median over the runs)")
     ax.set_xscale("log")
     ax.set_yscale("log")
-    _fit_log_limits(ax, [p for line in ax.lines for p in zip(line.get_xdata(), line.get_ydata(), strict=True)])
+    _fit_log_limits(ax)
     ax.set_xlabel("compute time per step [ms] (wall clock)")
     ax.set_ylabel("RMS position error [m]")
     ax.set_title(title or "accuracy against compute time", fontsize="medium")
@@ -243,10 +243,12 @@ def accuracy_time_figure(logs: Sequence[str | os.PathLike[str]], timings: Sequen
     return fig
 
 
-def _fit_log_limits(ax: Any, points: Sequence[tuple[float, float]], pad: float = 1.6) -> None:
-    """Log axes that show every finite positive point, with a factor ``pad`` of room on each side
-    (so a point and its label are never on or beyond the frame)."""
-    xy = np.array([(float(x), float(y)) for x, y in points], dtype=float).reshape(-1, 2)
+def _fit_log_limits(ax: Any, pad: float = 1.6) -> None:
+    """Log axes that show every finite positive point of the axes' lines, with a factor ``pad`` of room on
+    each side (so a point and its label are never on or beyond the frame)."""
+    xy = np.array([(float(x), float(y)) for line in ax.lines
+                   for x, y in zip(np.asarray(line.get_xdata(), float), np.asarray(line.get_ydata(), float), strict=True)],
+                  dtype=float).reshape(-1, 2)  # fmt: skip
     xy = xy[np.isfinite(xy).all(axis=1) & (xy > 0).all(axis=1)]
     if xy.size:
         ax.set_xlim(xy[:, 0].min() / pad, xy[:, 0].max() * pad * 1.5)  # labels extend to the right
