@@ -215,7 +215,9 @@ def test_report_renders_offline_without_console_errors(
         done = cdp.call(
             "Runtime.evaluate",
             expression=(
-                "Promise.all([...document.images].map(i => i.decode().then(() => [i.alt, i.naturalWidth],"
+                # lazy images load when near the viewport: the instant scroll above does not wait for them
+                "Promise.all([...document.images].map(i => (i.loading = 'eager', i))"
+                ".map(i => i.decode().then(() => [i.alt, i.naturalWidth],"
                 " () => [i.alt, -1])))"
             ),
             awaitPromise=True,
