@@ -14,7 +14,7 @@ LOCKED := workflow/run-locked.sh
 # set, as in many containers); ms when the files are up to date.
 COMPILE := $(BIN)/python -m compileall -q src
 
-.PHONY: report test quick bench bench-regenerate lint venv lock clean slurm-up slurm-down docs
+.PHONY: report test quick bench bench-report bench-regenerate lint venv lock clean slurm-up slurm-down docs
 
 venv: $(STAMP)
 
@@ -42,6 +42,12 @@ lint: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python -m benchmarks
+
+# the report in a browser: Lighthouse (npm, pinned in benchmarks/lighthouse/package-lock.json) with Debian's
+# chromium on reports/comparison.html served from 127.0.0.1 -> benchmarks/results/report.json
+bench-report: $(STAMP)
+	npm ci --prefix benchmarks/lighthouse --no-audit --no-fund --silent
+	CHROME_PATH=$${CHROME_PATH:-/usr/bin/chromium} $(BIN)/python -m benchmarks.report_lighthouse $(REPORT)
 
 # a full regeneration in a fresh clone: times and sizes -> benchmarks/results/regenerate.json
 bench-regenerate: $(STAMP)

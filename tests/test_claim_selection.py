@@ -149,13 +149,16 @@ def test_the_report_prints_the_logged_parameters_not_the_manifests(tmp_path: Pat
     html = build_report(manifest, {"S": table}, write_claims({"S": table}, tmp_path / "claims.json"),
                         summarize_pipeline({"S": table}, [], [], tmp_path / "pipeline.json"),
                         tmp_path / "r.html").read_text(encoding="utf-8")  # fmt: skip
-    details = html[html.index('<details id="run-S-b0.2"'):]
-    details = details[:details.index("</details>")]
+    details = html[html.index('<details class="run" id="run-S-b0.2"'):]
+    details = details[:details.index("</template>")]
     assert 'trajectory = {"track": 0.2}; k_r = 0.0009' in details  # the swept keys, with the logged values
-    assert "k_r = 0.0009 m, k_l = 0.0001 m" in details
+    assert "<tr><th>k_r</th><td>0.0009</td></tr>" in details
+    assert "<tr><th>k_l</th><td>0.0001</td></tr>" in details
+    assert "<tr><th>trajectory.track</th><td>0.2</td></tr>" in details
     assert '"track": 0.5' not in details
+    assert ">0.5<" not in details.split("trajectory.track")[1][:30]
     assert "0.0123" not in details
-    assert "seed 5" in details
+    assert "<tr><th>seed</th><td>5</td></tr>" in details
 
 
 def test_a_swept_list_of_maps_is_shown_with_its_swept_keys_and_logged_values() -> None:

@@ -247,7 +247,7 @@ def _s001(bend: float, fk_rel: float, major_b01: float, major_b02: float, n: int
                          "param.monte_carlo.method": method, "param.trajectory.name": "straight",
                          "param.trajectory.track": track, "MC_ellipse_major": major * scale, "MC_n": n,
                          "MC_bend": bend, "MC_bend_crit": 2 / math.sqrt(n)})
-    return {"S001_seed001": rows}
+    return {"S_chassis": rows}
 
 
 def test_claim12_branches():

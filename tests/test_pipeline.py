@@ -99,7 +99,7 @@ def test_default_config_holds_every_experiment_of_the_theses() -> None:
     sets = sweep.expand_all(sweep.validate_config(_config(), SCHEMA))
     expected = {
         "A1_shape": 6, "A2_profile": 6, "A3_parameters": 12, "A4_distribution": 2,
-        "B1_trajectory": 3, "B2_distance": 6, "B3_speed": 6, "B4_alpha": 10, "S001_seed001": 32,
+        "B1_trajectory": 3, "B2_distance": 6, "B3_speed": 6, "B4_alpha": 10, "S_chassis": 32,
     }
     for name, n in expected.items():
         assert len(sets[name]) == n, name
@@ -297,6 +297,30 @@ def test_report_cites_only_what_a_reader_can_look_up(quick: Path) -> None:
             for n, line in enumerate(text.splitlines(), 1)
             for kind, pattern in FORBIDDEN.items() for m in pattern.finditer(line)]
     assert not hits, "\n".join(hits)
+    # and none of our development words (issue, SPEC, seed001 as a document), in the report's text
+    from test_report_document import report_words
+
+    assert report_words(html) == []
+
+
+def test_the_quick_reports_abstract_links_and_references(quick: Path) -> None:
+    """Every number of the abstract is the logged value it names; every internal link resolves; the
+    sources are cited with full entries."""
+    from test_report_document import abstract_mismatches, unresolved_links
+
+    from pose_uncertainty.core.table_io import read_table
+
+    html = (quick / "reports/comparison.html").read_text(encoding="utf-8")
+    tables = {f"localization/{p.stem}": read_table(p) for p in (quick / "reports/tables/localization").glob("*.csv")}
+    files = {"claims": json.loads((quick / "reports/claims.json").read_text(encoding="utf-8")),
+             "studies": json.loads((quick / "reports/studies.json").read_text(encoding="utf-8")), "tables": tables}
+    abstract = html[html.index('<section class="abstract"'):html.index("</figcaption></figure>")]
+    assert abstract.count('class="num"') >= 8  # 4–6 findings, most with two numbers, and the headline figure's
+    assert abstract_mismatches(abstract, files) == []
+    assert unresolved_links(html) == []
+    for key in ("nemec2012", "safranek2022", "skalka2011", "kulich2014", "motion-lecture", "thrun2005", "long2012"):
+        assert f'<li id="ref-{key}">' in html, key
+        assert f'href="#ref-{key}"' in html, key
 
 
 def test_report_has_the_studies_sections(quick: Path) -> None:
@@ -324,7 +348,7 @@ def test_report_has_method_c_and_umbmark(quick: Path) -> None:
     html = (quick / "reports/comparison.html").read_text(encoding="utf-8")
     for sid in ("method-c", "umbmark", "fig-studies-umbmark"):
         assert f'id="{sid}"' in html, sid
-    assert "<th colspan=\"4\">Method C (sigma points)</th>" in html
+    assert re.search(r'<th colspan="\d">Method C \(sigma points\)</th>', html)  # its group in the full tables
     run = sweep.expand_all(sweep.validate_config(_config("quick.yaml"), SCHEMA))["L_straight"][-1]
     row = next(r for r in read_table(quick / "reports/tables/L_straight.csv") if r["run"] == run.id)
     metrics = open_run(quick / run.path).metrics

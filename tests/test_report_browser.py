@@ -215,7 +215,9 @@ def test_report_renders_offline_without_console_errors(
         done = cdp.call(
             "Runtime.evaluate",
             expression=(
-                "Promise.all([...document.images].map(i => i.decode().then(() => [i.alt, i.naturalWidth],"
+                # lazy images load when near the viewport: the instant scroll above does not wait for them
+                "Promise.all([...document.images].map(i => (i.loading = 'eager', i))"
+                ".map(i => i.decode().then(() => [i.alt, i.naturalWidth],"
                 " () => [i.alt, -1])))"
             ),
             awaitPromise=True,
@@ -279,3 +281,94 @@ def test_report_renders_offline_without_console_errors(
     assert title.startswith("Pose uncertainty")
     assert n_claims == 12
     assert json.loads(study_ids) == STUDY_SECTION_IDS  # the studies sections are in the quick report
+
+
+# --- the report as a reader sees it: first screen, no sideways scroll, runs open on demand ----------
+
+#: Evaluated in the page: what a reader sees and can follow. Internal links resolve to an element, or to
+#: one inside a run's <template> (the page's script opens that run when the link is followed).
+_READ_JS = """(() => {
+  const bottom = sel => { const e = document.querySelector(sel); return e ? e.getBoundingClientRect().bottom : 1e9; };
+  const inTemplates = id => [...document.querySelectorAll('template')].some(t => t.content.getElementById(id));
+  const links = [...document.querySelectorAll('a[href^="#"]')].map(a => decodeURIComponent(a.getAttribute('href').slice(1)));
+  return {
+    abstract: bottom('.abstract ol'), headline: bottom('#fig-studies-expcoords img'),
+    body_scroll: document.documentElement.scrollWidth - document.documentElement.clientWidth,
+    unresolved: [...new Set(links.filter(id => !document.getElementById(id) && !inTemplates(id)))],
+    no_alt: [...document.images].filter(i => !i.alt).length,
+    closed_runs: document.querySelectorAll('details.run').length,
+    images_before: document.images.length,
+  };
+})()"""
+
+#: Opens every run (as a reader's click does: the toggle event) and decodes every image then present.
+_OPEN_RUNS_JS = """(async () => {
+  document.querySelectorAll('details.run').forEach(d => { d.open = true; });
+  await new Promise(r => setTimeout(r, 200));
+  const imgs = [...document.images];
+  imgs.forEach(i => { i.loading = 'eager'; });  // as if the reader scrolled to each one
+  const res = await Promise.all(imgs.map(i => i.decode().then(() => i.naturalWidth, () => -1)));
+  return { n: imgs.length, failed: imgs.filter((_, k) => res[k] <= 0).map(i => i.alt),
+           templates_left: document.querySelectorAll('details.run > template').length };
+})()"""
+
+
+@pytest.mark.slow
+def test_report_reads_first_screen_and_opens_runs(chromium: str, tmp_path: Path,
+                                                   tmp_path_factory: pytest.TempPathFactory) -> None:
+    work = quick_pipeline(tmp_path_factory.getbasetemp())
+    url = (work / "reports/comparison.html").resolve().as_uri()
+    port = _free_port()
+    flags = [f for f in FLAGS if not f.startswith("--window-size")] + ["--window-size=1400,900"]
+    proc = subprocess.Popen([chromium, *flags, f"--user-data-dir={tmp_path / 'profile'}",
+                             f"--remote-debugging-port={port}", "about:blank"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    cdp = None
+    try:
+        targets: list[dict[str, Any]] = []
+        deadline = time.monotonic() + 30
+        while not targets and time.monotonic() < deadline:
+            try:
+                with urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=2) as r:
+                    targets = [t for t in json.load(r) if t.get("type") == "page"]
+            except OSError:
+                time.sleep(0.2)
+        assert targets, "Chromium did not open a DevTools page target"
+        cdp = CDP(targets[0]["webSocketDebuggerUrl"], timeout=120)
+        for domain in ("Page", "Runtime", "Log"):
+            cdp.call(f"{domain}.enable")
+        cdp.call("Page.navigate", url=url)
+        cdp.wait_event("Page.loadEventFired", timeout=120)
+        seen = cdp.call("Runtime.evaluate", expression=_READ_JS, returnByValue=True)["result"]["value"]
+        first = cdp.call("Page.captureScreenshot", format="png", captureBeyondViewport=True,
+                         clip={"x": 0, "y": 0, "width": 1400, "height": 900, "scale": 1})
+        opened = cdp.call("Runtime.evaluate", expression=_OPEN_RUNS_JS, awaitPromise=True,
+                          returnByValue=True)["result"]["value"]  # fmt: skip
+        after = cdp.call("Runtime.evaluate", expression=_READ_JS, returnByValue=True)["result"]["value"]
+        cdp.call("Runtime.evaluate", expression="1")
+    finally:
+        if cdp is not None:
+            cdp.close()
+        proc.terminate()
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(timeout=10)
+    (REPO / "reports").mkdir(exist_ok=True)
+    (REPO / "reports/first-screen.png").write_bytes(base64.b64decode(first["data"]))
+    assert seen["abstract"] <= 900, f"the findings end at {seen['abstract']} px, below the first screen"
+    assert seen["headline"] <= 900, f"the headline figure ends at {seen['headline']} px, below the first screen"
+    assert seen["body_scroll"] <= 0, f"the page scrolls sideways by {seen['body_scroll']} px"
+    assert seen["unresolved"] == [], seen["unresolved"]
+    assert seen["no_alt"] == 0
+    assert seen["closed_runs"] > 0
+    assert opened["templates_left"] == 0
+    assert opened["n"] > seen["images_before"]  # the runs' figures came in when opened
+    assert opened["failed"] == [], f"images that did not decode: {opened['failed']}"
+    assert after["body_scroll"] <= 0, f"with the runs open the page scrolls sideways by {after['body_scroll']} px"
+    errors = [e["params"] for e in cdp.events
+              if (e["method"] == "Runtime.consoleAPICalled" and e["params"]["type"] in ("error", "assert", "warning"))
+              or (e["method"] == "Log.entryAdded" and e["params"]["entry"]["level"] in ("error", "warning"))
+              or e["method"] == "Runtime.exceptionThrown"]  # fmt: skip
+    assert errors == [], f"console errors: {errors}"

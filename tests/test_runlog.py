@@ -601,7 +601,7 @@ def test_fixed_margin_figures_keep_long_titles_inside(result: RunResult) -> None
     """A run whose name makes the longest titles (S001's "straight_b0.1_per_run_euler_end" needs 7.4 in
     on one line, on a 6 in figure): every title is wrapped onto lines that lie inside the figure, and
     the axes are lowered below it (the top margin grows with the lines)."""
-    name = "S001_seed001_straight_b0.1_per_run_euler_end"
+    name = "S_chassis_straight_b0.1_per_run_euler_end"
     run = dataclasses.replace(result, config=dataclasses.replace(result.config, name=name))
     for kind, fig in figures.figure_set(run).items():
         fig.canvas.draw()

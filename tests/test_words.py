@@ -28,7 +28,8 @@ FORBIDDEN = {
 
 #: Generated or cached (git-ignored): not part of the product's text.
 _SKIP_DIRS = {"__pycache__", ".ipynb_checkpoints", ".pytest_cache", ".ruff_cache", ".mypy_cache", "build",
-              "_build", "generated"}  # docs/_build, docs/reference/generated: built from the sources
+              "_build", "generated",  # docs/_build, docs/reference/generated: built from the sources
+              "node_modules"}  # node_modules: the benchmark's npm tools (git-ignored)
 _SKIP_UNDER = (Path("benchmarks", "results"),)
 
 

@@ -664,8 +664,8 @@ def odometry_speed_effect(rows: Rows, c: Claim) -> None:
        source=("Šafránek 2022 §4.2–4.3: Cartesian and polar views of 1000 end poses, three FK methods, tracks "
                "100 and 200 mm."))
 def bent_cloud_fk_track(rows: Rows, c: Claim) -> None:
-    """Bend of the per-run clouds, FK methods against the exact arc, major axis against the track (S001_seed001)."""
-    s = _set(rows, "S001_seed001")
+    """Bend of the per-run clouds, FK methods against the exact arc, major axis against the track (S_chassis)."""
+    s = _set(rows, "S_chassis")
 
     def p(r: Mapping[str, Any], key: str) -> Any:
         return r.get(f"param.{key}")

@@ -57,7 +57,9 @@ __all__ = [
 #: Per-run figure kinds, and per-set ones (config key ``localization.sets.<set>.plots``).
 RUN_FIGURES: tuple[str, ...] = ("paths", "errors", "nees")
 SET_FIGURES: tuple[str, ...] = ("accuracy_time", "success")
-COLORS: dict[str, str] = {"ekf": "tab:blue", "histogram": "tab:green", "particle": "tab:orange"}
+#: each filter in the colour of the method whose prediction it runs (EKF: A, histogram: B, particles: Monte Carlo)
+COLORS: dict[str, str] = {"ekf": figures.METHOD_COLOURS["A"], "histogram": figures.METHOD_COLOURS["B"],
+                          "particle": "#000000"}
 LABELS: dict[str, str] = {"ekf": "EKF", "histogram": "histogram filter", "particle": "particle filter"}
 #: Fixed margins [inch] of the per-run figures (no layout engine at draw): room for the widest tick
 #: labels the pipeline's runs draw (NEES: "6 × 10⁻¹"; errors: "−0.050"), the axis labels and the titles;
@@ -223,9 +225,9 @@ def accuracy_time_figure(logs: Sequence[str | os.PathLike[str]], timings: Sequen
         for name in log.filters:
             err = log.metrics.get(f"loc_{name}_rms_position_error", math.nan)
             sec = tim.get(f"{name}_step_s", math.nan)
-            ax.plot([1e3 * sec], [err], ls="none", marker="o", ms=5, color=COLORS[name],
+            ax.plot([1e3 * sec], [err], ls="none", marker="o", ms=7, color=COLORS[name],
                     label=None if name in seen else LABELS[name])  # fmt: skip
-            ax.annotate(log.config.name, (1e3 * sec, err), fontsize=5, color="0.3", xytext=(3, 2),
+            ax.annotate(log.config.name, (1e3 * sec, err), fontsize=9, color="0.25", xytext=(4, 2),
                         textcoords="offset points")  # fmt: skip
             seen.add(name)
     dr = [lg.metrics.get("loc_dead_reckoning_rms_position_error", math.nan) for lg in runs]
@@ -233,12 +235,25 @@ def accuracy_time_figure(logs: Sequence[str | os.PathLike[str]], timings: Sequen
         ax.plot([], [], ls="none", label=f"dead reckoning: {float(np.nanmedian(dr)):.3g} m (median over the runs)")
     ax.set_xscale("log")
     ax.set_yscale("log")
+    _fit_log_limits(ax)
     ax.set_xlabel("compute time per step [ms] (wall clock)")
     ax.set_ylabel("RMS position error [m]")
     ax.set_title(title or "accuracy against compute time", fontsize="medium")
     ax.grid(True, which="both", lw=0.3, alpha=0.5)
-    ax.legend(fontsize="x-small", loc="best")
+    ax.legend(fontsize="small", loc="best")
     return fig
+
+
+def _fit_log_limits(ax: Any, pad: float = 1.6) -> None:
+    """Log axes that show every finite positive point of the axes' lines, with a factor ``pad`` of room on
+    each side (so a point and its label are never on or beyond the frame)."""
+    xy = np.array([(float(x), float(y)) for line in ax.lines
+                   for x, y in zip(np.asarray(line.get_xdata(), float), np.asarray(line.get_ydata(), float), strict=True)],
+                  dtype=float).reshape(-1, 2)  # fmt: skip
+    xy = xy[np.isfinite(xy).all(axis=1) & (xy > 0).all(axis=1)]
+    if xy.size:
+        ax.set_xlim(xy[:, 0].min() / pad, xy[:, 0].max() * pad * 1.5)  # labels extend to the right
+        ax.set_ylim(xy[:, 1].min() / pad, xy[:, 1].max() * pad)
 
 
 def success_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") -> Figure:

@@ -174,15 +174,15 @@ def growth_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") -> Fi
     fig = figures.new_figure((6.4, 5.2), dpi=figures.WIDE_DPI)
     ax = fig.add_subplot()
     styles = {
-        "A: σ along": ("tab:blue", "-", "o"),
-        "A: σ across": ("tab:red", "-", "o"),
+        "A: σ along": ("#0072B2", "-", "o"),
+        "A: σ across": ("#D55E00", "-", "o"),
         "A: σ_θ [rad]": ("tab:green", "-", "s"),
         "A: ellipse major": ("0.3", ":", "^"),
         "A: ellipse minor": ("0.6", ":", "v"),
-        "MC: σ along": ("tab:blue", "none", "x"),
-        "MC: σ across": ("tab:red", "none", "x"),
-        "C: σ along": ("tab:blue", "none", "+"),
-        "C: σ across": ("tab:red", "none", "+"),
+        "MC: σ along": ("#0072B2", "none", "x"),
+        "MC: σ across": ("#D55E00", "none", "x"),
+        "C: σ along": ("#0072B2", "none", "+"),
+        "C: σ across": ("#D55E00", "none", "+"),
     }
     for key, (color, ls, marker) in styles.items():
         vals = np.array([r.get(key, np.nan) for r in rows])
@@ -265,28 +265,28 @@ def expcoords_figure(data: Mapping[str, Any]) -> Figure:
         cloud, path = np.asarray(case["cloud_xy"]), np.asarray(case["path_xy"])
         ell, end = np.asarray(case["ellipse_xy"]), case["end"]
         ax = fig.add_subplot(1, len(cases), j + 1)
-        ax.scatter(cloud[:, 0], cloud[:, 1], s=1.0, color="0.3", alpha=0.35, linewidths=0,
+        ax.scatter(cloud[:, 0], cloud[:, 1], s=1.0, color=figures.METHOD_COLOURS["MC"], alpha=0.35, linewidths=0,
                    rasterized=True, label=f"Monte Carlo, {n} runs")  # fmt: skip
-        ax.plot(ell[:, 0], ell[:, 1], color="tab:red", lw=1.2,
+        ax.plot(ell[:, 0], ell[:, 1], color=figures.METHOD_COLOURS["A"], lw=1.4,
                 label=f"Method A ellipse {100 * pr:.2f} % (holds {100 * case['inside_ellipse']:.1f} %)")
         for i, poly in enumerate(case["banana_xy"]):
             poly = np.asarray(poly)
-            ax.plot(poly[:, 0], poly[:, 1], color="tab:blue", lw=1.2,
+            ax.plot(poly[:, 0], poly[:, 1], color=figures.METHOD_COLOURS["expcoords"], lw=1.4,
                     label=f"exp. coords {100 * pr:.2f} % (holds {100 * case['inside_banana']:.1f} %)"
                     if i == 0 else None)  # fmt: skip
         if "c_ellipse_xy" in case:  # Method C, in logs that have it
             cel, cm = np.asarray(case["c_ellipse_xy"]), case["c_mean"]
-            ax.plot(cel[:, 0], cel[:, 1], color="tab:green", lw=1.2, ls="-.",
+            ax.plot(cel[:, 0], cel[:, 1], color=figures.METHOD_COLOURS["C"], lw=1.4, ls="-.",
                     label=f"Method C ellipse {100 * pr:.2f} % (holds {100 * case['inside_c']:.1f} %)")
-            ax.plot([cm[0]], [cm[1]], marker="x", color="tab:green", ms=7, ls="none")
+            ax.plot([cm[0]], [cm[1]], marker="x", color=figures.METHOD_COLOURS["C"], ms=7, ls="none")
         ax.plot(path[:, 0], path[:, 1], color="k", lw=0.6, ls="--", label="noiseless path")
         ax.plot([end[0]], [end[1]], marker="+", color="k", ms=8)
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
-        ax.set_title(f"{case['label']}, k = {data['k']:g} m, b = {data['track']:g} m", fontsize="small")
+        ax.set_title(f"{case['label']}, k = {data['k']:g} m, b = {data['track']:g} m", fontsize="medium")
         ax.grid(True, lw=0.3, alpha=0.5)
-        ax.legend(fontsize="x-small", loc="lower left")
+        ax.legend(fontsize="small", loc="lower left")
     return fig
 
 

@@ -27,16 +27,19 @@ from __future__ import annotations
 
 import base64
 import datetime as _dt
+import hashlib
 import html
 import io
 import json
 import math
 import os
+import re
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import jinja2
+from markupsafe import Markup
 from PIL import Image
 
 from ..core.atomic import atomic_write_text
@@ -45,7 +48,196 @@ from ..core.provenance import MACHINE_KEYS
 from ..core.stats import COVERAGE_LEVELS
 from ..core.table_io import read_table
 
-__all__ = ["build_report", "logged_params", "read_speed_results"]
+__all__ = ["REFERENCES", "RUN_COLUMNS", "SUMMARY_COLUMNS", "build_report", "cite", "logged_params",
+           "read_speed_results"]
+
+
+#: The works the report cites: ``(key, how the text names it, the full entry)``. Every name in
+#: the report's prose that matches one becomes a link to its entry (:func:`cite`).
+REFERENCES: tuple[tuple[str, tuple[str, ...], str], ...] = (
+    ("nemec2012", ("Němec 2012",),
+     ("Jakub Němec. <i>Analýza neurčitosti pozice kolového robota</i> (Analysis of robot position errors). Bachelor's "
+     "thesis, Brno University of Technology, Faculty of Electrical Engineering and Communication, Department of Control "
+     "and Instrumentation, 2012. Supervisor František Šolc. In Czech.")),
+    ("safranek2022", ("Šafránek 2022",),
+     ("Petr Šafránek. <i>Analýza kinematiky diferenciálního robotu</i> (A kinematic analysis of a skid-steer wheeled "
+     "mobile robot). Bachelor's thesis, Brno University of Technology, Faculty of Electrical Engineering and "
+     "Communication, Department of Control and Instrumentation, 2022. Supervisor František Burian. In Czech.")),
+    ("skalka2011", ("Skalka 2011",),
+     ("Marek Skalka. <i>Srovnání lokalizačních technik</i> (A comparison of localization techniques). Master's thesis, "
+     "Charles University in Prague, Faculty of Mathematics and Physics, Department of Software Engineering, 2011. "
+     "Supervisor David Obdržálek. In Czech.")),
+    ("kulich2014", ("Kulich 2014",),
+     ("Miroslav Kulich. <i>Pravděpodobnostní metody lokalizace v mobilní robotice</i> (Probabilistic localization "
+     "methods in mobile robotics). Lecture slides, Intelligent and Mobile Robotics Group, Gerstner Laboratory, Czech "
+     "Technical University in Prague, 27 February 2014. In Czech.")),
+    ("motion-lecture", ("the Russian lecture deck on motion models", "Russian lecture deck on motion models"),
+     ("<i>Мобильная робототехника: Вероятностные модели движения</i> (Mobile robotics: probabilistic motion models). "
+     "Lecture slides of a mobile-robotics course, in Russian; the slides name no author, institution or year. They "
+     "follow Thrun, Burgard &amp; Fox 2005, ch. 5 (odometry and velocity motion models).")),
+    ("thrun2005", ("Thrun, Burgard & Fox 2005", "Thrun, Burgard & Fox"),
+     ("Sebastian Thrun, Wolfram Burgard, Dieter Fox. <i>Probabilistic Robotics</i>. MIT Press, Cambridge, MA, 2005.")),
+    ("siegwart2004", ("Siegwart & Nourbakhsh 2004", "Siegwart & Nourbakhsh"),
+     ("Roland Siegwart, Illah R. Nourbakhsh. <i>Introduction to Autonomous Mobile Robots</i>. MIT Press, Cambridge, "
+     "MA, 2004 (§5.2.4: odometric position error model).")),
+    ("long2012", ("Long et al. RSS 2012", "Long et al., RSS 2012", "Long et al. 2012"),
+     ("Andrew W. Long, Kevin C. Wolfe, Michael J. Mashner, Gregory S. Chirikjian. The banana distribution is Gaussian: "
+     "a localization study with exponential coordinates. In <i>Robotics: Science and Systems VIII</i> (RSS), Sydney, 2012.")),
+    ("borenstein1996", ("Borenstein & Feng 1996", "Borenstein & Feng"),
+     ("Johann Borenstein, Liqiang Feng. Measurement and correction of systematic odometry errors in mobile robots. "
+     "<i>IEEE Transactions on Robotics and Automation</i> 12(6), 869–880, 1996.")),
+    ("julier2004", ("Julier & Uhlmann 2004", "Julier & Uhlmann"),
+     ("Simon J. Julier, Jeffrey K. Uhlmann. Unscented filtering and nonlinear estimation. <i>Proceedings of the IEEE</i> "
+     "92(3), 401–422, 2004.")),
+    ("vandermerwe2004", ("van der Merwe 2004", "van der Merwe"),
+     ("Rudolph van der Merwe. <i>Sigma-point Kalman filters for probabilistic inference in dynamic state-space "
+     "models</i>. PhD thesis, OGI School of Science &amp; Engineering, Oregon Health &amp; Science University, 2004.")),
+    ("wilson1927", ("Wilson 1927",),
+     ("Edwin B. Wilson. Probable inference, the law of succession, and statistical inference. <i>Journal of the "
+     "American Statistical Association</i> 22(158), 209–212, 1927.")),
+)
+
+_CITE_NAMES = sorted(((html.escape(name, quote=False), key) for key, names, _ in REFERENCES for name in names),
+                     key=lambda nk: -len(nk[0]))  # fmt: skip
+_CITE_RE = re.compile("|".join(re.escape(n) for n, _ in _CITE_NAMES))
+_CITE_KEY = dict(_CITE_NAMES)
+
+
+def cite(text: Any) -> Markup:
+    """``text`` with every work of :data:`REFERENCES` it names linked to its entry (``#ref-<key>``).
+
+    Plain text is escaped first; markup (a ``{% filter cite %}`` block of the template) is kept as it is,
+    so only prose may pass through (a name inside an attribute would be linked too).
+
+    >>> str(cite("Němec 2012 §3.1"))
+    '<a class="cite" href="#ref-nemec2012">Němec 2012</a> §3.1'
+    """
+    body = str(text) if hasattr(text, "__html__") else html.escape("" if text is None else str(text), quote=False)
+    return Markup(_CITE_RE.sub(lambda m: f'<a class="cite" href="#ref-{_CITE_KEY[m.group(0)]}">{m.group(0)}</a>', body))
+
+
+#: The page's only script: a run's figures are kept in a ``<template>`` (inert: not decoded, not laid
+#: out) and put into the page when the reader opens the run, or follows a link into it.
+LAZY_SCRIPT = """(function () {
+  function fill(d) { var t = d.querySelector(':scope > template'); if (t) { d.appendChild(t.content.cloneNode(true)); t.remove(); } }
+  document.addEventListener('toggle', function (e) { if (e.target.tagName === 'DETAILS' && e.target.open) fill(e.target); }, true);
+  function reveal() {
+    var id = decodeURIComponent(location.hash.slice(1));
+    if (!id || document.getElementById(id)) return;
+    var ts = document.querySelectorAll('details > template');
+    for (var i = 0; i < ts.length; i++) {
+      if (ts[i].content.getElementById(id)) {
+        var d = ts[i].parentElement; fill(d); d.open = true;
+        for (var p = d.parentElement; p; p = p.parentElement) { if (p.tagName === 'DETAILS') p.open = true; }
+        document.getElementById(id).scrollIntoView(); return;
+      }
+    }
+  }
+  window.addEventListener('hashchange', reveal); reveal();
+})();"""
+
+
+def _csp_hash(script: str) -> str:
+    """The Content-Security-Policy source of an inline script: ``'sha256-…'`` of its UTF-8 bytes."""
+    return "'sha256-" + base64.b64encode(hashlib.sha256(script.encode("utf-8")).digest()).decode("ascii") + "'"
+
+
+#: The key columns of a set's summary table: ``(measure, header with unit, format)``; format "pct" is a
+#: share shown in %, "cm2"/"cm" a value in m² / m shown in cm² / cm, a number the significant digits.
+SUMMARY_COLUMNS: tuple[tuple[str, str, Any], ...] = (
+    ("path_length", "L [m]", 3),
+    ("A_sigma_along", "A: σ along [m]", 3),
+    ("A_sigma_across", "A: σ across [m]", 3),
+    ("MC_sigma_across", "Monte Carlo: σ across [m]", 3),
+    ("MC_coverage_3s", "Monte Carlo in A's 98.89 % ellipse [%]", "pct"),
+    ("accuracy_unscented_coverage_xy_98_89", "Monte Carlo in C's 98.89 % ellipse [%]", "pct"),
+    ("accuracy_cartesian_hellinger", "Hellinger A to Monte Carlo", 3),
+    ("accuracy_expcoords_hellinger", "Hellinger exp. coords to Monte Carlo", 3),
+)
+
+#: Every per-run column of a set's full table: ``(group, measure, header, format)`` (as :data:`SUMMARY_COLUMNS`).
+RUN_COLUMNS: tuple[tuple[str, str, str, Any], ...] = (
+    ("", "path_length", "L [m]", 4),
+    ("Method A (covariance)", "A_sigma_along", "σ along [m]", 4),
+    ("Method A (covariance)", "A_sigma_across", "σ across [m]", 4),
+    ("Method A (covariance)", "A_sigma_theta", "σ<sub>θ</sub> [rad]", 4),
+    ("Method A (covariance)", "A_ellipse_major", "ellipse a [m]", 4),
+    ("Method A (covariance)", "A_ellipse_minor", "ellipse b [m]", 4),
+    ("Method A (covariance)", "A_bend_ratio", "bend ratio ρ", 2),
+    ("Method C (sigma points)", "C_sigma_along", "σ along [m]", 4),
+    ("Method C (sigma points)", "C_sigma_across", "σ across [m]", 4),
+    ("Method C (sigma points)", "C_mean_shift_along", "mean shift along [m]", 3),
+    ("Method C (sigma points)", "C_mean_shift_across", "mean shift across [m]", 3),
+    ("Method C (sigma points)", "accuracy_unscented_coverage_xy_98_89", "MC in its 98.89 % ellipse", "pct"),
+    ("Monte Carlo", "MC_sigma_along", "σ along [m]", 4),
+    ("Monte Carlo", "MC_sigma_across", "σ across [m]", 4),
+    ("Monte Carlo", "MC_coverage_3s", "in A's 98.89 % ellipse", "pct"),
+    ("Monte Carlo", "MC_cov_rel_error", "Σ rel. error", 3),
+    ("Monte Carlo", "MC_ks_gauss", "KS to χ²₂", 3),
+    ("Monte Carlo", "MC_ks_crit", "KS crit.", 2),
+    ("Monte Carlo", "MC_bend", "bend", 3),
+    ("Monte Carlo", "MC_bend_crit", "bend noise", 2),
+    ("Monte Carlo", "MC_mean_shift_along", "mean shift along [m]", 3),
+    ("Monte Carlo", "MC_mean_shift_across", "mean shift across [m]", 3),
+    ("Hellinger to Monte Carlo", "accuracy_cartesian_hellinger", "A, Cartesian", 3),
+    ("Hellinger to Monte Carlo", "accuracy_expcoords_hellinger", "A, exp. coords", 3),
+    ("Hellinger to Monte Carlo", "accuracy_unscented_hellinger", "C", 3),
+    ("Hellinger to Monte Carlo", "accuracy_monte_carlo_hellinger_floor", "floor", 2),
+    ("compute time [s]", "time_covariance", "A", 2),
+    ("compute time [s]", "time_unscented", "C", 2),
+    ("compute time [s]", "time_monte_carlo", "MC", 2),
+)
+
+
+def _has(value: Any) -> bool:
+    return value is not None and not (isinstance(value, float) and math.isnan(value)) and value != ""
+
+
+def _columns(runs: list[dict[str, Any]], spec: tuple[tuple[Any, ...], ...]) -> list[tuple[Any, ...]]:
+    """The columns of ``spec`` (measure second-to-last-but-one: ``spec[i][-3]``) that hold a value in some run."""
+    return [c for c in spec if any(_has(r["m"].get(c[-3])) for r in runs)]
+
+
+def _map_columns(runs: list[dict[str, Any]]) -> list[tuple[str, str, str, Any]]:
+    """The Method B columns of a set's full table: per map name, its logged region, peak offset, Hellinger, time."""
+    names: list[str] = []
+    for r in runs:
+        names += [n for n in r["maps"] if n not in names]
+    cols = []
+    for n in names:
+        g = f"Method B map {n}"
+        cols += [(g, f"map_{n}_region_area", "98.89 % region [cm²]", "cm2"), (g, f"map_{n}_peak_offset", "peak offset [cm]", "cm"),
+                 (g, f"map_{n}_hellinger_sampler", "Hellinger to its sampler", 3),
+                 (g, f"map_{n}_hellinger_floor", "floor", 2), (g, f"time_map_{n}", "time [s]", 2)]  # fmt: skip
+    return _columns(runs, tuple(cols))
+
+
+def _cell(value: Any, kind: Any) -> str:
+    """A table cell's text: the value formatted by ``kind`` (see :data:`SUMMARY_COLUMNS`), "–" for none."""
+    if not _has(value):
+        return "–"
+    if kind == "pct":
+        return f"{100.0 * float(value):.2f} %"
+    if kind == "cm2":
+        return _fmt(float(value) * 1e4, 4)
+    if kind == "cm":
+        return _fmt(float(value) * 100.0, 3)
+    return _fmt(value, int(kind))
+
+
+def _flat(params: Mapping[str, Any], prefix: str = "") -> list[tuple[str, str]]:
+    """A run's logged parameters as ``(dotted key, value as JSON)`` rows, for a two-column table."""
+    rows: list[tuple[str, str]] = []
+    for k, v in params.items():
+        key = f"{prefix}{k}"
+        if isinstance(v, Mapping) and v:
+            rows += _flat(v, key + ".")
+        elif isinstance(v, list) and v and all(isinstance(x, Mapping) for x in v):
+            for i, x in enumerate(v):
+                rows += _flat(x, f"{key}[{i}].")
+        else:
+            rows.append((key, json.dumps(v, ensure_ascii=False)))
+    return rows
 
 
 def _data_uri(path: str | os.PathLike[str], encoded: Mapping[str, bytes] | None = None) -> str:
@@ -101,6 +293,18 @@ def _webp(png: Path) -> bytes:
         out = io.BytesIO()
         image.save(out, format="WEBP", lossless=True, method=2, exact=True)
     return out.getvalue()
+
+
+def _img(path: str | os.PathLike[str], alt: str, uri: Any, *, eager: bool = False) -> Markup:
+    """An ``<img>`` of the inlined figure with its alt text and its size in CSS pixels (the PNG's at
+    :data:`pose_uncertainty.present.figures.HIDPI`-times density), so the page does not shift as it loads."""
+    from .figures import HIDPI
+
+    with Image.open(path) as image:
+        w, h = image.size
+    lazy = "" if eager else ' loading="lazy"'
+    return Markup(f'<img src="{uri(path)}" alt="{html.escape(alt)}" width="{round(w / HIDPI)}" '
+                  f'height="{round(h / HIDPI)}" decoding="async"{lazy}>')  # fmt: skip
 
 
 def _fmt(value: Any, digits: int = 4) -> str:
@@ -162,6 +366,9 @@ def _environment() -> jinja2.Environment:
     env.filters["fmt"] = _fmt
     env.filters["datauri"] = _data_uri
     env.filters["pct"] = lambda v: "–" if v is None else f"{100.0 * float(v):.2f} %"
+    env.filters["cite"] = cite
+    env.filters["cell"] = lambda v, kind: _cell(v, kind)
+    env.filters["flat"] = _flat
     return env
 
 
@@ -225,7 +432,8 @@ def _sets(manifest: Mapping[str, Any], tables: Mapping[str, str | os.PathLike[st
         rows = {r["run"]: r for r in read_table(tables[s["name"]])} if s["name"] in tables else {}
         runs = [{**_with_row(r, rows.get(r["id"], {})), "maps": [k[4:] for k in r["figures"] if k.startswith("map_")]}
                 for r in s["runs"]]  # fmt: skip
-        sets.append({**s, "runs": runs})
+        sets.append({**s, "runs": runs, "summary_columns": _columns(runs, SUMMARY_COLUMNS),
+                     "columns": _columns(runs, RUN_COLUMNS) + _map_columns(runs)})
     return sets
 
 
@@ -316,6 +524,7 @@ def build_report(
     env = _environment()
     encoded = _encode_all(_pngs(manifest, localization or {}, dict(studies_figures or {})))
     env.filters["datauri"] = lambda path: _data_uri(path, encoded)
+    env.filters["img"] = lambda path, alt, eager=False: _img(path, alt, env.filters["datauri"], eager=eager)
     text = env.get_template("comparison.html.j2").render(
         title=title,
         sets=sets,
@@ -340,6 +549,9 @@ def build_report(
         # compact (the reports/studies.json file itself is indented): 0.4 MB of the report's 10 MB budget
         studies_json=json.dumps(studies["studies"], sort_keys=True, separators=(", ", ": ")) if studies["studies"] else "",
         localization=_localization(localization, localization_tables or {}),
+        references=[{"key": k, "entry": Markup(e)} for k, _, e in REFERENCES],
+        lazy_script=LAZY_SCRIPT,
+        script_hash=_csp_hash(LAZY_SCRIPT),
     )
     p = Path(out)
     p.parent.mkdir(parents=True, exist_ok=True)

@@ -36,7 +36,7 @@ def error_sources_vs_monte_carlo(
 
     Returns
     -------
-    dict: ``k_equivalent`` [m], ``k_seed001_factor`` (Šafránek 2022's
+    dict: ``k_equivalent`` [m], ``k_thesis_factor`` (Šafránek 2022's
     ``0.01·σ_v²``), the Monte Carlo total-travel variance per metre of the
     right wheel ``k_mc_travel`` [m], and Method A's against the Monte Carlo
     end-pose variances ``var_<x|y|theta>_method_a`` / ``_mc``.
@@ -52,7 +52,7 @@ def error_sources_vs_monte_carlo(
     out = {
         "speed_variance": float(wn.speed_variance(sources, speed)),
         "k_equivalent": k,
-        "k_seed001_factor": 0.01 * float(wn.speed_variance(sources, speed)),
+        "k_thesis_factor": 0.01 * float(wn.speed_variance(sources, speed)),
         "k_mc_travel": float(ds_r.sum(axis=1).var(ddof=1) / L),
         "n_samples": float(n),
     }

@@ -47,13 +47,13 @@ def integrate_in_type(
     track : float [m]; dt : float — step [s]
     number_type : {"int_mm", "float32", "float64", "longdouble"}
     method : {"exact", "midpoint", "euler", "euler_end"}
-    scheme : {"full", "seed001"}
+    scheme : {"full", "thesis"}
         ``full`` — every quantity (speeds, step, heading, trigonometry,
-        positions) in the type (floats only); ``seed001`` — as Šafránek 2022's C++:
+        positions) in the type (floats only); ``thesis`` — as Šafránek 2022's C++:
         positions and speeds in the type, heading and the increments in double,
         each increment added to the stored position and converted back to the
         type (for integers with truncation toward zero). ``int_mm`` always
-        uses ``seed001``.
+        uses ``thesis``.
 
     Returns
     -------
@@ -61,7 +61,7 @@ def integrate_in_type(
     """
     check_choice("number_type", number_type, NUMBER_TYPES)
     check_choice("method", method, METHODS)
-    check_choice("scheme", scheme, ("full", "seed001"))
+    check_choice("scheme", scheme, ("full", "thesis"))
     step = float(check_positive("dt", dt))
     r_m = np.atleast_2d(np.asarray(ds_r, dtype=np.float64))
     l_m = np.atleast_2d(np.asarray(ds_l, dtype=np.float64))
@@ -73,7 +73,7 @@ def integrate_in_type(
     if scheme == "full" and not is_int:
         x, y, th64 = _integrate_all_in_type(vr_t, vl_t, track, step, method, T)
     else:
-        x, y, th64 = _integrate_as_seed001(vr_t, vl_t, track, step, method, T)
+        x, y, th64 = _integrate_as_thesis(vr_t, vl_t, track, step, method, T)
     return np.stack([x.astype(np.float64) / 1000.0, y.astype(np.float64) / 1000.0, th64], -1)
 
 
@@ -113,10 +113,10 @@ def _integrate_all_in_type(
     return x, y, th.astype(np.float64)
 
 
-def _integrate_as_seed001(
+def _integrate_as_thesis(
     vr_t: NDArray, vl_t: NDArray, track: float, step: float, method: str, T: Any
 ) -> tuple[NDArray, NDArray, NDArray[np.float64]]:
-    """Scheme ``seed001``, as Šafránek 2022's C++: positions and speeds in ``T``, the rest in double.
+    """Scheme ``thesis``, as Šafránek 2022's C++: positions and speeds in ``T``, the rest in double.
 
     Each increment is computed in double, added to the stored position and
     converted back to ``T`` (integers: truncated toward zero). Arguments and
@@ -191,7 +191,7 @@ def number_type_drift(
             rows.append(
                 {
                     "number_type": nt,
-                    "scheme": "seed001" if nt == "int_mm" else scheme,
+                    "scheme": "thesis" if nt == "int_mm" else scheme,
                     "n_steps": N,
                     "distance": N * dt * (v_r + v_l) / 2,
                     "position_error": float(math.hypot(end[0] - truth[0], end[1] - truth[1])),
@@ -208,7 +208,7 @@ def number_type_clouds(
     seed: int,
     *,
     regime: str = "per_step",
-    scheme: str = "seed001",
+    scheme: str = "thesis",
     number_types: Sequence[str] = NUMBER_TYPES,
 ) -> dict[str, dict[str, Any]]:
     """What each number type does to the cloud: same wheel-speed draws, four arithmetics.
@@ -241,7 +241,7 @@ def number_type_clouds(
 
 def number_type_clouds_study(
     v_r: float = 1.0, v_l: float = 1.0, duration: float = 1.0, dt: float = 0.01, track: float = 0.1,
-    n: int = 1000, seed: int = 3, regime: str = "per_step", scheme: str = "seed001",
+    n: int = 1000, seed: int = 3, regime: str = "per_step", scheme: str = "thesis",
 ) -> dict[str, Any]:
     """:func:`number_type_clouds` with Šafránek 2022's error sources."""
     t = constant_speed_trajectory(v_r, v_l, duration, dt, track)

@@ -1,0 +1,118 @@
+"""The report in a browser, measured: Lighthouse on ``reports/comparison.html`` (``make bench-report``).
+
+Serves the report's folder from 127.0.0.1 with Python's ``http.server`` (on a free port, in a
+thread), runs Lighthouse (npm ``lighthouse``, exactly the version pinned in
+``benchmarks/lighthouse/package.json`` and its lock file) with Debian's Chromium
+(``CHROME_PATH``, default ``/usr/bin/chromium``; flags ``--headless --no-sandbox --disable-gpu``)
+once with the desktop preset and once with the default mobile one, and writes the category
+scores, the paint timings and the page's weight to ``benchmarks/results/report.json`` (which the
+report's "Speed benchmarks" section shows on its next build).
+
+Usage: ``python -m benchmarks.report_lighthouse [REPORT.html] [--name report]``. Timings depend
+on the machine and on what else runs on it: the machine is recorded with them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import http.server
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import threading
+from pathlib import Path
+from typing import Any
+
+from benchmarks._common import write_results
+
+HERE = Path(__file__).resolve().parent / "lighthouse"
+LIGHTHOUSE = HERE / "node_modules" / ".bin" / "lighthouse"
+CHROME_FLAGS = "--headless --no-sandbox --disable-gpu"
+
+#: audit id -> (result key, factor): timings in s (Lighthouse gives ms), weights in MB
+AUDITS = {
+    "first-contentful-paint": ("first_contentful_paint_s", 1e-3),
+    "largest-contentful-paint": ("largest_contentful_paint_s", 1e-3),
+    "speed-index": ("speed_index_s", 1e-3),
+    "interactive": ("time_to_interactive_s", 1e-3),
+    "total-blocking-time": ("total_blocking_time_s", 1e-3),
+    "cumulative-layout-shift": ("cumulative_layout_shift", 1.0),
+    "total-byte-weight": ("page_weight_MB", 1e-6),
+    "dom-size": ("dom_elements", 1.0),
+}
+
+
+class _Quiet(http.server.SimpleHTTPRequestHandler):
+    """The static file server, without a log line per request."""
+
+    def log_message(self, format: str, *args: Any) -> None:
+        pass
+
+
+def _version() -> str:
+    lock = json.loads((HERE / "package-lock.json").read_text(encoding="utf-8"))
+    return str(lock["packages"]["node_modules/lighthouse"]["version"])
+
+
+def summarize(lhr: dict[str, Any]) -> dict[str, Any]:
+    """The scores (0–1) of the four categories, the timings [s], the weight [MB] and the DOM size of one run,
+    with the audits that failed (score < 0.9) by id."""
+    out: dict[str, Any] = {f"score_{k.replace('-', '_')}": v.get("score") for k, v in lhr["categories"].items()}
+    for audit, (key, factor) in AUDITS.items():
+        value = lhr["audits"].get(audit, {}).get("numericValue")
+        out[key] = None if value is None else value * factor
+    failed = sorted(k for k, a in lhr["audits"].items()
+                    if a.get("score") is not None and a.get("scoreDisplayMode") in ("binary", "numeric") and a["score"] < 0.9)  # fmt: skip
+    out["failed_audits"] = ", ".join(failed)
+    return out
+
+
+def run(report: Path, preset: str, port: int, chrome: str) -> dict[str, Any]:
+    """One Lighthouse run (``preset``: "desktop" or "mobile") on the served report; its summary."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "lhr.json"
+        cmd = [str(LIGHTHOUSE), f"http://127.0.0.1:{port}/{report.name}", "--output=json", f"--output-path={out}",
+               f"--chrome-flags={CHROME_FLAGS}", "--quiet", "--only-categories=performance,accessibility,best-practices,seo",
+               "--max-wait-for-load=120000"]  # fmt: skip
+        if preset == "desktop":
+            cmd.append("--preset=desktop")
+        proc = subprocess.run(cmd, env={**os.environ, "CHROME_PATH": chrome}, capture_output=True, text=True,
+                              check=False, timeout=900)  # fmt: skip
+        if proc.returncode != 0 or not out.is_file():
+            raise SystemExit(f"lighthouse failed ({preset}, exit {proc.returncode}): {proc.stderr.strip()[-400:]}")
+        return summarize(json.loads(out.read_text(encoding="utf-8")))
+
+
+def main(argv: list[str] | None = None) -> Path:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("report", nargs="?", default="reports/comparison.html")
+    ap.add_argument("--name", default="report", help="results file benchmarks/results/<name>.json")
+    args = ap.parse_args(argv)
+    report = Path(args.report).resolve()
+    chrome = os.environ.get("CHROME_PATH", "/usr/bin/chromium")
+    if not report.is_file():
+        raise SystemExit(f"no report at {report}: build it first (make report)")
+    if not LIGHTHOUSE.is_file():
+        raise SystemExit(f"lighthouse is not installed in {HERE}: run `npm ci --prefix {HERE}` (make bench-report does)")
+    if not shutil.which(chrome):
+        raise SystemExit(f"no Chromium at {chrome}: apt-get install -y chromium, or set CHROME_PATH")
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), functools.partial(_Quiet, directory=str(report.parent)))
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    try:
+        port = server.server_address[1]
+        results = {preset: run(report, preset, port, chrome) for preset in ("desktop", "mobile")}
+    finally:
+        server.shutdown()
+    for preset, r in results.items():
+        r["report_MB"] = report.stat().st_size / 1e6
+        r["lighthouse"] = _version()
+        print(preset, json.dumps(r, indent=1), file=sys.stderr)
+    return write_results(args.name, results)
+
+
+if __name__ == "__main__":
+    print(main())

@@ -1,0 +1,244 @@
+"""The report as a reader's document, checked on a report built from one small run (fast).
+
+* every work it names is cited by author and year and linked to a full entry under References;
+  none of the development words (``issue``, ``SPEC``, a private document number) reaches its text;
+* every internal link resolves (an id inside a run's ``<template>`` counts: the page's script opens
+  the run when a link points into it), and the one inline script is allowed by its CSP hash;
+* a set's summary table has at most 10 columns, and no table shows a column without a value;
+* every image has alt text and a size; a run's figures are inert until the run is opened;
+* every number of the abstract equals the logged value it names (:func:`abstract_mismatches`,
+  also run on the quick pipeline's report in tests/test_pipeline.py).
+"""
+
+from __future__ import annotations
+
+import base64
+import csv
+import hashlib
+import json
+import math
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from pose_uncertainty.present import report as rp
+
+#: Words of our own development that must not reach the report (beyond tests/test_words.py's FORBIDDEN).
+REPORT_FORBIDDEN = {
+    "the tracker": re.compile(r"\bissues?\b", re.IGNORECASE),
+    "the internal specification": re.compile(r"\bSPEC\b"),
+    "a source document by number": re.compile(r"\bseed[ _-]?0\d\d\b|seed0\d\d", re.IGNORECASE),
+}
+
+
+def report_words(html: str) -> list[str]:
+    """Every forbidden word of the report's text (inlined image data is not text)."""
+    text = re.sub(r"data:[^\"')\s]+", "data:", html)
+    return [f"{kind}: {m.group(0)!r} in …{text[max(0, m.start() - 60):m.end() + 40]!r}…"
+            for kind, pattern in REPORT_FORBIDDEN.items() for m in pattern.finditer(text)]  # fmt: skip
+
+
+def unresolved_links(html: str) -> list[str]:
+    """Internal links (``href="#id"``) with no element of that id (ids inside ``<template>`` count)."""
+    ids = set(re.findall(r'\bid="([^"]+)"', html))
+    return sorted({h for h in re.findall(r'href="#([^"]*)"', html) if h not in ids})
+
+
+def _logged(path: str, files: dict[str, Any]) -> Any:
+    """The value a ``data-src`` names: ``claims.<keys>``, ``studies.<keys>`` (``number=N`` picks the
+    list item with that number, an integer the item at that index) or ``table.<table>.<run>.<measure>``."""
+    if path.startswith("table."):
+        table, run, measure = path[len("table."):].rsplit(".", 2)
+        rows = {r["run"]: r for r in files["tables"][table]}
+        return float(rows[run][measure])
+    head, *keys = path.split(".")
+    node = files[head]
+    i = 0
+    while i < len(keys):
+        key = keys[i]
+        # keys with a dot of their own (coverage_xy_98.89) are not used by the abstract
+        if isinstance(node, list):
+            if key.startswith("number="):
+                node = next(x for x in node if x["number"] == int(key.split("=")[1]))
+            else:
+                node = node[int(key)]
+        else:
+            node = node[key]
+        i += 1
+    return node
+
+
+def abstract_mismatches(html: str, files: dict[str, Any]) -> list[str]:
+    """Numbers of the abstract and of the headline figure's caption that do not equal the value they name.
+
+    ``files``: ``{"claims": claims.json, "studies": studies.json, "tables": {name: rows}}``. Each number is a
+    ``<span class="num" data-src=… data-value=…>``: its data-value must equal the logged value, and its text
+    must be that value formatted (:func:`pose_uncertainty.present.report._cell`). Returns one line per mismatch;
+    a report without any number in its abstract is a mismatch too.
+    """
+    spans = re.findall(r'<span class="num" data-src="([^"]+)" data-value="([^"]+)">([^<]*)</span>', html)
+    if not spans:
+        return ["no number in the abstract"]
+    bad = []
+    for src, value, shown in spans:
+        logged = _logged(src, files)
+        claimed = json.loads(value.replace("&#34;", '"'))
+        if not math.isclose(float(claimed), float(logged), rel_tol=0, abs_tol=0):
+            bad.append(f"{src}: shows {claimed}, logged {logged}")
+        if shown not in {rp._cell(logged, k) for k in ("pct", "cm", "cm2", 2, 3, 4)}:
+            bad.append(f"{src}: text {shown!r} is not the logged {logged} formatted")
+    return bad
+
+
+# --- small pieces --------------------------------------------------------------------------
+
+
+def test_cite_links_every_work_to_its_entry_and_escapes_plain_text() -> None:
+    out = str(rp.cite("Thrun, Burgard & Fox 2005 §8.3; Skalka 2011 ch. 2 <b>"))
+    assert out == ('<a class="cite" href="#ref-thrun2005">Thrun, Burgard &amp; Fox 2005</a> §8.3; '
+                   '<a class="cite" href="#ref-skalka2011">Skalka 2011</a> ch. 2 &lt;b&gt;')  # fmt: skip
+    # the longest name wins: "Borenstein & Feng 1996" is one link, not "Borenstein & Feng" plus " 1996"
+    assert str(rp.cite("Borenstein & Feng 1996")).count("<a ") == 1
+    keys = [k for k, _, _ in rp.REFERENCES]
+    assert len(keys) == len(set(keys))
+    for name in ("Němec 2012", "Šafránek 2022", "Skalka 2011", "Kulich 2014", "the Russian lecture deck on motion models",
+                 "Siegwart & Nourbakhsh", "Long et al. RSS 2012", "Borenstein & Feng 1996", "Julier & Uhlmann"):  # fmt: skip
+        assert 'href="#ref-' in str(rp.cite(name)), name
+    for key, _, entry in rp.REFERENCES:  # a full entry: a title in italics and a year
+        assert "<i>" in entry, key
+        assert re.search(r"\b(19|20)\d\d\b|no author, institution or year", entry), key
+
+
+def test_columns_without_a_value_are_left_out_and_the_summary_is_short() -> None:
+    runs = [{"m": {"path_length": 1.0, "A_sigma_along": 0.1, "MC_sigma_across": math.nan}, "maps": ["v"]},
+            {"m": {"path_length": 2.0, "A_sigma_along": None, "map_v_region_area": 1e-4}, "maps": ["v"]}]
+    cols = [c[0] for c in rp._columns(runs, rp.SUMMARY_COLUMNS)]
+    assert cols == ["path_length", "A_sigma_along"]
+    assert len(rp.SUMMARY_COLUMNS) + 1 <= 10  # with the run column
+    assert all("[" in head or "Hellinger" in head for _, head, _ in rp.SUMMARY_COLUMNS)  # units, or unitless
+    assert [c[1] for c in rp._map_columns(runs)] == ["map_v_region_area"]
+    assert rp._cell(1e-4, "cm2") == "1"
+    assert rp._cell(0.5, "pct") == "50.00 %"
+    assert rp._cell(None, 3) == "–"
+
+
+def test_the_run_config_is_a_two_column_table_not_a_json_wall() -> None:
+    rows = rp._flat({"seed": 5, "trajectory": {"name": "arc", "track": 0.2}, "maps": [{"name": "v", "alphas": [1, 2]}]})
+    assert rows == [("seed", "5"), ("trajectory.name", '"arc"'), ("trajectory.track", "0.2"),
+                    ("maps[0].name", '"v"'), ("maps[0].alphas", "[1, 2]")]  # fmt: skip
+
+
+def test_the_csp_hash_is_the_scripts() -> None:
+    digest = base64.b64encode(hashlib.sha256(rp.LAZY_SCRIPT.encode()).digest()).decode()
+    assert rp._csp_hash(rp.LAZY_SCRIPT) == f"'sha256-{digest}'"
+
+
+def test_abstract_check_catches_a_wrong_number() -> None:
+    files = {"claims": {"claims": [{"number": 1, "numbers": {"slope": 1.5}}]}, "studies": {}, "tables": {}}
+    good = '<span class="num" data-src="claims.claims.number=1.numbers.slope" data-value="1.5">1.5</span>'
+    assert abstract_mismatches(good, files) == []
+    assert abstract_mismatches(good.replace('"1.5"', '"1.6"'), files)
+    assert abstract_mismatches(good.replace(">1.5<", ">1.6<"), files)
+    assert abstract_mismatches("<p>no numbers</p>", files)
+
+
+# --- a report built from one small run -----------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def small_report(tmp_path_factory: pytest.TempPathFactory) -> tuple[str, Path]:
+    from pose_uncertainty.experiments.run import RunConfig, execute
+    from pose_uncertainty.pipeline.claims import write_claims
+    from pose_uncertainty.pipeline.summary import summarize_pipeline
+    from pose_uncertainty.pipeline.tables import collect_table
+    from pose_uncertainty.records.run import write_run
+
+    tmp = tmp_path_factory.mktemp("small_report")
+    cfg = {"name": "r1", "seed": 5, "k_r": 5e-4, "k_l": 5e-4, "n_ellipses": 2, "monte_carlo": {"n_particles": 200},
+           "trajectory": {"name": "straight", "length": 1.0, "dt": 0.1, "speed": 0.5, "track": 0.2}}
+    log = write_run(tmp / "r1.mcap", execute(RunConfig.from_dict(cfg)))
+    table = collect_table("S_small", [log], None, tmp / "S_small.csv")
+    png = tmp / "trajectory.png"
+    Image.fromarray(np.full((60, 80, 3), 200, np.uint8)).save(png)
+    run = {"id": "r1", "log": str(log), "swept": {"k_r": 0}, "figures": {"trajectory": str(png)}}
+    manifest = {"sets": [{"name": "S_small", "title": "Chassis", "source": "Šafránek 2022 §4.2", "description": "",
+                          "table": str(table), "figures": {}, "runs": [run]}], "config": {}}  # fmt: skip
+    out = rp.build_report(manifest, {"S_small": table}, write_claims({"S_small": table}, tmp / "claims.json"),
+                          summarize_pipeline({"S_small": table}, [], [], tmp / "pipeline.json"), tmp / "r.html")
+    return out.read_text(encoding="utf-8"), tmp
+
+
+def test_the_small_report_has_no_development_words_and_cites_its_sources(small_report: tuple[str, Path]) -> None:
+    html, _ = small_report
+    assert report_words(html) == []
+    assert '<li id="ref-safranek2022">' in html
+    assert '<li id="ref-nemec2012">' in html
+    assert 'Source: <a class="cite" href="#ref-safranek2022">Šafránek 2022</a> §4.2' in html
+
+
+def test_the_small_report_links_resolve_and_its_script_is_allowed(small_report: tuple[str, Path]) -> None:
+    html, _ = small_report
+    assert unresolved_links(html) == []
+    script = re.search(r"<script>(.*?)</script>", html, re.DOTALL)
+    assert script is not None
+    assert script.group(1) == rp.LAZY_SCRIPT
+    csp = re.search(r'http-equiv="Content-Security-Policy" content="([^"]+)"', html)
+    assert csp is not None
+    assert rp._csp_hash(rp.LAZY_SCRIPT) in csp.group(1).replace("&#39;", "'")
+    assert "https:" not in html
+    assert "http:" not in html
+
+
+def test_the_small_reports_tables_and_images(small_report: tuple[str, Path]) -> None:
+    html, _ = small_report
+    summary = html[html.index("<h3>Comparison per run</h3>"):html.index('<details class="full">')]
+    heads = re.findall(r"<th>", summary.split("</thead>")[0])
+    assert 2 <= len(heads) <= 10
+    body = summary.split("</thead>")[1]
+    cells = re.findall(r'<td class="n">([^<]*)</td>', body)
+    assert cells
+    assert "–" not in cells
+    imgs = re.findall(r"<img [^>]*>", html)
+    assert imgs
+    for i in imgs:
+        assert re.search(r'alt="[^"]{8,}"', i), i
+        assert 'width="' in i, i
+        assert 'height="' in i, i
+    run = html[html.index('id="run-S_small-r1"'):]
+    assert run.index("<template>") < run.index("<img ") < run.index("</template>")  # inert until opened
+    assert 'width="40" height="30"' in run  # an 80 × 60 PNG is shown at half its pixels (2×)
+
+
+def test_the_quick_tables_match_the_abstract_format(small_report: tuple[str, Path]) -> None:
+    """The abstract reader of the quick report reads this table format (``run`` column, measures as numbers)."""
+    _, tmp = small_report
+    with open(tmp / "S_small.csv", encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    assert rows[0]["run"] == "r1"
+    assert float(rows[0]["path_length"]) == pytest.approx(1.0)
+
+
+def test_log_axes_show_every_point_with_room() -> None:
+    """The accuracy-against-time figure's limits hold every finite point (the histogram filter's far to
+    the right included), checked against the points' own extent."""
+    from pose_uncertainty.present import figures
+    from pose_uncertainty.present.localization import _fit_log_limits
+
+    fig = figures.new_figure((4.0, 3.0))
+    ax = fig.add_subplot()
+    pts = [(0.05, 0.03), (0.2, 0.02), (40.0, 0.5), (float("nan"), 1.0), (0.0, 2.0)]
+    for x, y in pts:
+        ax.plot([x], [y], ls="none", marker="o")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    _fit_log_limits(ax)
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    for x, y in pts[:3]:
+        assert x0 < x < x1
+        assert y0 < y < y1
+    assert x1 >= 40.0 * 1.6  # room on the right for the run's label
+    assert y1 < 2.0  # the points it cannot draw on log axes do not stretch them
