@@ -57,5 +57,7 @@ def test_a_job_checks_the_environment_before_any_work(tmp_path: Path, monkeypatc
     spec = {"study": "integration_vs_step"}
     assert main(["run-study", "ivs", json.dumps(spec), str(tmp_path / "a.json")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "POSE_UNCERTAINTY_MAX_MEMORY" in err[0] and "1e400" in err[0]
+    assert len(err) == 1
+    assert "POSE_UNCERTAINTY_MAX_MEMORY" in err[0]
+    assert "1e400" in err[0]
     assert not list(tmp_path.iterdir())

@@ -14,7 +14,7 @@ from pose_uncertainty.methods import drive_covariance as dc
 from pose_uncertainty.methods import drive_noise as dn
 from pose_uncertainty.methods import drive_sampling as ds
 from pose_uncertainty.methods import expcoords as ec
-from pose_uncertainty.methods.wheel_noise import SEED001
+from pose_uncertainty.methods.wheel_noise import SAFRANEK_2022_CHASSIS
 
 ALL_DRIVES = [
     dr.Differential(0.2),
@@ -257,7 +257,7 @@ def test_encoder_sources_of_safranek_2022_match_monte_carlo(drive, regime):
     # quantisation (uniform), surface and additive errors: Method A uses only their variance,
     # the Monte Carlo draws them; at 20 ms steps the per-step variance is ~1e-7 m² per wheel
     path = dr.follow(drive, SHORT_ARC)
-    model = dn.DriveErrorModel(encoder=SEED001, steer_var=math.radians(0.1) ** 2)
+    model = dn.DriveErrorModel(encoder=SAFRANEK_2022_CHASSIS, steer_var=math.radians(0.1) ** 2)
     res = (
         dc.propagate_path(path, model)
         if regime == "per_step"

@@ -236,7 +236,8 @@ def test_a_repeated_key_in_the_config_file_fails_before_any_rule_runs(tmp_path: 
     proc = snakemake(work, "--configfile", "config/dup.yaml", "-n", timeout=120)
     out = proc.stdout + proc.stderr
     assert proc.returncode != 0
-    assert "dup.yaml" in out and "'report'" in out
+    assert "dup.yaml" in out
+    assert "'report'" in out
     assert not (work / "data").exists()
 
 

@@ -58,7 +58,7 @@ def test_number_type_drift():
 
 def test_integer_millimetres_collapse_the_cloud():
     t = st.constant_speed_trajectory(1.0, 1.0, 1.0, 0.01, 0.1)
-    c = st.number_type_clouds(t, wn.SEED001, 300, 3)
+    c = st.number_type_clouds(t, wn.SAFRANEK_2022_CHASSIS, 300, 3)
     # each step's sideways increment (≈10 mm × sin θ, θ ~ 0.03 rad) truncates to 0 mm
     assert c["int_mm"]["distinct_y"] <= 5
     assert c["int_mm"]["std"][1] < 0.05 * c["float64"]["std"][1]

@@ -73,7 +73,7 @@ from ..core.validation import (
 from .particles import REGIMES, integrate_end
 
 __all__ = [
-    "SEED001",
+    "SAFRANEK_2022_CHASSIS",
     "WheelErrorSources",
     "k_equivalent",
     "sample_end_poses",
@@ -124,7 +124,7 @@ class WheelErrorSources:
 
 
 #: Šafránek 2022's chassis: 65 mm wheels, 400 pulses/rev, 10 ms, 1 % surface, 0.01 m/s noise.
-SEED001 = WheelErrorSources()
+SAFRANEK_2022_CHASSIS = WheelErrorSources()
 
 
 def speed_variance(sources: WheelErrorSources, v: ArrayLike) -> NDArray[np.float64]:

@@ -21,7 +21,7 @@ from .arcs import constant_speed_trajectory
 
 
 def error_sources_vs_monte_carlo(
-    sources: wn.WheelErrorSources = wn.SEED001,
+    sources: wn.WheelErrorSources = wn.SAFRANEK_2022_CHASSIS,
     *,
     speed: float = 1.0,
     duration: float = 1.0,
@@ -104,7 +104,7 @@ def error_sources_study(
     n: int = 100_000, seed: int = 1,
 ) -> dict[str, float]:
     """:func:`error_sources_vs_monte_carlo` with Šafránek 2022's error sources."""
-    return error_sources_vs_monte_carlo(wn.SEED001, speed=speed, duration=duration, dt=dt, track=track,
+    return error_sources_vs_monte_carlo(wn.SAFRANEK_2022_CHASSIS, speed=speed, duration=duration, dt=dt, track=track,
                                         n=n, seed=seed)  # fmt: skip
 
 

@@ -245,4 +245,4 @@ def number_type_clouds_study(
 ) -> dict[str, Any]:
     """:func:`number_type_clouds` with Šafránek 2022's error sources."""
     t = constant_speed_trajectory(v_r, v_l, duration, dt, track)
-    return number_type_clouds(t, wn.SEED001, n, seed, regime=regime, scheme=scheme)
+    return number_type_clouds(t, wn.SAFRANEK_2022_CHASSIS, n, seed, regime=regime, scheme=scheme)
