@@ -300,7 +300,7 @@ def differential_twist(ds_r: ArrayLike, ds_l: ArrayLike, track: ArrayLike) -> ND
 
 
 def differential_twist_jacobian(track: ArrayLike, shape: tuple[int, ...] = ()) -> NDArray[np.float64]:
-    """``∂ξ/∂(Δs_r, Δs_l) = [[½, ½], [0, 0], [1/b, −1/b]]``, shape (*shape, 3, 2) (track broadcast)."""
+    """``∂ξ/∂(Δs_r, Δs_l) = [[½, ½], [0, 0], [1/b, −1/b]]``, shape ``(*shape, 3, 2)`` (track broadcast)."""
     inv = 1.0 / np.asarray(track, dtype=np.float64)
     half = np.full(np.broadcast_shapes(shape, inv.shape), 0.5)
     zero = np.zeros_like(half)

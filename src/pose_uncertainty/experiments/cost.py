@@ -20,8 +20,9 @@ single-step map           cells × 50 B (velocity), 160 B (odometry)    cells ×
                                                                        (cell-averaged), 700 ns (odometry)
 multi-step map            64 MiB + (24 + 0.5 M) B × padded cells: the  cells × N × 120 ns (velocity),
                           final grid (fixed ``size``, or the spread    600 ns (odometry), + 5 ms × N
-                          of the noise, at most ``max_cells``) widened
-                          by the kernel's window, M its heading offsets
+                          of the noise, at most ``max_cells``),
+                          widened by the kernel's window, M its
+                          heading offsets
 map sampler               140 B × n_sampler                            400 ns × n_sampler × N
 ellipses                  40 B × min(n_ellipses, N)                    20 µs × min(n_ellipses, N) (figures)
 ========================  ===========================================  ==================================

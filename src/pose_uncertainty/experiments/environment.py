@@ -1,17 +1,17 @@
 """The environment variables the package reads, each checked before a command does any work.
 
-==================================  =========================================================
-variable                            allowed
-==================================  =========================================================
-``POSE_UNCERTAINTY_MAX_MEMORY``     a size from 1 B to 1 EiB (``64G``, ``500M``), a percentage
-                                    in (0, 100] of the available memory (``80%``), or ``none``
-                                    (:mod:`pose_uncertainty.experiments.cost`)
-``POSE_UNCERTAINTY_MAX_SECONDS``    a duration in (0, 1e9] s (``600``, ``90m``, ``6h``) or ``none``
-``POSE_UNCERTAINTY_ENVIRONMENT_LOCK``  the path of a regular file (the ``environment.lock`` whose
-                                    sha256 the logs carry, :mod:`pose_uncertainty.core.provenance`)
-``OMP_NUM_THREADS``                 a positive integer, or OpenMP's comma-separated list of them
-                                    (:mod:`pose_uncertainty.core.threads` reads the first)
-==================================  =========================================================
+======================================  =========================================================
+variable                                allowed
+======================================  =========================================================
+``POSE_UNCERTAINTY_MAX_MEMORY``         a size from 1 B to 1 EiB (``64G``, ``500M``), a percentage
+                                        in (0, 100] of the available memory (``80%``), or ``none``
+                                        (:mod:`pose_uncertainty.experiments.cost`)
+``POSE_UNCERTAINTY_MAX_SECONDS``        a duration in (0, 1e9] s (``600``, ``90m``, ``6h``) or ``none``
+``POSE_UNCERTAINTY_ENVIRONMENT_LOCK``   the path of a regular file (the ``environment.lock`` whose
+                                        sha256 the logs carry, :mod:`pose_uncertainty.core.provenance`)
+``OMP_NUM_THREADS``                     a positive integer, or OpenMP's comma-separated list of them
+                                        (:mod:`pose_uncertainty.core.threads` reads the first)
+======================================  =========================================================
 
 An unset or empty variable takes its default. :func:`check_environment` raises ValueError
 with one line naming the variable, its value and what is allowed.

@@ -510,7 +510,7 @@ def _spread(runs: Sequence[Mapping[str, Any]], model: str) -> tuple[float, list[
 @claim(8, text="Velocity model: the speed at which a displacement is driven has no effect.",
        source="Němec 2012 §4.1.3: straight 1 m and rotation 1 rad at three speeds give the same maps.")
 def velocity_speed_no_effect(rows: Rows, c: Claim) -> None:
-    """Spread of the velocity maps' region areas over the speeds of B3_speed (and with the decks' |v| variances)."""
+    """Spread of the velocity maps' region areas over the speeds of B3_speed (and with the decks' ``α|v|`` variances)."""
     s = _set(rows, "B3_speed")
     straight = s.where({"trajectory.name": "straight"})
     parts, worst = [], 0.0

@@ -184,8 +184,9 @@ def compute(data: Mapping[str, Any]) -> View:
 
     Raises
     ------
-    ValueError — one line: a bad key or value (:meth:`RunConfig.from_dict`), or an estimated
-    cost over the limits (:class:`pose_uncertainty.experiments.cost.CostError`).
+    ValueError
+        One line: a bad key or value (:meth:`RunConfig.from_dict`), or an estimated cost over
+        the limits (:class:`pose_uncertainty.experiments.cost.CostError`).
     """
     config = RunConfig.from_dict(data)
     cost.check(config)
