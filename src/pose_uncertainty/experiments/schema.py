@@ -28,8 +28,8 @@ from ..methods.wheel_noise import WheelErrorSources
 from .config import RUN_KEYS, _map_defaults
 from .config_checks import builder_keywords
 from .config_keys import Key, keys_schema
-from .localization import LOCALIZATION_KEYS
-from .localization import code_defaults as localization_code_defaults
+from .localization_config import LOCALIZATION_KEYS
+from .localization_config import code_defaults as localization_code_defaults
 
 __all__ = ["HEADER", "config_schema", "localization_run_schema", "render", "run_schema", "sweep_axis_schema"]
 

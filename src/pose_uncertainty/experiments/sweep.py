@@ -151,7 +151,7 @@ def validate_config(config: Mapping[str, Any], schema: Mapping[str, Any]) -> dic
     The run keys (the shared ``defaults``, each set's ``base`` and sweep axes, and their
     localization counterparts) are validated by their key tables
     (:data:`~pose_uncertainty.experiments.config.RUN_KEYS`,
-    :data:`~pose_uncertainty.experiments.localization.LOCALIZATION_KEYS`) — the one validator
+    :data:`~pose_uncertainty.experiments.localization_config.LOCALIZATION_KEYS`) — the one validator
     of a run key, which ``RunConfig.from_dict`` applies again to each complete run. The JSON
     Schema (generated from the same tables for editors and documentation) checks only the
     pipeline's own structure: the sets, studies, report.
@@ -202,7 +202,7 @@ def pipeline_structure(schema: Mapping[str, Any]) -> dict[str, Any]:
 
 def _check_run_keys(config: Mapping[str, Any]) -> None:
     """The run keys of the pipeline config, by their key tables (ValueError naming the dotted key)."""
-    from .localization import LOCALIZATION_KEYS
+    from .localization_config import LOCALIZATION_KEYS
 
     for section, keys, sets in ((config, RUN_KEYS, "experiment_sets"),
                                 (config.get("localization") or {}, LOCALIZATION_KEYS, "sets")):  # fmt: skip
