@@ -77,7 +77,7 @@ def abstract_mismatches(html: str, files: dict[str, Any]) -> list[str]:
 
     ``files``: ``{"claims": claims.json, "studies": studies.json, "tables": {name: rows}}``. Each number is a
     ``<span class="num" data-src=… data-value=…>``: its data-value must equal the logged value, and its text
-    must be that value formatted (:func:`pose_uncertainty.present.report._cell`). Returns one line per mismatch;
+    must be that value formatted (:func:`pose_uncertainty.present.report._cell_text`). Returns one line per mismatch;
     a report without any number in its abstract is a mismatch too.
     """
     spans = re.findall(r'<span class="num" data-src="([^"]+)" data-value="([^"]+)">([^<]*)</span>', html)
@@ -89,7 +89,7 @@ def abstract_mismatches(html: str, files: dict[str, Any]) -> list[str]:
         claimed = json.loads(value.replace("&#34;", '"'))
         if not math.isclose(float(claimed), float(logged), rel_tol=0, abs_tol=0):
             bad.append(f"{src}: shows {claimed}, logged {logged}")
-        if shown not in {rp._cell(logged, k) for k in ("pct", "cm", "cm2", 2, 3, 4)}:
+        if shown not in {rp._cell_text(logged, k) for k in ("pct", "cm", "cm2", 2, 3, 4)}:
             bad.append(f"{src}: text {shown!r} is not the logged {logged} formatted")
     return bad
 
@@ -116,18 +116,18 @@ def test_cite_links_every_work_to_its_entry_and_escapes_plain_text() -> None:
 def test_columns_without_a_value_are_left_out_and_the_summary_is_short() -> None:
     runs = [{"m": {"path_length": 1.0, "A_sigma_along": 0.1, "MC_sigma_across": math.nan}, "maps": ["v"]},
             {"m": {"path_length": 2.0, "A_sigma_along": None, "map_v_region_area": 1e-4}, "maps": ["v"]}]
-    cols = [c[0] for c in rp._columns(runs, rp.SUMMARY_COLUMNS)]
+    cols = [c[0] for c in rp._columns_with_data(runs, rp.SUMMARY_COLUMNS)]
     assert cols == ["path_length", "A_sigma_along"]
     assert len(rp.SUMMARY_COLUMNS) + 1 <= 10  # with the run column
     assert all("[" in head or "Hellinger" in head for _, head, _ in rp.SUMMARY_COLUMNS)  # units, or unitless
     assert [c[1] for c in rp._map_columns(runs)] == ["map_v_region_area"]
-    assert rp._cell(1e-4, "cm2") == "1"
-    assert rp._cell(0.5, "pct") == "50.00 %"
-    assert rp._cell(None, 3) == "–"
+    assert rp._cell_text(1e-4, "cm2") == "1"
+    assert rp._cell_text(0.5, "pct") == "50.00 %"
+    assert rp._cell_text(None, 3) == "–"
 
 
 def test_the_run_config_is_a_two_column_table_not_a_json_wall() -> None:
-    rows = rp._flat({"seed": 5, "trajectory": {"name": "arc", "track": 0.2}, "maps": [{"name": "v", "alphas": [1, 2]}]})
+    rows = rp._param_rows({"seed": 5, "trajectory": {"name": "arc", "track": 0.2}, "maps": [{"name": "v", "alphas": [1, 2]}]})
     assert rows == [("seed", "5"), ("trajectory.name", '"arc"'), ("trajectory.track", "0.2"),
                     ("maps[0].name", '"v"'), ("maps[0].alphas", "[1, 2]")]  # fmt: skip
 

@@ -193,7 +193,7 @@ def _has(value: Any) -> bool:
     return value is not None and not (isinstance(value, float) and math.isnan(value)) and value != ""
 
 
-def _columns(runs: list[dict[str, Any]], spec: tuple[tuple[Any, ...], ...]) -> list[tuple[Any, ...]]:
+def _columns_with_data(runs: list[dict[str, Any]], spec: tuple[tuple[Any, ...], ...]) -> list[tuple[Any, ...]]:
     """The columns of ``spec`` (measure second-to-last-but-one: ``spec[i][-3]``) that hold a value in some run."""
     return [c for c in spec if any(_has(r["m"].get(c[-3])) for r in runs)]
 
@@ -209,10 +209,10 @@ def _map_columns(runs: list[dict[str, Any]]) -> list[tuple[str, str, str, Any]]:
         cols += [(g, f"map_{n}_region_area", "98.89 % region [cm²]", "cm2"), (g, f"map_{n}_peak_offset", "peak offset [cm]", "cm"),
                  (g, f"map_{n}_hellinger_sampler", "Hellinger to its sampler", 3),
                  (g, f"map_{n}_hellinger_floor", "floor", 2), (g, f"time_map_{n}", "time [s]", 2)]  # fmt: skip
-    return _columns(runs, tuple(cols))
+    return _columns_with_data(runs, tuple(cols))
 
 
-def _cell(value: Any, kind: Any) -> str:
+def _cell_text(value: Any, kind: Any) -> str:
     """A table cell's text: the value formatted by ``kind`` (see :data:`SUMMARY_COLUMNS`), "–" for none."""
     if not _has(value):
         return "–"
@@ -225,16 +225,16 @@ def _cell(value: Any, kind: Any) -> str:
     return _fmt(value, int(kind))
 
 
-def _flat(params: Mapping[str, Any], prefix: str = "") -> list[tuple[str, str]]:
+def _param_rows(params: Mapping[str, Any], prefix: str = "") -> list[tuple[str, str]]:
     """A run's logged parameters as ``(dotted key, value as JSON)`` rows, for a two-column table."""
     rows: list[tuple[str, str]] = []
     for k, v in params.items():
         key = f"{prefix}{k}"
         if isinstance(v, Mapping) and v:
-            rows += _flat(v, key + ".")
+            rows += _param_rows(v, key + ".")
         elif isinstance(v, list) and v and all(isinstance(x, Mapping) for x in v):
             for i, x in enumerate(v):
-                rows += _flat(x, f"{key}[{i}].")
+                rows += _param_rows(x, f"{key}[{i}].")
         else:
             rows.append((key, json.dumps(v, ensure_ascii=False)))
     return rows
@@ -367,8 +367,8 @@ def _environment() -> jinja2.Environment:
     env.filters["datauri"] = _data_uri
     env.filters["pct"] = lambda v: "–" if v is None else f"{100.0 * float(v):.2f} %"
     env.filters["cite"] = cite
-    env.filters["cell"] = lambda v, kind: _cell(v, kind)
-    env.filters["flat"] = _flat
+    env.filters["cell"] = lambda v, kind: _cell_text(v, kind)
+    env.filters["flat"] = _param_rows
     return env
 
 
@@ -432,8 +432,8 @@ def _sets(manifest: Mapping[str, Any], tables: Mapping[str, str | os.PathLike[st
         rows = {r["run"]: r for r in read_table(tables[s["name"]])} if s["name"] in tables else {}
         runs = [{**_with_row(r, rows.get(r["id"], {})), "maps": [k[4:] for k in r["figures"] if k.startswith("map_")]}
                 for r in s["runs"]]  # fmt: skip
-        sets.append({**s, "runs": runs, "summary_columns": _columns(runs, SUMMARY_COLUMNS),
-                     "columns": _columns(runs, RUN_COLUMNS) + _map_columns(runs)})
+        sets.append({**s, "runs": runs, "summary_columns": _columns_with_data(runs, SUMMARY_COLUMNS),
+                     "columns": _columns_with_data(runs, RUN_COLUMNS) + _map_columns(runs)})
     return sets
 
 
