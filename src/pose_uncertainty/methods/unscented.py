@@ -75,6 +75,7 @@ the start of a path, give zero columns), in closed form over the batch.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -277,6 +278,38 @@ def _check_batch(
     return kr, kl, b_, S0, batch
 
 
+def _march(
+    trajectory: Trajectory,
+    k_r: ArrayLike,
+    k_l: ArrayLike,
+    track: ArrayLike | None,
+    cov0: ArrayLike | None,
+    ut_params: tuple[float, float, float],
+    start: Callable[[NDArray, NDArray, tuple[int, ...], int], tuple[NDArray, ...]],
+    step: Callable[..., None],
+) -> tuple[NDArray, tuple[NDArray, ...]]:
+    """Method C's loop over the steps of a trajectory, every set of the batch at once.
+
+    Checks the inputs (:func:`_check_batch`), makes the scaled-UT weights of ``ut_params``
+    ``(alpha, beta, kappa)``, and calls ``step(i, covs, *extra, k_r, k_l, b, w)`` for each step
+    ``i``, which fills ``covs[i + 1]`` (time-major while stepping: each step writes one contiguous
+    block) and whatever else it carries in ``extra = start(Σ_0, b, batch, N)``.
+
+    Returns
+    -------
+    (covs, extra) — covs batch-major, shape (B..., N+1, 3, 3); extra as ``step`` left it
+    """
+    w = sigma_weights(_N_AUG, *ut_params)
+    kr, kl, b, S0, batch = _check_batch(trajectory, k_r, k_l, track, cov0)
+    n = trajectory.n_steps
+    covs = np.empty((n + 1, *batch, 3, 3))
+    covs[0] = S0
+    extra = start(S0, b, batch, n)
+    for i in range(n):
+        step(i, covs, *extra, kr, kl, b, w)
+    return np.moveaxis(covs, 0, -3).copy(), extra
+
+
 def _nominal_poses(trajectory: Trajectory, b: NDArray, method: str) -> NDArray:
     """Noiseless poses (B..., N+1, 3) for the trajectory's wheel travels and track(s) ``b``."""
     sr, sl = trajectory.ds_r, trajectory.ds_l
@@ -311,20 +344,17 @@ def propagate(
     CovarianceResult with poses (B..., N+1, 3) — UT means, heading unwrapped —
     and covs (B..., N+1, 3, 3)
     """
-    w = sigma_weights(_N_AUG, alpha, beta, kappa)
-    kr, kl, b, S0, batch = _check_batch(trajectory, k_r, k_l, track, cov0)
-    n = trajectory.n_steps
-    # time-major while stepping (each step writes one contiguous block), batch-major out
-    poses = np.empty((n + 1, *batch, 3))
-    covs = np.empty((n + 1, *batch, 3, 3))
-    poses[0], covs[0] = trajectory.start, S0
-    for i in range(n):  # a loop over steps; every set of the batch at once
-        poses[i + 1], covs[i + 1] = ut_step(
-            poses[i], covs[i], trajectory.ds_r[i], trajectory.ds_l[i], kr, kl, b, w
-        )
+    def start(S0: NDArray, b: NDArray, batch: tuple[int, ...], n: int) -> tuple[NDArray, ...]:
+        poses = np.empty((n + 1, *batch, 3))
+        poses[0] = trajectory.start
+        return (poses,)
+
+    def step(i: int, covs: NDArray, poses: NDArray, kr: NDArray, kl: NDArray, b: NDArray, w: SigmaWeights) -> None:
+        poses[i + 1], covs[i + 1] = ut_step(poses[i], covs[i], trajectory.ds_r[i], trajectory.ds_l[i], kr, kl, b, w)
+
+    covs, (poses,) = _march(trajectory, k_r, k_l, track, cov0, (alpha, beta, kappa), start, step)
     return CovarianceResult(
-        poses=np.moveaxis(poses, 0, -2).copy(), covs=np.moveaxis(covs, 0, -3).copy(),
-        times=trajectory.times,
+        poses=np.moveaxis(poses, 0, -2).copy(), covs=covs, times=trajectory.times,
     )
 
 
@@ -429,13 +459,13 @@ def propagate_se2(
     body-frame covs (B..., N+1, 3, 3)
     """
     check_choice("perturbation", perturbation, PERTURBATIONS)
-    w = sigma_weights(_N_AUG, alpha, beta, kappa)
-    kr, kl, b, S0, batch = _check_batch(trajectory, k_r, k_l, track, cov0)
-    n = trajectory.n_steps
-    mu = np.broadcast_to(_nominal_poses(trajectory, b, "exact"), (*batch, n + 1, 3))
-    covs = np.empty((n + 1, *batch, 3, 3))  # time-major while stepping
-    covs[0] = S0
-    for i in range(n):
+
+    def start(S0: NDArray, b: NDArray, batch: tuple[int, ...], n: int) -> tuple[NDArray, ...]:
+        return (np.broadcast_to(_nominal_poses(trajectory, b, "exact"), (*batch, n + 1, 3)),)
+
+    def step(i: int, covs: NDArray, mu: NDArray, kr: NDArray, kl: NDArray, b: NDArray, w: SigmaWeights) -> None:
         root = _left_root(mu[..., i, :], covs[i]) if perturbation == "left" else None
         covs[i + 1] = ut_step_se2(covs[i], trajectory.ds_r[i], trajectory.ds_l[i], kr, kl, b, w, root)
-    return ExpGaussian(poses=mu.copy(), covs=np.moveaxis(covs, 0, -3).copy(), times=trajectory.times)
+
+    covs, (mu,) = _march(trajectory, k_r, k_l, track, cov0, (alpha, beta, kappa), start, step)
+    return ExpGaussian(poses=mu.copy(), covs=covs, times=trajectory.times)
