@@ -159,3 +159,20 @@ def test_a_gaussian_with_no_mass_on_the_clouds_grid_gives_undefined_distances_no
     near = ac.compare_methods(cloud, (np.array([100.0, 50.0, 0.0]), np.diag([1e-4, 1e-4, 1e-4])), None, rng,
                               prs=(0.9,))
     assert 0.0 <= near["cartesian"]["hellinger"] <= 1.0
+
+
+def test_a_one_step_covariance_has_no_planar_banana_density_and_says_so() -> None:
+    # One step of a two-wheel drive: Σ of the exponential coordinates has rank 2, its (x, y) block
+    # given θ is singular, and the banana's planar density (by conditioning on θ) does not exist.
+    # The planar measures are NaN; the pose-space ones are still measured. (The thesis's one-step
+    # arc with Monte Carlo crashed the run before.)
+    t = tr.arc(radius=1.0, angle=1.0, speed=1.0, angular_speed=1.0, dt=1.0)
+    cloud = sp.sample_end_poses(t, 5e-4, 5e-4, 2000, np.random.default_rng(2))
+    g = ec.propagate(t, 5e-4, 5e-4)
+    with pytest.raises(ec.SingularConditionalError, match="positive definite in"):
+        ec.pdf_xy(cloud[:, :2], g.poses[-1], g.covs[-1])
+    res = ac.evaluate_expcoords(cloud, g.poses[-1], g.covs[-1], np.random.default_rng(3), prs=(0.9,))
+    assert math.isnan(res["coverage_xy_90"])
+    assert math.isnan(res["hellinger"])
+    assert math.isnan(res["loglik_xy"])
+    assert 0.0 <= res["coverage_pose_90"] <= 1.0

@@ -318,17 +318,26 @@ def evaluate_expcoords(
     C = check_finite("cov", cov)
     g = Grid.covering(s[:, :2]) if grid is None else grid
     out: dict[str, float] = {}
-    dens = ec.pdf_xy(s[:, :2], mu, C)
-    levels = ec.hdr_threshold(mu, C, np.asarray(prs), rng, n=n_threshold)
-    for pr, level in zip(prs, levels, strict=True):
-        out[f"coverage_xy_{pr_label(pr)}"] = float(np.mean(dens >= level))
+    try:
+        dens: NDArray | None = ec.pdf_xy(s[:, :2], mu, C)
+    except ec.SingularConditionalError:
+        # Σ singular given θ (one step of a two-wheel drive): the planar density, its regions and
+        # the distances on the grid are undefined here (NaN); the pose-space measures are not
+        dens = None
+    levels = ec.hdr_threshold(mu, C, np.asarray(prs), rng, n=n_threshold) if dens is not None else None
+    for i, pr in enumerate(prs):
+        out[f"coverage_xy_{pr_label(pr)}"] = (float(np.mean(dens >= levels[i])) if dens is not None
+                                              and levels is not None else math.nan)  # fmt: skip
     eps = ec.coordinates(s, mu)
     for key, val in coverage_ellipsoid(eps, np.zeros(3), C, prs).items():
         out[f"coverage_pose_{key}"] = val
-    q = cell_probabilities(lambda pts: ec.pdf_xy(pts, mu, C), g, supersample)
-    out.update(_distances(g.histogram_xy(s[:, :2]), q))
+    if dens is not None:
+        q = cell_probabilities(lambda pts: ec.pdf_xy(pts, mu, C), g, supersample)
+        out.update(_distances(g.histogram_xy(s[:, :2]), q))
+    else:
+        out.update(hellinger=math.nan, kl=math.nan, model_mass_on_grid=math.nan)
     out["loglik_pose"] = float(np.mean(ec.logpdf_pose(s, mu, C)))
-    out["loglik_xy"] = _safe_mean_log(dens)
+    out["loglik_xy"] = _safe_mean_log(dens) if dens is not None else math.nan
     # NEES in the method's own coordinates: εᵀΣ⁻¹ε (3 if consistent), planar block of ε (2)
     out["nees_pose"] = float(np.mean(mahalanobis_sq(eps, np.zeros(3), C)))
     out["nees_xy"] = float(np.mean(mahalanobis_sq(eps[:, :2], np.zeros(2), C[:2, :2])))

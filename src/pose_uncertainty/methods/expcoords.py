@@ -81,6 +81,7 @@ from ..core.validation import (
 
 __all__ = [
     "ExpGaussian",
+    "SingularConditionalError",
     "coordinates",
     "hdr_threshold",
     "logpdf_pose",
@@ -393,6 +394,11 @@ def _conditional_means(mean_pose: NDArray, S: NDArray, w: NDArray) -> tuple[NDAr
     return mean_pose[:2] + np.einsum("qij,qj->qi", A, m), A
 
 
+class SingularConditionalError(ValueError):
+    """Σ whose (x, y) block given θ is singular (e.g. one step of a two-wheel drive: Σ of rank 2):
+    the planar density is not computed by conditioning on θ, and its measures are undefined."""
+
+
 def _conditional(mean_pose: NDArray, S: NDArray, n_quad: int) -> _Conditional:
     """(x, y) | ε_θ = w: Gaussian with mean t_μ + R V(w) m(w), cov R V(w) C Vᵀ Rᵀ.
 
@@ -422,7 +428,7 @@ def _conditional(mean_pose: NDArray, S: NDArray, n_quad: int) -> _Conditional:
     Cxy = A @ C @ np.swapaxes(A, -1, -2)
     det = Cxy[:, 0, 0] * Cxy[:, 1, 1] - Cxy[:, 0, 1] ** 2
     if np.any(det <= 0):
-        raise ValueError(
+        raise SingularConditionalError(
             "cov must be positive definite in (x, y) given θ (allowed: Σ with a non-singular "
             f"conditional (x, y) block), got conditional determinant {det.min()!r}"
         )
