@@ -87,7 +87,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``pose-uncertainty`` console script; returns the exit status.
 
     Every environment variable the package reads is checked first; every error is one line on
-    stderr (:func:`._common.one_line_errors`), ``--debug`` adds the traceback; configuration
+    stderr (``cli._common.one_line_errors``), ``--debug`` adds the traceback; configuration
     warnings are one line each.
     """
     warnings.showwarning = _one_line_warning

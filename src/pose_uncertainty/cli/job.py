@@ -16,7 +16,7 @@ Commands
     :func:`pose_uncertainty.pipeline.jobs.run_study`.
 
 Exit status and errors are those of the ``pose-uncertainty`` command
-(:func:`pose_uncertainty.cli._common.one_line_errors`): 0 success; 2 bad usage, a bad
+(``pose_uncertainty.cli._common.one_line_errors``): 0 success; 2 bad usage, a bad
 configuration, a run over the cost guard's limits or an I/O error (one line on stderr, the
 rule's log, naming the key or the file); 1 a defect of the program (one line); 128 + the signal's
 number for SIGTERM and SIGHUP (a cluster's time limit), 130 for SIGINT, with no ``.part`` file
