@@ -140,3 +140,24 @@ def test_auto_uses_the_compiled_kernel_from_the_threshold(monkeypatch):
 def test_bad_kernel_name(rng):
     with pytest.raises(ValueError, match=r"kernel must be one of 'auto', 'numpy', 'compiled', got 'fast'"):
         sp.sample_end_poses(tr.straight(1.0), 1e-4, 1e-4, 10, rng, kernel="fast")
+
+
+@pytest.mark.parametrize("turns", [0.0, 50.0, 3.0e5])
+def test_particle_filter_wheel_step_compiled_equals_numpy(turns):
+    # the particle filter's motion update: the same draws moved by numpy and by the compiled loop;
+    # headings of up to 3·10⁵ turns (2·10⁶ rad, beyond the reduction: the C library's cos/sin)
+    from pose_uncertainty.localization import simulate as SIM
+    from pose_uncertainty.localization.motion import Motion, sample_motion
+    from pose_uncertainty.localization.world import World
+
+    world = World(np.array([[2.0, 1.0]]), np.arange(1))
+    run = SIM.simulate(tr.arc(radius=1.0, angle=1.0, dt=0.1), world, np.random.default_rng(1))
+    P = np.random.default_rng(2).normal(0.0, 0.1, (3000, 3))
+    P[:, 2] += 2 * math.pi * turns
+    motion = Motion(k_r=1e-3, k_l=2e-3)
+    ref = sample_motion(P, motion, run, 3, np.random.default_rng(4), compiled=False)
+    fast = sample_motion(P, motion, run, 3, np.random.default_rng(4), compiled=True)
+    # one step: positions within 3 ulp of cos/sin times the step, headings bit for bit
+    assert np.abs(fast[:, :2] - ref[:, :2]).max() <= relative_tolerance(1) * max(1.0, np.abs(ref[:, :2]).max())
+    assert_array_equal(fast[:, 2], ref[:, 2])
+    assert not np.array_equal(ref, sample_motion(P, motion, run, 3, np.random.default_rng(5), compiled=False))

@@ -172,3 +172,46 @@ def sin_cos_array(x: np.ndarray, out: np.ndarray) -> None:
     """:func:`sin_cos` of every number of ``x`` into ``out`` (2, n): cos, sin (for the tests)."""
     for i in range(x.shape[0]):
         out[0, i], out[1, i] = sin_cos(x[i])
+
+
+@_inline
+def _wheel_lanes(
+    P: np.ndarray, z: np.ndarray, travel: tuple[float, float], scale: tuple[float, float], inv_track: float,
+    out: np.ndarray, poly: bool,
+) -> float:  # fmt: skip
+    """:func:`wheel_step`'s loop; returns the largest |φ| (for the reduction's limit)."""
+    big = 0.0
+    for p in range(P.shape[0]):
+        r = z[0, p] * scale[0] + travel[0]
+        l = z[1, p] * scale[1] + travel[1]
+        ds = (r + l) * 0.5
+        dth = (r - l) * inv_track
+        th = P[p, 2]
+        phi = dth * 0.5 + th
+        aphi = abs(phi)
+        big = aphi if aphi > big else big
+        if poly:
+            c, s = sin_cos(phi)
+        else:
+            c = math.cos(phi)
+            s = math.sin(phi)
+        out[p, 0] = P[p, 0] + ds * c
+        out[p, 1] = P[p, 1] + ds * s
+        out[p, 2] = th + dth
+    return big
+
+
+@_jit
+def wheel_step(
+    P: np.ndarray, z: np.ndarray, travel_r: float, travel_l: float, scale_r: float, scale_l: float,
+    inv_track: float, out: np.ndarray,
+) -> None:  # fmt: skip
+    """The particle filter's wheel-model step (:func:`pose_uncertainty.localization.motion.sample_motion`).
+
+    ``Δs' = Δs + z √(k|Δs|)`` per wheel, then the midpoint step, with the arithmetic of the numpy
+    route; the polynomial ``cos``/``sin``, or the C library's for headings beyond ``REDUCTION_LIMIT``.
+    """
+    travel = (travel_r, travel_l)
+    scale = (scale_r, scale_l)
+    if _wheel_lanes(P, z, travel, scale, inv_track, out, True) > REDUCTION_LIMIT:
+        _wheel_lanes(P, z, travel, scale, inv_track, out, False)
