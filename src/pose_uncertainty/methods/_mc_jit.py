@@ -82,7 +82,7 @@ def _lanes(
         d = (total - e * rest) + off[q]  # δ = Σ_{j<i} e_j + c e_i (+ the start's heading offset)
         cum[q] = total
         ad = abs(d)
-        big[q] = ad if ad > big[q] else big[q]
+        big[q] = max(big[q], ad)
         if poly:
             cd, sd = sin_cos(d)
         else:
@@ -189,7 +189,7 @@ def _wheel_lanes(
         th = P[p, 2]
         phi = dth * 0.5 + th
         aphi = abs(phi)
-        big = aphi if aphi > big else big
+        big = max(big, aphi)
         if poly:
             c, s = sin_cos(phi)
         else:

@@ -5,7 +5,7 @@ What it computes
 The end poses of :func:`.drive_sampling.sample_poses` for a differential drive with the
 travel noise ``k`` (both regimes, any integration method, an optional start-pose
 covariance), from the same standard normals, drawn by numpy from the same streams in the
-same order: the numbers it returns equal numpy's (the reference, :func:`.drive_sampling._end_poses`)
+same order: the numbers it returns equal numpy's (the reference, ``drive_sampling._end_poses``)
 up to rounding. Per particle and step ``i`` it forms the wheel errors, the twist
 perturbation ``δv₁ = (δs_r + δs_l)/2``, ``e = (δs_r − δs_l)/b``, the heading perturbation
 ``δ_i = Σ_{j<i} e_j + c·e_i`` of the step and adds ``v₁'·(cos(φ̄_i + δ_i), sin(φ̄_i + δ_i))``
@@ -78,7 +78,7 @@ def jit_module() -> ModuleType:
     """The compiled loops (the private module ``_mc_jit``), imported on first use; thread-safe."""
     with _LOCK:
         if not _JIT:
-            from . import _mc_jit  # noqa: PLC0415  (numba's import: only when a kernel runs)
+            from . import _mc_jit  # numba is imported here: only when a kernel runs
 
             _JIT.append(_mc_jit)
         return _JIT[0]
