@@ -67,8 +67,9 @@ SIN_COS_ULPS = 2
 
 #: Particle-steps (particles × steps) from which :func:`.drive_sampling.sample_poses` uses the
 #: compiled kernel by default: below, numba's import and cache load on first use in a process
-#: cost more than the kernel saves (``benchmarks/bench_kernel.py`` measures both).
-MIN_PARTICLE_STEPS = 30_000_000
+#: (measured ~1.4 CPU-s) cost more than the kernel saves (~3·10⁻⁸ CPU-s per particle-step);
+#: ``benchmarks/bench_kernel.py`` measures both.
+MIN_PARTICLE_STEPS = 50_000_000
 
 _JIT: list[ModuleType] = []
 _LOCK = threading.Lock()
