@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 
 from ..core.noise import check_noise, check_scaling
 from ..core.validation import check_choice, check_nonnegative, check_positive
+from ..methods import mc_kernel
 from ..methods.motion_models import check_alphas, sample_odometry, sample_velocity
 from .simulate import SimulatedRun
 
@@ -103,14 +104,23 @@ def wheel_draws(rng: np.random.Generator, n: int) -> Array:
 
 
 def _wheel_step(P: Array, sr: float, sl: float, m: Motion, b: float, z: Array,
-                trig: Any = np.float64, out: Array | None = None) -> Array:  # fmt: skip
+                trig: Any = np.float64, out: Array | None = None, compiled: bool = False) -> Array:  # fmt: skip
     """``Δs' ~ N(Δs, k|Δs|)`` per wheel and particle, then the midpoint step (as kinematics.step).
 
     ``z``: the standard normal draws (2, n) (:func:`wheel_draws`), used up in place. ``trig``: the
     float type of ``cos φ, sin φ`` (float32 is several times faster; its rounding, ~10⁻⁷ of the step,
     is far below the wheel noise). ``out``: the (n, 3) array to write, not ``P``. The operations write
-    into ``z`` or ``out`` where they can.
+    into ``z`` or ``out`` where they can. ``compiled``: float64 only, the same arithmetic in one
+    compiled loop (:mod:`~pose_uncertainty.methods.mc_kernel`; its polynomial ``cos``/``sin``
+    within 2 ulp), the draws unchanged.
     """
+    if compiled and trig is np.float64:
+        res = np.empty_like(P) if out is None else out
+        mc_kernel.jit_module().wheel_step(
+            np.ascontiguousarray(P), np.ascontiguousarray(z), sr, sl, math.sqrt(m.k_r * abs(sr)),
+            math.sqrt(m.k_l * abs(sl)), 1.0 / b, res,
+        )  # fmt: skip
+        return res
     z[0] *= math.sqrt(m.k_r * abs(sr))
     z[0] += sr  # Δs_r'
     z[1] *= math.sqrt(m.k_l * abs(sl))
@@ -137,6 +147,7 @@ def _wheel_step(P: Array, sr: float, sl: float, m: Motion, b: float, z: Array,
 def sample_motion(
     particles: Array, motion: Motion, run: SimulatedRun, k: int, rng: np.random.Generator,
     dtype: str = "float64", out: Array | None = None, draws: Array | None = None,
+    compiled: bool | None = None,
 ) -> Array:  # fmt: skip
     """Move every particle by step ``k → k+1`` of ``run`` under ``motion``'s noise.
 
@@ -149,6 +160,11 @@ def sample_motion(
     out : ndarray, shape (n, 3), optional — where to write the moved particles (not ``particles``)
     draws : ndarray, shape (2, n), optional — the wheel model only: its draws
         (:func:`wheel_draws`) taken from ``rng`` beforehand; used up (overwritten)
+    compiled : bool, optional — the wheel model in float64 only: move the particles by the compiled
+        loop of :mod:`~pose_uncertainty.methods.mc_kernel` (the same draws and arithmetic, its
+        ``cos``/``sin`` within 2 ulp) instead of numpy's; default: from
+        :data:`~pose_uncertainty.methods.mc_kernel.MIN_PARTICLE_STEPS` particle-steps of the run
+        (these particles times the run's steps)
 
     Returns
     -------
@@ -160,7 +176,9 @@ def sample_motion(
         z = wheel_draws(rng, n) if draws is None else draws
         if z.shape != (2, n):
             raise ValueError(f"draws must have shape (2, {n}) (allowed: wheel_draws of the particles), got {z.shape}")
-        return _wheel_step(particles, float(run.ds_r[k]), float(run.ds_l[k]), motion, run.track, z, trig, out)
+        # numba's start-up costs more than the compiled step saves below MIN_PARTICLE_STEPS
+        big = n * run.n_steps >= mc_kernel.MIN_PARTICLE_STEPS if compiled is None else compiled
+        return _wheel_step(particles, float(run.ds_r[k]), float(run.ds_l[k]), motion, run.track, z, trig, out, big)
     if draws is not None:
         raise ValueError(f"draws are the wheel model's (allowed: motion.model 'wheels'), got model {motion.model!r}")
     if motion.model == "velocity":

@@ -35,6 +35,7 @@ from numpy.typing import NDArray
 
 from ..core.kinematics import wrap_angle
 from ..core.validation import check_choice, check_positive, check_positive_int
+from ..methods import mc_kernel
 from .evaluation import region_flags_of_mass, weighted_mean_cov
 from .motion import Motion, sample_motion, wheel_draws
 from .resampling import (
@@ -312,12 +313,13 @@ def _predict_and_weigh(
     out = np.empty_like(P) if k > 0 else P
     ll = np.empty(n) if model is not None else None
     wrong = np.zeros(n) if model is not None and cfg.association == "ml" else None
+    compiled = n * run.n_steps >= mc_kernel.MIN_PARTICLE_STEPS  # the whole filter's particle-steps
 
     def block(c: int) -> None:
         a, b = blocks[c]
         if k > 0:
             sample_motion(P[a:b], cfg.motion, run, k - 1, gens[c], cfg.dtype, out=out[a:b],
-                          draws=None if draws is None else draws[c])  # fmt: skip
+                          draws=None if draws is None else draws[c], compiled=compiled)  # fmt: skip
         if model is not None and ll is not None:
             wr = model[0](out[a:b], ll[a:b])
             if wr is not None and wrong is not None:

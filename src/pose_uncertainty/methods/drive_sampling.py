@@ -28,6 +28,7 @@ With checkpoints, the particles' twists are integrated by
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple
@@ -35,14 +36,20 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..core.drives import DrivePath, SkidSteer
+from ..core.drives import Differential, DrivePath, SkidSteer
 from ..core.kinematics import HEADING_OFFSET, METHODS, integrate_twist
 from ..core.threads import default_workers
 from ..core.validation import check_choice, check_positive_int
 from . import drive_noise as dn
+from . import mc_kernel
 from .particles import REGIMES, chunk_streams, start_factor
 
-__all__ = ["sample_poses"]
+__all__ = ["KERNELS", "sample_poses"]
+
+#: The kernels of the end poses: ``"auto"`` (the compiled one from
+#: :data:`.mc_kernel.MIN_PARTICLE_STEPS` particle-steps where it applies), ``"numpy"`` (the
+#: reference), ``"compiled"`` (:mod:`.mc_kernel` wherever it applies).
+KERNELS: tuple[str, ...] = ("auto", "numpy", "compiled")
 
 
 def _check_checkpoints(checkpoints: Sequence[int] | None, n_steps: int) -> list[int] | None:
@@ -169,6 +176,39 @@ def _chunk_poses(
     return _end_poses(nom, dv1, dv2, e, scratch, method, offset)[:, None, :]
 
 
+class _Compiled(NamedTuple):
+    """What the compiled kernel of a differential drive's chunk needs besides the draws."""
+
+    scale_r: NDArray[np.float64]  # per step √(k|Δs|), per run Δs [m]
+    scale_l: NDArray[np.float64]
+    eps: tuple[float, float]  # per run √(k/L) [1], per step 1
+    nominal: tuple[NDArray[np.float64], ...]  # v₁, Δθ̄, cos φ̄, sin φ̄
+    width: int  # draws per particle and wheel: N per step, 1 per run
+
+
+def _compiled_plan(
+    path: DrivePath, model: dn.DriveErrorModel, regime: str, nom: _Nominal, n: int, kernel: str,
+    checkpoints: list[int] | None,
+) -> _Compiled | None:  # fmt: skip
+    """The compiled kernel's inputs where it applies (a differential drive with the travel noise
+    ``k``, end poses only) and is asked for, else None (the numpy kernel)."""
+    applies = (isinstance(path.drive, Differential) and model.encoder is None and model.slip is None
+               and checkpoints is None)  # fmt: skip
+    big = n * path.n_steps >= mc_kernel.MIN_PARTICLE_STEPS
+    if not applies or kernel == "numpy" or (kernel == "auto" and not big):
+        return None
+    k = dn.channels(path.drive, model).k
+    u_r, u_l = np.ascontiguousarray(path.u[:, 0]), np.ascontiguousarray(path.u[:, 1])
+    nominal = tuple(np.ascontiguousarray(a) for a in (nom.v1, nom.dtheta, nom.cos, nom.sin))
+    if regime == "per_step":  # the scales of drive_noise._gaussian_errors, bit for bit
+        return _Compiled(np.sqrt(k[0] * np.abs(u_r)), np.sqrt(k[1] * np.abs(u_l)), (1.0, 1.0), nominal, path.n_steps)
+    eps = []
+    for kj, uj in ((k[0], u_r), (k[1], u_l)):
+        L = float(np.abs(uj).sum())
+        eps.append(float(np.sqrt(kj / L)) if L > 0 else 0.0)
+    return _Compiled(u_r, u_l, (eps[0], eps[1]), nominal, 1)
+
+
 def sample_poses(
     path: DrivePath,
     model: dn.DriveErrorModel,
@@ -181,6 +221,7 @@ def sample_poses(
     cov0: ArrayLike | None = None,
     workers: int | None = None,
     progress: Callable[[int, int], None] | None = None,
+    kernel: str = "auto",
 ) -> NDArray[np.float64]:
     """Noisy executions of a drive's path: the Monte Carlo ground truth of its error model.
 
@@ -200,6 +241,11 @@ def sample_poses(
         output does not depend on it
     progress : callable, optional — ``progress(done, n)`` with the particles done so
         far, called from the calling thread after each chunk (default None: nothing)
+    kernel : {"auto", "numpy", "compiled"} — the end poses of a differential drive with the
+        travel noise ``k`` by numpy (the reference) or by the compiled loop of :mod:`.mc_kernel`
+        (the same draws, equal up to rounding); ``"auto"``: compiled from
+        :data:`.mc_kernel.MIN_PARTICLE_STEPS` particle-steps. Other drives and models, and
+        checkpoints, always use numpy.
 
     Returns
     -------
@@ -208,6 +254,7 @@ def sample_poses(
     n = check_positive_int("n", n)
     check_choice("regime", regime, REGIMES)
     check_choice("method", method, METHODS)
+    check_choice("kernel", kernel, KERNELS)
     if not isinstance(rng, np.random.Generator):
         raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
     dn.channels(path.drive, model)  # validate the model against the drive before drawing
@@ -218,11 +265,28 @@ def sample_poses(
     chunk, starts, children = chunk_streams(rng, n, N)
     out = np.empty((n, 1 if cps is None else len(cps), 3))
     nom = _nominal(path, method)
+    plan = _compiled_plan(path, model, regime, nom, n, kernel, cps)
+    buffers = threading.local()  # each thread's block for the draws of a chunk
+
+    def run_compiled(g: np.random.Generator, m: int, plan: _Compiled) -> NDArray[np.float64]:
+        size = 2 * chunk * plan.width
+        if getattr(buffers, "z", None) is None:
+            buffers.z = np.empty(size)
+        z = buffers.z[: 2 * m * plan.width].reshape(2, m, plan.width)
+        g.standard_normal(out=z)  # the draw of drive_noise.sample_errors, number for number
+        offset = None if start_sqrt is None else g.standard_normal((m, 3)) @ start_sqrt.T
+        return mc_kernel.compiled_end_poses(
+            z[0], z[1], plan.scale_r, plan.scale_l, plan.eps, plan.nominal, path.start,
+            path.drive.track, HEADING_OFFSET[method], method == "exact", offset,  # type: ignore[attr-defined]
+        )  # fmt: skip
 
     def run_chunk(j: int) -> None:
         lo = starts[j]
         m = min(chunk, n - lo)
         g = children[j]
+        if plan is not None:
+            out[lo : lo + m, 0] = run_compiled(g, m, plan)
+            return
         errors = dn.sample_errors(path.drive, path.u, path.dt, model, m, g, regime)
         offset = None if start_sqrt is None else g.standard_normal((m, 3)) @ start_sqrt.T
         out[lo : lo + m] = _chunk_poses(path, nom, errors, offset, method, cps)

@@ -54,6 +54,7 @@ def sample_end_poses(
     cov0: ArrayLike | None = None,
     workers: int | None = None,
     progress: Callable[[int, int], None] | None = None,
+    kernel: str = "auto",
 ) -> NDArray[np.float64]:
     """Noisy executions of a trajectory: the Monte Carlo ground truth of Method A's model.
 
@@ -78,6 +79,9 @@ def sample_end_poses(
         The output does not depend on it.
     progress : callable, optional — ``progress(done, n)`` with the particles done so
         far, called from the calling thread after each chunk (default None: nothing)
+    kernel : {"auto", "numpy", "compiled"} — the end poses by numpy (the reference) or by the
+        compiled loop of :mod:`.mc_kernel` (the same draws, equal up to rounding); ``"auto"``
+        (default): compiled from :data:`.mc_kernel.MIN_PARTICLE_STEPS` particle-steps
 
     Returns
     -------
@@ -88,5 +92,5 @@ def sample_end_poses(
     kl = float(check_nonnegative("k_l", k_l))
     return sample_poses(
         wheel_path(trajectory), DriveErrorModel(k=(kr, kl)), n, rng, regime=regime, method=method,
-        checkpoints=checkpoints, cov0=cov0, workers=workers, progress=progress,
+        checkpoints=checkpoints, cov0=cov0, workers=workers, progress=progress, kernel=kernel,
     )  # fmt: skip
