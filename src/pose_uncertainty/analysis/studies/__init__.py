@@ -55,8 +55,8 @@ from .gaussian_methods import (
     coverage_vs_distance,
     expcoords_regions,
 )
-from .guaranteed_bounds import guaranteed_bounds_study
 from .growth import growth_laws, growth_laws_study, polar_vs_cartesian, polar_vs_cartesian_study
+from .guaranteed_bounds import guaranteed_bounds_study
 from .integration import integration_vs_step, method_cloud_spread, method_cloud_spread_study
 from .noise_models import (
     error_sources_study,

@@ -26,7 +26,11 @@ from ...core import trajectories as tr
 from ...core.validation import check_positive_int
 from ...methods import covariance as cv
 from ...methods import sampling as sp
-from ...methods.gyro_odometry import odometry_gyro_path, propagate_odometry_gyro, sample_odometry_gyro
+from ...methods.gyro_odometry import (
+    odometry_gyro_path,
+    propagate_odometry_gyro,
+    sample_odometry_gyro,
+)
 from ...methods.inertial import InertialPath, propagate_ins, sample_ins
 from ...methods.inertial_sensors import AccelErrors, GyroErrors, position_growth
 
@@ -52,8 +56,8 @@ def _sample_covs(samples: np.ndarray) -> np.ndarray:
 def relative_sensing_study(
     trajectory: dict[str, Any] = {"name": "straight", "length": 20.0, "dt": 0.05, "track": 0.2},  # noqa: B006
     k: float = 5e-4,
-    gyro: dict[str, float] = _GYRO,  # noqa: B006
-    accel: dict[str, float] = _ACCEL,  # noqa: B006
+    gyro: dict[str, float] = _GYRO,
+    accel: dict[str, float] = _ACCEL,
     n: int = 2000,
     n_points: int = 20,
     seed: int = 11,

@@ -213,7 +213,7 @@ def _success(res: FilterResult, run: SimulatedRun, pos_tol: float, head_tol: flo
 
 def representations_study(
     world: str = "config/worlds/room.yaml",
-    tour: list[list[Any]] = _TOUR,  # noqa: B006
+    tour: list[list[Any]] = _TOUR,
     start: list[float] = [2.0, 1.0, 0.0],  # noqa: B006
     speed: float = 0.5,
     dt: float = 0.2,
@@ -281,7 +281,7 @@ def representations_study(
         n_particles=n_particles, motion=motion, association="ml", injection="augmented", alpha_slow=0.05,
         alpha_fast=0.5))  # fmt: skip
     K = traj.n_steps + 1
-    kidnap = max(1, int(round(kidnap_fraction * traj.n_steps)))
+    kidnap = max(1, round(kidnap_fraction * traj.n_steps))
     names = ("kalman", "grid", "particles")
     acc: dict[str, dict[str, list[Any]]] = {r: {"err": [], "cover": [], "nees": [], "glob": [], "kid": [], "hyp": [],
                                                 "viol": []} for r in REPRESENTATIONS}  # fmt: skip
@@ -292,7 +292,7 @@ def representations_study(
     cells = 0
     ss = np.random.SeedSequence(seed)
     nees_hi = float(chi2_ppf(0.95, 3.0))
-    for r in range(int(repeat)):
+    for _ in range(int(repeat)):
         g_sim, g_kid, g_pf, g_pfg, g_pfk, g_places = (np.random.default_rng(s) for s in ss.spawn(6))
         run = simulate(traj, w, g_sim, k_r=k, k_l=k, landmark_sensor=sensor)
         krun = simulate(traj, w, g_kid, k_r=k, k_l=k, landmark_sensor=sensor, kidnap_step=kidnap,
@@ -348,7 +348,7 @@ def representations_study(
         acc["topological"]["glob"].append(bool(np.argmax(gbel[-1]) == nodes[-1]))
         acc["topological"]["hyp"].append(max(hypothesis_count(_mass_of_points(w, graph.positions, b))
                                              for b in gbel))  # fmt: skip
-        knodes, kactions, koff = _place_track(graph, krun.true_poses)
+        knodes, kactions, _ = _place_track(graph, krun.true_poses)
         kstart = np.zeros(graph.n_nodes)
         kstart[knodes[0]] = 1.0
         kbel, _ = _run_places(graph, places, knodes, kactions, 0.98 * kstart + 0.02 * uniform, g_t3)
@@ -373,9 +373,8 @@ def representations_study(
         "particles": ("enough particles: share of tracking steps with an effective sample size below 10 %", None),
         "topological": ("the robot moves along the graph's edges: share of place changes off an edge",
                         off_edge / moves if moves else math.nan),
-        "intervals": ("bounded errors (and known correspondences): share of range and bearing errors beyond their "
-                      "bounds",
-                      exceed / n_meas if n_meas else math.nan),
+        "intervals": (("bounded errors (and known correspondences): share of range and bearing errors beyond "
+                       "their bounds"), exceed / n_meas if n_meas else math.nan),
     }  # fmt: skip
     table: dict[str, dict[str, Any]] = {}
     for rep in REPRESENTATIONS:
