@@ -71,7 +71,8 @@ _MODE_MASS, _CELL_MASS = 0.05, 0.005
 
 def hypothesis_count(mass: NDArray[np.float64]) -> int:
     """Hypotheses of a 2-D mass on cells: connected groups (4-neighbours) of the cells holding at least 0.5 %
-    of the mass, counted when the group holds at least 5 % (a uniform belief over many cells is none)."""
+    of the mass, counted when the group holds at least 5 % (a belief uniform over more than 200 cells holds none,
+    over fewer one)."""
     m = np.asarray(mass, dtype=np.float64)
     total = m.sum()
     if total <= 0:
