@@ -930,8 +930,8 @@ def _absolute_claim(c: Claim, studies: Studies, sensor: str, fixed: tuple[str, .
     parts = [(ok_fix, f"It fixes {which} in {'every filter' if ok_fix else 'not every filter'}.")]
     if nees_test is not None:
         bad = all(v["nees_median"] > hi for v in rows.values())
-        parts.append((bad == nees_test, (" Unmodelled, its error makes every filter inconsistent (median NEES above "
-                                         "the band)." if bad else " Not every filter is made inconsistent.")))
+        parts.append((bad == nees_test, ("Unmodelled, its error makes every filter inconsistent (median NEES above "
+                                         "the band)." if bad else "Not every filter is made inconsistent.")))
     _judge_parts(c, parts)
 
 
@@ -987,7 +987,7 @@ def mcl_beats_grid(studies: Studies, c: Claim) -> None:
     _judge_parts(c, [
         (p["rms_position_error"] < g["rms_position_error"],
          f"More accurate: {'yes' if p['rms_position_error'] < g['rms_position_error'] else 'no'}."),
-        (efficient, f" More efficient (time and memory): {'yes' if efficient else 'no'}."),
+        (efficient, f"More efficient (time and memory): {'yes' if efficient else 'no'}."),
     ])  # fmt: skip
 
 
@@ -1008,7 +1008,7 @@ def topological_cheap_coarse(studies: Studies, c: Claim) -> None:
                   f"{_g(g['seconds_per_step'])} s and {_g(p['seconds_per_step'])} s; memory "
                   f"{_g(tp_['memory_bytes'])} B against {_g(g['memory_bytes'])} B and {_g(p['memory_bytes'])} B.")
     _judge_parts(c, [(cheap, f"Cheaper in time and memory than both: {'yes' if cheap else 'no'}."),
-                     (coarse, f" Less accurate than both: {'yes' if coarse else 'no'}.")])
+                     (coarse, f"Less accurate than both: {'yes' if coarse else 'no'}.")])
 
 
 @study_claim(25, text=("(Skalka 2011) The Kalman filter has the lowest time and memory cost, but cannot do global "
@@ -1029,7 +1029,7 @@ def kalman_cheap_not_global(studies: Studies, c: Claim) -> None:
                   f"localization success {_g(100 * k['global_success'])} % against {_g(100 * g['global_success'])} % "
                   f"and {_g(100 * p['global_success'])} %.")
     _judge_parts(c, [(cheap, f"Cheaper than grid and particles: {'yes' if cheap else 'no'}."),
-                     (no_global, f" Fails global localization: {'yes' if no_global else 'no'}.")])
+                     (no_global, f"Fails global localization: {'yes' if no_global else 'no'}.")])
 
 
 @study_claim(26, text="(Skalka 2011) The grid and the particles can hold several hypotheses; the Kalman filter one.",
@@ -1042,8 +1042,8 @@ def several_hypotheses(studies: Studies, c: Claim) -> None:
     c.measured = (f"{name}, global localization, the most separate hypotheses held at one step: "
                   + ", ".join(f"{rep} {v}" for rep, v in h.items()) + ".")
     _judge_parts(c, [(h["grid"] >= 2, f"Grid several: {'yes' if h['grid'] >= 2 else 'no'};"),
-                     (h["particles"] >= 2, f" particles several: {'yes' if h['particles'] >= 2 else 'no'};"),
-                     (h["kalman"] <= 1, f" Kalman one: {'yes' if h['kalman'] <= 1 else 'no'}.")])
+                     (h["particles"] >= 2, f"particles several: {'yes' if h['particles'] >= 2 else 'no'};"),
+                     (h["kalman"] <= 1, f"Kalman one: {'yes' if h['kalman'] <= 1 else 'no'}.")])
 
 
 @study_claim(27, text="(Skalka 2011) Monte Carlo localization recovers from a kidnapping; the Kalman filter does not.",
@@ -1058,7 +1058,7 @@ def kidnapped_recovery(studies: Studies, c: Claim) -> None:
                   f"graph of places {_g(100 * t['topological']['kidnapped_success'])} %, intervals "
                   f"{_g(100 * t['intervals']['kidnapped_success'])} %.")
     _judge_parts(c, [(p >= 0.5, f"MCL recovers: {'yes' if p >= 0.5 else 'no'};"),
-                     (k < 0.5, f" the Kalman filter does not: {'yes' if k < 0.5 else 'no'}.")])
+                     (k < 0.5, f"the Kalman filter does not: {'yes' if k < 0.5 else 'no'}.")])
 
 
 @study_claim(28, text=("(Skalka 2011) Choosing the motion that minimises the expected entropy localizes faster and "
@@ -1075,7 +1075,7 @@ def active_beats_passive(studies: Studies, c: Claim) -> None:
         parts.append((more, f"More often than {other}: {'yes' if more else 'no'} (95 % intervals disjoint);"))
         c.numbers.update({f"{other}_success": o["success_rate"], f"{other}_median_steps": o["median_steps"]})
     faster = all(e["median_steps"] < r[o]["median_steps"] for o in ("random", "fixed"))
-    parts.append((faster, f" faster (median steps): {'yes' if faster else 'no'}."))
+    parts.append((faster, f"faster (median steps): {'yes' if faster else 'no'}."))
     c.numbers.update(entropy_success=e["success_rate"], entropy_median_steps=e["median_steps"])
     c.measured = (f"{name}: {r['n_runs']} runs of {r['n_steps']} steps on {r['n_places']} places; "
                   + "; ".join(f"{p} {_g(100 * r[p]['success_rate'])} % localized ({_g(100 * r[p]['success_low'])}–"
@@ -1099,7 +1099,7 @@ def set_membership_global(studies: Studies, c: Claim) -> None:
                   f"RMS error of its centre {_g(iv['rms_position_error'])} m.")
     held = iv["coverage_3s"] == 1.0 or iv["assumption_violated"] > 0.0
     _judge_parts(c, [(iv["global_success"] >= 0.5, f"Global: {'yes' if iv['global_success'] >= 0.5 else 'no'};"),
-                     (held, f" holds the robot where the bounds hold: {'yes' if held else 'no'}.")])
+                     (held, f"holds the robot where the bounds hold: {'yes' if held else 'no'}.")])
 
 
 def evaluate_claim(rows: Rows, number: int, studies: Studies | None = None) -> Claim:
