@@ -47,7 +47,8 @@ def test_claim13_ins_alone():
     assert _verdict(_doc(a=("relative_sensing", _relative(3.0, 8.0, 0.2))), 13) == "qualified"
     assert _verdict(_doc(a=("relative_sensing", _relative(0.1, 8.0, 0.2))), 13) == "refuted"
     c = evaluate_claim({}, 13, _doc(a=("relative_sensing", _relative(10.0, 8.0, 0.2))))
-    assert c.numbers["a.ins_final"] == 10.0 and c.numbers["a.ins_over_distance"] == pytest.approx(0.5)
+    assert c.numbers["a.ins_final"] == 10.0
+    assert c.numbers["a.ins_over_distance"] == pytest.approx(0.5)
 
 
 def test_claim14_combining():
@@ -127,16 +128,16 @@ def test_claims19_to_22_absolute():
 
 def _rep(**over: dict) -> dict:
     base = {
-        "grid": dict(rms_position_error=0.2, seconds_per_step=1e-2, memory_bytes=2e5, global_success=1.0,
-                     kidnapped_success=0.0, hypotheses=3, coverage_3s=0.8, assumption_violated=0.1),
-        "topological": dict(rms_position_error=0.7, seconds_per_step=1e-5, memory_bytes=500.0, global_success=0.0,
-                            kidnapped_success=1.0, hypotheses=4, coverage_3s=1.0, assumption_violated=0.0),
-        "particles": dict(rms_position_error=0.05, seconds_per_step=1e-3, memory_bytes=3e4, global_success=1.0,
-                          kidnapped_success=1.0, hypotheses=2, coverage_3s=0.95, assumption_violated=0.04),
-        "kalman": dict(rms_position_error=0.02, seconds_per_step=1e-4, memory_bytes=96.0, global_success=0.0,
-                       kidnapped_success=0.0, hypotheses=1, coverage_3s=0.99, assumption_violated=0.05),
-        "intervals": dict(rms_position_error=0.08, seconds_per_step=2e-2, memory_bytes=6e3, global_success=1.0,
-                          kidnapped_success=1.0, hypotheses=1, coverage_3s=1.0, assumption_violated=0.0),
+        "grid": {"rms_position_error": 0.2, "seconds_per_step": 1e-2, "memory_bytes": 2e5, "global_success": 1.0,
+                     "kidnapped_success": 0.0, "hypotheses": 3, "coverage_3s": 0.8, "assumption_violated": 0.1},
+        "topological": {"rms_position_error": 0.7, "seconds_per_step": 1e-5, "memory_bytes": 500.0, "global_success": 0.0,
+                            "kidnapped_success": 1.0, "hypotheses": 4, "coverage_3s": 1.0, "assumption_violated": 0.0},
+        "particles": {"rms_position_error": 0.05, "seconds_per_step": 1e-3, "memory_bytes": 3e4, "global_success": 1.0,
+                          "kidnapped_success": 1.0, "hypotheses": 2, "coverage_3s": 0.95, "assumption_violated": 0.04},
+        "kalman": {"rms_position_error": 0.02, "seconds_per_step": 1e-4, "memory_bytes": 96.0, "global_success": 0.0,
+                       "kidnapped_success": 0.0, "hypotheses": 1, "coverage_3s": 0.99, "assumption_violated": 0.05},
+        "intervals": {"rms_position_error": 0.08, "seconds_per_step": 2e-2, "memory_bytes": 6e3, "global_success": 1.0,
+                          "kidnapped_success": 1.0, "hypotheses": 1, "coverage_3s": 1.0, "assumption_violated": 0.0},
     }  # fmt: skip
     for rep, changes in over.items():
         base[rep] = {**base[rep], **changes}
@@ -205,7 +206,8 @@ def test_claim28_active():
 def test_without_studies_the_claims_are_not_measured_naming_the_kind():
     claims = {c.number: c for c in evaluate_claims({})}
     for n in range(13, 30):
-        assert claims[n].verdict == "not measured" and "needs a study of kind" in claims[n].reason
+        assert claims[n].verdict == "not measured"
+        assert "needs a study of kind" in claims[n].reason
 
 
 def test_renaming_the_studies_keeps_every_verdict_and_number():
@@ -223,5 +225,6 @@ def test_write_claims_reads_the_studies_document(tmp_path: Path):
     p.write_text(json.dumps(_rep()), encoding="utf-8")
     doc = json.loads(write_claims({}, tmp_path / "claims.json", studies=p).read_text(encoding="utf-8"))
     verdicts = {c["number"]: c["verdict"] for c in doc["claims"]}
-    assert verdicts[23] == "confirmed" and verdicts[13] == "not measured"
+    assert verdicts[23] == "confirmed"
+    assert verdicts[13] == "not measured"
     assert all(math.isfinite(v) for c in doc["claims"] if c["number"] == 23 for v in c["numbers"].values())

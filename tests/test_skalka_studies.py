@@ -15,6 +15,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -24,7 +25,11 @@ from pose_uncertainty.analysis.studies.absolute_sensing import absolute_sensing_
 from pose_uncertainty.analysis.studies.active_localization import active_localization_study
 from pose_uncertainty.analysis.studies.guaranteed_bounds import guaranteed_bounds_study
 from pose_uncertainty.analysis.studies.relative_sensing import relative_sensing_study
-from pose_uncertainty.analysis.studies.representations import _place_track, hypothesis_count, representations_study
+from pose_uncertainty.analysis.studies.representations import (
+    _place_track,
+    hypothesis_count,
+    representations_study,
+)
 from pose_uncertainty.core import trajectories as tr
 from pose_uncertainty.core.stats import chi2_ppf
 from pose_uncertainty.localization import topological as tp
@@ -58,7 +63,8 @@ def test_the_guaranteed_sets_hold_every_sample_and_the_ellipse_is_the_covariance
     pulses, diameter = 500, 0.1
     r = guaranteed_bounds_study(trajectory=STRAIGHT, pulses_per_rev=pulses, wheel_diameter=diameter, slip_rel=0.0,
                                 n=4000, n_points=4)  # fmt: skip
-    assert r["box_contains"] == 1.0 and r["zonotope_contains"] == 1.0
+    assert r["box_contains"] == 1.0
+    assert r["zonotope_contains"] == 1.0
     t = tr.from_config(STRAIGHT)
     w = BoundedWheelErrors.encoder(pulses, diameter).half_width(0.0)  # pulse/2 on every step (no slip)
     k = float(w**2 / (3.0 * abs(t.ds_r[0])))  # the uniform errors' variance w²/3 per step as Method A's k
@@ -100,7 +106,9 @@ def test_a_path_along_the_graphs_edges_moves_only_along_edges():
     xs = np.linspace(2.0, 8.0, 61)
     poses = np.stack([xs, np.ones_like(xs), np.zeros_like(xs)], -1)
     nodes, actions, off = _place_track(g, poses)
-    assert off == 0 and np.sum(actions >= 0) == 6 and set(actions[actions >= 0].tolist()) == {0}
+    assert off == 0
+    assert np.sum(actions >= 0) == 6
+    assert set(actions[actions >= 0].tolist()) == {0}
     np.testing.assert_allclose(g.positions[nodes[-1]], [8.0, 1.0])
 
 
@@ -108,7 +116,8 @@ def test_the_share_localized_never_falls():
     r = active_localization_study(n_runs=40, n_steps=8)
     for p in ("entropy", "random", "fixed"):
         by = r[p]["localized_by_step"]
-        assert all(a <= b for a, b in zip(by, by[1:], strict=False)) and r[p]["success_low"] <= r[p]["success_rate"]
+        assert all(a <= b for a, b in itertools.pairwise(by))
+        assert r[p]["success_low"] <= r[p]["success_rate"]
 
 
 @pytest.mark.slow
@@ -116,7 +125,8 @@ def test_the_representations_table_on_one_short_run():
     tour = [["line", 3.0], ["turn", 1.5707963267948966], ["line", 2.0]]
     r = representations_study(tour=tour, repeat=1, n_particles=200, grid_ntheta=12, grid_resolution=0.5, n_sivia=2)
     t = r["table"]
-    assert t["grid"]["memory_bytes"] == r["grid_cells"] * 8 and t["kalman"]["memory_bytes"] == 96
+    assert t["grid"]["memory_bytes"] == r["grid_cells"] * 8
+    assert t["kalman"]["memory_bytes"] == 96
     assert t["topological"]["memory_bytes"] == r["n_places"] * 8
     assert t["topological"]["assumption_violated"] == 0.0  # the tour runs along the graph's edges
     if t["intervals"]["assumption_violated"] == 0.0:  # no error beyond its bound: the set holds the truth

@@ -380,7 +380,7 @@ def representations_study(
     table: dict[str, dict[str, Any]] = {}
     for rep in REPRESENTATIONS:
         a = acc[rep]
-        row = _summary(a["err"], a["cover"], a["nees"], secs[rep], steps[rep], memory[rep])
+        row: dict[str, Any] = _summary(a["err"], a["cover"], a["nees"], secs[rep], steps[rep], memory[rep])
         text, viol = assumptions[rep]
         row.update(global_success=float(np.mean(a["glob"])), kidnapped_success=float(np.mean(a["kid"])),
                    hypotheses=int(max(a["hyp"])) if a["hyp"] else 0, assumption=text,
