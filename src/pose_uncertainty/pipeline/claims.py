@@ -191,6 +191,21 @@ _ClaimFn = Callable[[Rows, Claim], None]
 
 #: The claims by number: (text, source, function), filled by :func:`claim`.
 _REGISTRY: dict[int, tuple[str, str, _ClaimFn]] = {}
+#: The claims read from the studies' logs (Skalka 2011's techniques), filled by :func:`study_claim`.
+_StudyClaimFn = Callable[[Mapping[str, Any], Claim], None]
+_STUDY_REGISTRY: dict[int, tuple[str, str, _StudyClaimFn]] = {}
+
+
+def _registrar(registry: dict[int, Any], number: int, text: str, source: str) -> Callable[[Any], Any]:
+    """The decorator that enters a claim function in ``registry`` (one number, one claim, across both registries)."""
+
+    def register(fn: Any) -> Any:
+        if number in _REGISTRY or number in _STUDY_REGISTRY:
+            raise ValueError(f"claim {number} is registered twice ({fn.__name__})")
+        registry[number] = (text, source, fn)
+        return fn
+
+    return register
 
 
 def claim(number: int, *, text: str, source: str) -> Callable[[_ClaimFn], _ClaimFn]:
@@ -200,14 +215,7 @@ def claim(number: int, *, text: str, source: str) -> Callable[[_ClaimFn], _Claim
     verdict, reason, figure, numbers); it raises :class:`_Missing` when a set it needs is not
     in the config and :class:`_NoRun` when the set lacks the runs it reads.
     """
-
-    def register(fn: _ClaimFn) -> _ClaimFn:
-        if number in _REGISTRY:
-            raise ValueError(f"claim {number} is registered twice ({_REGISTRY[number][2].__name__}, {fn.__name__})")
-        _REGISTRY[number] = (text, source, fn)
-        return fn
-
-    return register
+    return _registrar(_REGISTRY, number, text, source)
 
 
 # --- the claims ---------------------------------------------------------------------------
@@ -734,8 +742,6 @@ def bent_cloud_fk_track(rows: Rows, c: Claim) -> None:
 
 #: Studies: the document of :func:`pose_uncertainty.experiments.study.collect_studies` (``studies``, ``summary``).
 Studies = Mapping[str, Any]
-_StudyClaimFn = Callable[[Studies, Claim], None]
-_STUDY_REGISTRY: dict[int, tuple[str, str, _StudyClaimFn]] = {}
 
 
 def study_claim(number: int, *, text: str, source: str) -> Callable[[_StudyClaimFn], _StudyClaimFn]:
@@ -744,14 +750,7 @@ def study_claim(number: int, *, text: str, source: str) -> Callable[[_StudyClaim
     The function takes the studies document and the :class:`Claim` to fill in; it raises
     :class:`_Missing` when the config holds no study of the kind it reads.
     """
-
-    def register(fn: _StudyClaimFn) -> _StudyClaimFn:
-        if number in _REGISTRY or number in _STUDY_REGISTRY:
-            raise ValueError(f"claim {number} is registered twice ({fn.__name__})")
-        _STUDY_REGISTRY[number] = (text, source, fn)
-        return fn
-
-    return register
+    return _registrar(_STUDY_REGISTRY, number, text, source)
 
 
 def _studies_of(studies: Studies | None, kind: str) -> list[tuple[str, Mapping[str, Any]]]:
@@ -991,22 +990,30 @@ def mcl_beats_grid(studies: Studies, c: Claim) -> None:
     ])  # fmt: skip
 
 
+def _cost_against(t: Mapping[str, Mapping[str, Any]], rep: str, c: Claim) -> tuple[bool, str]:
+    """Whether ``rep`` is cheaper in time per step and memory than the grid and the particles, and the numbers."""
+    me, g, p = t[rep], t["grid"], t["particles"]
+    cheap = all(me[k] < min(g[k], p[k]) for k in ("seconds_per_step", "memory_bytes"))
+    c.numbers.update({f"{rep}_step_s": me["seconds_per_step"], f"{rep}_bytes": me["memory_bytes"],
+                      "grid_step_s": g["seconds_per_step"], "particles_step_s": p["seconds_per_step"]})
+    return cheap, (f"time per step {_g(me['seconds_per_step'])} s against grid {_g(g['seconds_per_step'])} s and "
+                   f"particles {_g(p['seconds_per_step'])} s; memory {_g(me['memory_bytes'])} B against "
+                   f"{_g(g['memory_bytes'])} B and {_g(p['memory_bytes'])} B")
+
+
 @study_claim(24, text="(Skalka 2011) Topological graphs are cheap but less accurate.",
              source="Skalka 2011 §2.7.1.2 and §2.7.3: far fewer places than grid cells, and a coarse position.")
 def topological_cheap_coarse(studies: Studies, c: Claim) -> None:
     """The graph of places against the grid and the particles (representations)."""
     name, t, r = _table(studies)
     tp_, g, p = t["topological"], t["grid"], t["particles"]
-    cheap = all(tp_[k] < min(g[k], p[k]) for k in ("seconds_per_step", "memory_bytes"))
+    cheap, cost = _cost_against(t, "topological", c)
     coarse = tp_["rms_position_error"] > max(g["rms_position_error"], p["rms_position_error"])
-    c.numbers.update(topological_rms=tp_["rms_position_error"], topological_step_s=tp_["seconds_per_step"],
-                     topological_bytes=tp_["memory_bytes"], places=float(r["n_places"]),
+    c.numbers.update(topological_rms=tp_["rms_position_error"], places=float(r["n_places"]),
                      grid_cells=float(r["grid_cells"]))
     c.measured = (f"{name}: {r['n_places']} places against {r['grid_cells']} grid cells. RMS position error: graph "
                   f"{_g(tp_['rms_position_error'])} m, grid {_g(g['rms_position_error'])} m, particles "
-                  f"{_g(p['rms_position_error'])} m; time per step {_g(tp_['seconds_per_step'])} s against "
-                  f"{_g(g['seconds_per_step'])} s and {_g(p['seconds_per_step'])} s; memory "
-                  f"{_g(tp_['memory_bytes'])} B against {_g(g['memory_bytes'])} B and {_g(p['memory_bytes'])} B.")
+                  f"{_g(p['rms_position_error'])} m; {cost}.")
     _judge_parts(c, [(cheap, f"Cheaper in time and memory than both: {'yes' if cheap else 'no'}."),
                      (coarse, f"Less accurate than both: {'yes' if coarse else 'no'}.")])
 
@@ -1017,19 +1024,13 @@ def topological_cheap_coarse(studies: Studies, c: Claim) -> None:
 def kalman_cheap_not_global(studies: Studies, c: Claim) -> None:
     """The EKF's cost against grid and particles, and its global-localization success (representations)."""
     name, t, r = _table(studies)
-    k, g, p = t["kalman"], t["grid"], t["particles"]
-    cheap = all(k[m] < min(g[m], p[m]) for m in ("seconds_per_step", "memory_bytes"))
-    no_global = k["global_success"] < 0.5
-    c.numbers.update(kalman_step_s=k["seconds_per_step"], kalman_bytes=k["memory_bytes"],
-                     kalman_global=k["global_success"], grid_global=g["global_success"],
-                     particles_global=p["global_success"])
-    c.measured = (f"{name} ({r['repeat']} runs): time per step {_g(k['seconds_per_step'])} s against grid "
-                  f"{_g(g['seconds_per_step'])} s and particles {_g(p['seconds_per_step'])} s; memory "
-                  f"{_g(k['memory_bytes'])} B against {_g(g['memory_bytes'])} B and {_g(p['memory_bytes'])} B; global "
-                  f"localization success {_g(100 * k['global_success'])} % against {_g(100 * g['global_success'])} % "
-                  f"and {_g(100 * p['global_success'])} %.")
+    cheap, cost = _cost_against(t, "kalman", c)
+    glob = {rep: t[rep]["global_success"] for rep in ("kalman", "grid", "particles")}
+    c.numbers.update({f"{rep}_global": v for rep, v in glob.items()})
+    c.measured = (f"{name} ({r['repeat']} runs): {cost}; global localization success "
+                  + ", ".join(f"{rep} {_g(100 * v)} %" for rep, v in glob.items()) + ".")
     _judge_parts(c, [(cheap, f"Cheaper than grid and particles: {'yes' if cheap else 'no'}."),
-                     (no_global, f"Fails global localization: {'yes' if no_global else 'no'}.")])
+                     (glob["kalman"] < 0.5, f"Fails global localization: {'yes' if glob['kalman'] < 0.5 else 'no'}.")])
 
 
 @study_claim(26, text="(Skalka 2011) The grid and the particles can hold several hypotheses; the Kalman filter one.",

@@ -43,7 +43,7 @@ ABSOLUTE_FILTERS: tuple[str, ...] = ("ekf", "histogram", "particle")
 _COMPONENTS = ("x", "y", "theta")
 
 
-def _sensors(beacons: np.ndarray, pose: np.ndarray, gnss_bias: list[float], compass_bias: float,
+def _sensor_pairs(beacons: np.ndarray, pose: np.ndarray, gnss_bias: list[float], compass_bias: float,
              disturbance: float) -> dict[str, tuple[Any, Any]]:  # fmt: skip
     """(true model, the filters' model) of every sensor."""
     dist = np.array([[pose[0] + 0.5, pose[1], disturbance, 1.0]])
@@ -87,7 +87,7 @@ def absolute_sensing_study(
     p = np.asarray(pose, dtype=float)
     s0 = np.asarray(prior_std, dtype=float)
     S0 = np.diag(s0**2)
-    sensors = _sensors(np.asarray(beacons, dtype=float), p, gnss_bias, compass_bias, disturbance)
+    sensors = _sensor_pairs(np.asarray(beacons, dtype=float), p, gnss_bias, compass_bias, disturbance)
     rng = np.random.default_rng(seed)
     half = 4.0 * s0[:2]
     nx, ny = (np.ceil(2 * half / grid_resolution).astype(int) + 1).tolist()
