@@ -73,16 +73,27 @@ def absolute_sensing_study(
 
     Parameters
     ----------
-    pose : true pose [m, m, rad]; beacons : [[x, y], ...] [m]; prior_std : [σ_x, σ_y, σ_θ] [m, m, rad];
-    gnss_bias : [m]; compass_bias : [rad]; disturbance : [rad] — the magnetic deviation at the robot;
-    n_measurements, n_trials, n_particles; grid_resolution [m], grid_ntheta; seed
+    pose : list of 3 floats — the true pose [m, m, rad]
+    beacons : list of [x, y] — the beacons of the range and bearing sensors [m]
+    prior_std : list of 3 floats — σ of the prior in x, y, θ [m, m, rad]
+    gnss_bias : list of 2 floats — the satellite fix's offset [m]
+    compass_bias : float — the compass's bias [rad]
+    disturbance : float — the magnetic deviation at the robot [rad]
+    n_measurements : int — measurements per trial
+    n_trials : int — trials (prior means) per sensor
+    n_particles : int — particles of the particle filter
+    grid_resolution : float — cell side of the histogram filter [m]
+    grid_ntheta : int — heading cells of the histogram filter
+    seed : int — the random seed
 
     Returns
     -------
-    dict: ``sensors`` — per sensor and filter: ``sigma`` {x, y, theta} (RMS posterior σ [m, m, rad]),
-    ``rms_error`` {x, y, theta}, ``fixes`` {x, y, theta} (bool: σ below half the prior's), ``nees_mean`` and ``nees_median`` [1]
-(the median is robust to the rare trial whose particles collapse onto a few);
-    ``prior_std``; ``nees_band`` — the 95 % band of the NEES averaged over the trials
+    dict
+        ``sensors`` — per sensor and filter: ``sigma`` {x, y, theta} (RMS posterior σ [m, m, rad]),
+        ``rms_error`` {x, y, theta}, ``fixes`` {x, y, theta} (bool: σ below half the prior's),
+        ``nees_mean`` and ``nees_median`` [1] (the median is robust to the rare trial whose particles
+        collapse onto a few); ``prior_std``; ``nees_band`` — the 95 % band of the NEES averaged over
+        the trials
     """
     p = np.asarray(pose, dtype=float)
     s0 = np.asarray(prior_std, dtype=float)

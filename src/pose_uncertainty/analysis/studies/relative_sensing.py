@@ -75,7 +75,7 @@ def relative_sensing_study(
     Returns
     -------
     dict: ``distance`` [m] and ``time`` [s] of the checkpoints; ``path_length`` [m], ``duration`` [s];
-    ``max_specific_force`` [m/s²] (the largest |f| of the path) and ``accel_bias_std`` [m/s²];
+    ``max_specific_force`` [m/s²] (the largest magnitude of the path's specific force) and ``accel_bias_std`` [m/s²];
     per scheme (:data:`SCHEMES`): ``sigma_a``, ``sigma_mc`` [m] at the checkpoints, ``final_a``,
     ``final_mc`` [m], ``mc_over_a`` [1] at the end, ``fits_a`` {``time``, ``distance``} of
     :func:`~pose_uncertainty.methods.inertial_sensors.position_growth`; ``best`` — the scheme with the
