@@ -7,7 +7,7 @@ drawn from the prior itself, so that a consistent filter's NEES averages 3) and 
 
 * ``ekf`` — :func:`~pose_uncertainty.localization.absolute_sensors.ekf_update_absolute`, one measurement
   after the other (the GNSS with a χ² gate at 99 %, which rejects outliers);
-* ``histogram`` — the prior's density on a pose grid about the truth, times every measurement's
+* ``histogram`` — the prior's density on a pose grid about the prior's mean (±4σ), times every measurement's
   likelihood (:func:`~pose_uncertainty.localization.absolute_sensors.grid_log_likelihood`,
   :func:`~pose_uncertainty.localization.histogram.hf_correct`);
 * ``particle`` — particles drawn from the prior, weighted by every measurement's likelihood.
@@ -116,8 +116,8 @@ def absolute_sensing_study(
             for zi in z:  # one measurement after the other
                 mean, cov, _, _ = ab.ekf_update_absolute(mean, cov, zi, model, gate=0.99 if name == "gnss" else None)
             est = {"ekf": (mean, cov)}
-            # histogram: the prior's density on a grid about the truth
-            grid = Grid(p[0] - half[0], p[1] - half[1], nx, ny, grid_resolution, grid_resolution, grid_ntheta)
+            # histogram: the prior's density on a grid about the prior's mean (as a filter that does not know the truth)
+            grid = Grid(m0[0] - half[0], m0[1] - half[1], nx, ny, grid_resolution, grid_resolution, grid_ntheta)
             X, Y, TH = np.meshgrid(grid.x, grid.y, grid.theta, indexing="ij")
             d = np.stack([X - m0[0], Y - m0[1], wrap_angle(TH - m0[2])], axis=-1)
             belief = np.exp(-0.5 * np.sum((d / s0) ** 2, axis=-1))
