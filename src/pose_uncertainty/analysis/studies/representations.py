@@ -43,7 +43,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import ndimage
 
 from ...core import trajectories as tr
 from ...core.kinematics import wrap_angle
@@ -73,6 +72,10 @@ def hypothesis_count(mass: NDArray[np.float64]) -> int:
     """Hypotheses of a 2-D mass on cells: connected groups (4-neighbours) of the cells holding at least 0.5 %
     of the mass, counted when the group holds at least 5 % (a belief uniform over more than 200 cells holds none,
     over fewer one)."""
+    from scipy import (
+        ndimage,  # imported where used: it loads scipy.special (0.2 s), which the jobs do not import at start
+    )
+
     m = np.asarray(mass, dtype=np.float64)
     total = m.sum()
     if total <= 0:
