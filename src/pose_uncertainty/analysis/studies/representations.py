@@ -72,9 +72,8 @@ def hypothesis_count(mass: NDArray[np.float64]) -> int:
     """Hypotheses of a 2-D mass on cells: connected groups (4-neighbours) of the cells holding at least 0.5 %
     of the mass, counted when the group holds at least 5 % (a belief uniform over more than 200 cells holds none,
     over fewer one)."""
-    from scipy import (
-        ndimage,  # imported where used: it loads scipy.special (0.2 s), which the jobs do not import at start
-    )
+    # imported where used: it loads scipy.special (0.2 s), which the jobs do not import at start
+    from scipy import ndimage
 
     m = np.asarray(mass, dtype=np.float64)
     total = m.sum()
