@@ -6,6 +6,8 @@ rule evaluate_claims:
     input:
         tables=all_tables,
         loc_tables=localization_tables,
+        # the studies' logged results: the claims of Skalka 2011's techniques read them
+        studies=studies_json,
     output:
         "reports/claims.json",
     params:

@@ -45,7 +45,7 @@ from .method_guide import method_guide, unscented_summary
 
 __all__ = [
     "PARAM_RTOL", "VERDICTS", "Claim", "ClaimDataError", "claim", "evaluate_claim", "evaluate_claims", "method_guide",
-    "unscented_summary", "write_claims",
+    "study_claim", "unscented_summary", "write_claims",
 ]  # fmt: skip
 
 VERDICTS: tuple[str, ...] = ("confirmed", "refuted", "qualified", "not measured")
@@ -57,7 +57,7 @@ class Claim:
 
     Attributes
     ----------
-    number : int — the claim's number, 1–12 (its row of the report's claims table)
+    number : int — the claim's number (its row of the report's claims table; 13–29: Skalka 2011's techniques)
     claim : str — the claim as the theses make it
     source : str — what the source showed
     measured : str — what we measured, with numbers and units
@@ -191,6 +191,21 @@ _ClaimFn = Callable[[Rows, Claim], None]
 
 #: The claims by number: (text, source, function), filled by :func:`claim`.
 _REGISTRY: dict[int, tuple[str, str, _ClaimFn]] = {}
+#: The claims read from the studies' logs (Skalka 2011's techniques), filled by :func:`study_claim`.
+_StudyClaimFn = Callable[[Mapping[str, Any], Claim], None]
+_STUDY_REGISTRY: dict[int, tuple[str, str, _StudyClaimFn]] = {}
+
+
+def _registrar(registry: dict[int, Any], number: int, text: str, source: str) -> Callable[[Any], Any]:
+    """The decorator that enters a claim function in ``registry`` (one number, one claim, across both registries)."""
+
+    def register(fn: Any) -> Any:
+        if number in _REGISTRY or number in _STUDY_REGISTRY:
+            raise ValueError(f"claim {number} is registered twice ({fn.__name__})")
+        registry[number] = (text, source, fn)
+        return fn
+
+    return register
 
 
 def claim(number: int, *, text: str, source: str) -> Callable[[_ClaimFn], _ClaimFn]:
@@ -200,14 +215,7 @@ def claim(number: int, *, text: str, source: str) -> Callable[[_ClaimFn], _Claim
     verdict, reason, figure, numbers); it raises :class:`_Missing` when a set it needs is not
     in the config and :class:`_NoRun` when the set lacks the runs it reads.
     """
-
-    def register(fn: _ClaimFn) -> _ClaimFn:
-        if number in _REGISTRY:
-            raise ValueError(f"claim {number} is registered twice ({_REGISTRY[number][2].__name__}, {fn.__name__})")
-        _REGISTRY[number] = (text, source, fn)
-        return fn
-
-    return register
+    return _registrar(_REGISTRY, number, text, source)
 
 
 # --- the claims ---------------------------------------------------------------------------
@@ -726,13 +734,384 @@ def bent_cloud_fk_track(rows: Rows, c: Claim) -> None:
     c.figure = _fig(s.name, None, "cloud_polar")
 
 
-def evaluate_claim(rows: Rows, number: int) -> Claim:
-    """Evaluate claim ``number`` from the per-set tables.
+# --- Skalka 2011's localization techniques (claims 13–29): read from the studies' logs ---------------
+#
+# These claims read the logged results of the studies (``reports/studies.json``, by study kind: the
+# ``skalka`` entry of its summary, :mod:`pose_uncertainty.analysis.studies.summary`), not the per-set
+# tables; they are registered with :func:`study_claim` and evaluated by :func:`evaluate_claim` like the others.
+
+#: Studies: the document of :func:`pose_uncertainty.experiments.study.collect_studies` (``studies``, ``summary``).
+Studies = Mapping[str, Any]
+
+
+def study_claim(number: int, *, text: str, source: str) -> Callable[[_StudyClaimFn], _StudyClaimFn]:
+    """Register the decorated function as the evaluation of claim ``number`` from the studies' logs.
+
+    The function takes the studies document and the :class:`Claim` to fill in; it raises
+    :class:`_Missing` when the config holds no study of the kind it reads.
+    """
+    return _registrar(_STUDY_REGISTRY, number, text, source)
+
+
+def _studies_of(studies: Studies | None, kind: str) -> list[tuple[str, Mapping[str, Any]]]:
+    """``(name, logged results)`` of every study of ``kind``, in config order; :class:`_Missing` when there is none."""
+    names = ((studies or {}).get("summary") or {}).get("skalka", {}).get(kind, [])
+    if not names:
+        raise _Missing(f"needs a study of kind {kind}, which the config does not hold")
+    return [(n, studies["studies"][n]) for n in names]  # type: ignore[index]
+
+
+def _first_study(studies: Studies | None, kind: str) -> tuple[str, Mapping[str, Any]]:
+    return _studies_of(studies, kind)[0]
+
+
+def _g(x: float) -> str:
+    return f"{x:.3g}"
+
+
+@study_claim(13, text="(Skalka 2011) An INS alone is very imprecise at the accelerations of a mobile robot.",
+             source=("Skalka 2011 §3.4: inertial navigation integrates the accelerations twice; its errors grow with "
+                     "time, and the small accelerations of a robot are hard to tell from the sensors' errors."))
+def ins_alone_imprecise(studies: Studies, c: Claim) -> None:
+    """The INS's final position error against wheel odometry's and gyro-aided odometry's (relative_sensing)."""
+    parts, texts = [], []
+    for name, r in _studies_of(studies, "relative_sensing"):
+        ins, odo, gyr = (r[s]["final_a"] for s in ("ins", "odometry", "gyro_odometry"))
+        worst = ins > odo and ins > gyr
+        parts.append((worst, ins > gyr))
+        c.numbers.update({f"{name}.ins_final": ins, f"{name}.odometry_final": odo, f"{name}.gyro_final": gyr,
+                          f"{name}.ins_over_distance": ins / r["path_length"]})  # fmt: skip
+        texts.append(f"{name}: after {_g(r['path_length'])} m in {_g(r['duration'])} s the INS's σ_pos is {_g(ins)} m "
+                     f"({_g(100 * ins / r['path_length'])} % of the distance; Monte Carlo {_g(r['ins']['final_mc'])} m), "
+                     f"odometry's {_g(odo)} m, gyro-aided odometry's {_g(gyr)} m; the path's largest specific force "
+                     f"is {_g(r['max_specific_force'])} m/s² against an accelerometer bias σ of "
+                     f"{_g(r['accel_bias_std'])} m/s²; σ_pos ∝ t^{_g(r['ins']['fits_a']['time']['power_exponent'])}")
+    c.measured = "; ".join(texts) + "."
+    if all(w for w, _ in parts):
+        c.verdict, c.reason = "confirmed", "On every path the INS alone ends with the largest position error."
+    elif all(b for _, b in parts):
+        c.verdict = "qualified"
+        c.reason = ("The INS alone is worse than gyro-aided odometry on every path, but not worse than wheel odometry "
+                    "alone on every one: how imprecise it is depends on the odometry it is compared with.")
+    else:
+        c.verdict, c.reason = "refuted", "On some path the INS alone beats gyro-aided odometry."
+
+
+@study_claim(14, text="(Skalka 2011) Relative means of localization must be combined: each alone drifts.",
+             source=("Skalka 2011 §3.3–3.4: odometry and inertial sensors complement each other (the gyroscope for "
+                     "the heading, the wheels for the distance)."))
+def relative_means_combined(studies: Studies, c: Claim) -> None:
+    """Gyro-aided odometry against each alone (relative_sensing): the final Method A and Monte Carlo errors."""
+    parts, texts = [], []
+    for name, r in _studies_of(studies, "relative_sensing"):
+        gyr = r["gyro_odometry"]
+        better = gyr["final_a"] < min(r["odometry"]["final_a"], r["ins"]["final_a"]) and gyr["final_mc"] < min(
+            r["odometry"]["final_mc"], r["ins"]["final_mc"])
+        parts.append(better)
+        c.numbers[f"{name}.gyro_over_best_alone"] = gyr["final_a"] / min(r["odometry"]["final_a"], r["ins"]["final_a"])
+        texts.append(f"{name}: gyro-aided {_g(gyr['final_a'])} m (Monte Carlo {_g(gyr['final_mc'])} m) against "
+                     f"odometry {_g(r['odometry']['final_a'])} m and INS {_g(r['ins']['final_a'])} m")
+    c.measured = "Final σ_pos, Method A: " + "; ".join(texts) + "."
+    c.verdict = _verdict_of_parts(parts)
+    c.reason = {"confirmed": "The combination beats each sensor alone on every path, with both methods.",
+                "qualified": "The combination beats each alone on some paths only.",
+                "refuted": "The combination beats neither alone."}[c.verdict]
+
+
+@study_claim(15, text="(Skalka 2011) Inertial errors grow fast with time: double integration of the accelerations.",
+             source="Skalka 2011 §3.4.2: the position is the double integral of the measured accelerations.")
+def ins_error_growth(studies: Studies, c: Claim) -> None:
+    """The INS's fitted time exponent of σ_pos against odometry's (relative_sensing)."""
+    parts, texts = [], []
+    for name, r in _studies_of(studies, "relative_sensing"):
+        p_ins = r["ins"]["fits_a"]["time"]["power_exponent"]
+        p_odo = r["odometry"]["fits_a"]["time"]["power_exponent"]
+        parts.append(p_ins > 1.5 and p_ins > p_odo)
+        c.numbers.update({f"{name}.ins_time_exponent": p_ins, f"{name}.odometry_time_exponent": p_odo})
+        texts.append(f"{name}: INS σ_pos ∝ t^{_g(p_ins)}, odometry ∝ t^{_g(p_odo)}, gyro-aided ∝ "
+                     f"t^{_g(r['gyro_odometry']['fits_a']['time']['power_exponent'])}")
+    c.measured = "Fitted power laws (Method A, log-log least squares): " + "; ".join(texts) + "."
+    c.verdict = _verdict_of_parts(parts)
+    c.reason = ("The INS's exponent exceeds 1.5 (t² from an accelerometer bias, t^1.5 from its noise) and odometry's "
+                "on " + ("every" if c.verdict == "confirmed" else "some" if c.verdict == "qualified" else "no")
+                + " path.")
+
+
+@study_claim(16, text="(Skalka 2011) Interval results surely hold the robot but are too pessimistic to be useful.",
+             source=("Skalka 2011 §2.8: interval calculus needs no distribution, and its results are often too "
+                     "pessimistic."))
+def intervals_pessimistic(studies: Studies, c: Claim) -> None:
+    """Box area against the 99 % ellipse (the worst case against the likely) and against the reachable set."""
+    over_ellipse, over_support, texts = [], [], []
+    for name, r in _studies_of(studies, "guaranteed_bounds"):
+        f = r["final"]
+        over_ellipse.append(f["box_area"] / f["ellipse_area"])
+        over_support.append(f["box_over_support"])
+        c.numbers.update({f"{name}.box_over_ellipse": over_ellipse[-1], f"{name}.box_over_support": over_support[-1]})
+        texts.append(f"{name}: after {_g(f['distance'])} m the box is {_g(f['box_area'])} m², "
+                     f"{_g(over_ellipse[-1])}× Method A's 99 % ellipse ({_g(f['ellipse_area'])} m², which holds "
+                     f"{_g(100 * r['ellipse_contains'])} % of uniformly drawn errors) and {_g(over_support[-1])}× the "
+                     f"Monte Carlo support of the reachable set ({_g(f['support_area'])} m²)")
+    c.measured = "; ".join(texts) + "."
+    pessimistic = all(x >= 10.0 for x in over_ellipse)
+    arithmetic = all(x > 3.0 for x in over_support)
+    if pessimistic and arithmetic:
+        c.verdict, c.reason = "confirmed", ("The box is at least 10× the 99 % ellipse and more than 3× the set the robot "
+                                            "can reach.")
+    elif pessimistic:
+        c.verdict = "qualified"
+        c.reason = ("Pessimistic, yes (at least 10× the 99 % ellipse), but the interval arithmetic itself overestimates "
+                    "the reachable set by 3× or less: the pessimism is the worst case adding up every bounded error, "
+                    "which a probability region does not.")
+    else:
+        c.verdict, c.reason = "refuted", "Some box is less than 10× the 99 % ellipse."
+
+
+@study_claim(17, text="Zonotopes recover what interval boxes lose to the wrapping effect.",
+             source=("Skalka 2011 §2.8 (interval results too pessimistic); Kühn 1998: zonotopes avoid the wrapping "
+                     "effect."))
+def zonotopes_recover(studies: Studies, c: Claim) -> None:
+    """Box area over zonotope area at every checkpoint (guaranteed_bounds)."""
+    ratios, texts = [], []
+    for name, r in _studies_of(studies, "guaranteed_bounds"):
+        bz = r["box_over_zonotope"]
+        ratios.extend(bz)
+        c.numbers.update({f"{name}.box_over_zonotope_first": bz[0], f"{name}.box_over_zonotope_last": bz[-1]})
+        texts.append(f"{name}: box/zonotope area {_g(bz[0])} at {_g(r['distance'][0])} m, {_g(bz[-1])} at "
+                     f"{_g(r['distance'][-1])} m (zonotope/support {_g(r['zonotope_over_support'][0])} → "
+                     f"{_g(r['zonotope_over_support'][-1])})")
+    c.measured = "; ".join(texts) + "."
+    c.verdict = _verdict_of_parts([x > 1.0 for x in ratios])
+    c.reason = {"confirmed": "The zonotope is smaller than the box at every checkpoint.",
+                "qualified": ("The zonotope is smaller than the box at some checkpoints only: its linearisation "
+                              "remainder (second order in the heading error) outgrows the wrapping it avoids once "
+                              "the heading interval is wide."),
+                "refuted": "The zonotope is never smaller than the box."}[c.verdict]
+
+
+@study_claim(18, text="(Skalka 2011) Interval propagation surely holds the robot: no sampled trajectory escapes.",
+             source="Skalka 2011 §2.8: the result of interval calculus surely holds the true value.")
+def intervals_hold_the_robot(studies: Studies, c: Claim) -> None:
+    """The share of sampled bounded-error trajectories inside the box and the zonotope (guaranteed_bounds)."""
+    parts, texts = [], []
+    for name, r in _studies_of(studies, "guaranteed_bounds"):
+        parts.append(r["box_contains"] == 1.0 and r["zonotope_contains"] == 1.0)
+        c.numbers.update({f"{name}.box_contains": r["box_contains"], f"{name}.zonotope_contains": r["zonotope_contains"]})
+        texts.append(f"{name}: box {_g(100 * r['box_contains'])} %, zonotope {_g(100 * r['zonotope_contains'])} % of "
+                     f"{r['n']} trajectories")
+    c.measured = "; ".join(texts) + "."
+    c.verdict = "confirmed" if all(parts) else "refuted"
+    c.reason = "Every sampled trajectory lies inside both." if all(parts) else "Some sampled trajectory escapes."
+
+
+def _fixes(r: Mapping[str, Any], sensor: str) -> dict[str, dict[str, bool]]:
+    return {f: dict(v["fixes"]) for f, v in r["sensors"][sensor].items()}
+
+
+def _absolute_claim(c: Claim, studies: Studies, sensor: str, fixed: tuple[str, ...], not_fixed: tuple[str, ...],
+                    nees_test: bool | None = None) -> None:  # fmt: skip
+    """A claim that ``sensor`` fixes the components ``fixed`` and not ``not_fixed`` in every filter
+    (optionally: that the filters are inconsistent with it, their median NEES above the band)."""
+    name, r = _first_study(studies, "absolute_sensing")
+    rows = r["sensors"][sensor]
+    prior = r["prior_std"]
+    ok_fix = all(all(v["fixes"][k] for k in fixed) and not any(v["fixes"][k] for k in not_fixed) for v in rows.values())
+    hi = r["nees_band"][1]
+    texts = []
+    for f, v in rows.items():
+        c.numbers.update({f"{f}.sigma_{k}": v["sigma"][k] for k in ("x", "y", "theta")})
+        c.numbers[f"{f}.nees_median"] = v["nees_median"]
+        texts.append(f"{f}: σ_x {_g(v['sigma']['x'])} m, σ_y {_g(v['sigma']['y'])} m, σ_θ {_g(v['sigma']['theta'])} rad, "
+                     f"median NEES {_g(v['nees_median'])}")
+    c.measured = (f"Posterior σ from a prior of σ_x = σ_y = {_g(prior['x'])} m, σ_θ = {_g(prior['theta'])} rad "
+                  f"({name}): " + "; ".join(texts) + f"; the NEES band of the mean is up to {_g(hi)}.")
+    which = f"{', '.join(fixed)}{' and not ' + ', '.join(not_fixed) if not_fixed else ''}"
+    parts = [(ok_fix, f"It fixes {which} in {'every filter' if ok_fix else 'not every filter'}.")]
+    if nees_test is not None:
+        bad = all(v["nees_median"] > hi for v in rows.values())
+        parts.append((bad == nees_test, ("Unmodelled, its error makes every filter inconsistent (median NEES above "
+                                         "the band)." if bad else "Not every filter is made inconsistent.")))
+    _judge_parts(c, parts)
+
+
+@study_claim(19, text="(Skalka 2011) Ranges to beacons (trilateration) fix the position but not the heading.",
+             source="Skalka 2011 §4.1.1: trilateration from distances to active beacons gives no orientation.")
+def ranges_no_heading(studies: Studies, c: Claim) -> None:
+    """Which components the range beacons fix in each filter (absolute_sensing)."""
+    _absolute_claim(c, studies, "range", ("x", "y"), ("theta",))
+
+
+@study_claim(20, text="(Skalka 2011) Bearings to beacons (triangulation) fix the position and the heading.",
+             source="Skalka 2011 §4.1.1: triangulation from the angles to three beacons.")
+def bearings_fix_pose(studies: Studies, c: Claim) -> None:
+    """Which components the bearing beacons fix in each filter (absolute_sensing)."""
+    _absolute_claim(c, studies, "bearing", ("x", "y", "theta"), ())
+
+
+@study_claim(21, text=("(Skalka 2011) A satellite fix gives the absolute position, not the heading; its systematic "
+                       "error, unmodelled, leaves the filters inconsistent."),
+             source="Skalka 2011 §4.1.1.1: satellite systems give the position, with errors of metres.")
+def gnss_position_only(studies: Studies, c: Claim) -> None:
+    """What the GNSS fixes and the filters' NEES with its unmodelled offset (absolute_sensing)."""
+    _absolute_claim(c, studies, "gnss", ("x", "y"), ("theta",), nees_test=True)
+
+
+@study_claim(22, text=("(Skalka 2011) A compass gives the absolute heading only, and local magnetic disturbances "
+                       "corrupt it."),
+             source="Skalka 2011 §4.3: the compass is disturbed near iron and electric machines.")
+def compass_heading_only(studies: Studies, c: Claim) -> None:
+    """What the compass fixes and the filters' NEES with an unmodelled disturbance (absolute_sensing)."""
+    _absolute_claim(c, studies, "compass", ("theta",), ("x", "y"), nees_test=True)
+
+
+def _table(studies: Studies) -> tuple[str, Mapping[str, Mapping[str, Any]], Mapping[str, Any]]:
+    name, r = _first_study(studies, "representations")
+    return name, r["table"], r
+
+
+@study_claim(23, text="(Skalka 2011) Monte Carlo localization is more accurate and more efficient than the grid.",
+             source="Skalka 2011 §2.7.3: the comparison of the representations.")
+def mcl_beats_grid(studies: Studies, c: Claim) -> None:
+    """Particles against the grid on the same runs: RMS error, time per step, memory (representations)."""
+    name, t, _ = _table(studies)
+    p, g = t["particles"], t["grid"]
+    c.numbers.update(particles_rms=p["rms_position_error"], grid_rms=g["rms_position_error"],
+                     particles_step_s=p["seconds_per_step"], grid_step_s=g["seconds_per_step"],
+                     particles_bytes=p["memory_bytes"], grid_bytes=g["memory_bytes"])
+    c.measured = (f"{name}: RMS position error particles {_g(p['rms_position_error'])} m, grid "
+                  f"{_g(g['rms_position_error'])} m; time per step {_g(p['seconds_per_step'])} s against "
+                  f"{_g(g['seconds_per_step'])} s (ratio {_g(p['seconds_per_step'] / g['seconds_per_step'])}, timed "
+                  f"in one run); belief memory {_g(p['memory_bytes'])} B against {_g(g['memory_bytes'])} B.")
+    efficient = p["seconds_per_step"] < g["seconds_per_step"] and p["memory_bytes"] < g["memory_bytes"]
+    _judge_parts(c, [
+        (p["rms_position_error"] < g["rms_position_error"],
+         f"More accurate: {'yes' if p['rms_position_error'] < g['rms_position_error'] else 'no'}."),
+        (efficient, f"More efficient (time and memory): {'yes' if efficient else 'no'}."),
+    ])  # fmt: skip
+
+
+def _cost_against(t: Mapping[str, Mapping[str, Any]], rep: str, c: Claim) -> tuple[bool, str]:
+    """Whether ``rep`` is cheaper in time per step and memory than the grid and the particles, and the numbers."""
+    me, g, p = t[rep], t["grid"], t["particles"]
+    cheap = all(me[k] < min(g[k], p[k]) for k in ("seconds_per_step", "memory_bytes"))
+    c.numbers.update({f"{rep}_step_s": me["seconds_per_step"], f"{rep}_bytes": me["memory_bytes"],
+                      "grid_step_s": g["seconds_per_step"], "particles_step_s": p["seconds_per_step"]})
+    return cheap, (f"time per step {_g(me['seconds_per_step'])} s against grid {_g(g['seconds_per_step'])} s and "
+                   f"particles {_g(p['seconds_per_step'])} s; memory {_g(me['memory_bytes'])} B against "
+                   f"{_g(g['memory_bytes'])} B and {_g(p['memory_bytes'])} B")
+
+
+@study_claim(24, text="(Skalka 2011) Topological graphs are cheap but less accurate.",
+             source="Skalka 2011 §2.7.1.2 and §2.7.3: far fewer places than grid cells, and a coarse position.")
+def topological_cheap_coarse(studies: Studies, c: Claim) -> None:
+    """The graph of places against the grid and the particles (representations)."""
+    name, t, r = _table(studies)
+    tp_, g, p = t["topological"], t["grid"], t["particles"]
+    cheap, cost = _cost_against(t, "topological", c)
+    coarse = tp_["rms_position_error"] > max(g["rms_position_error"], p["rms_position_error"])
+    c.numbers.update(topological_rms=tp_["rms_position_error"], places=float(r["n_places"]),
+                     grid_cells=float(r["grid_cells"]))
+    c.measured = (f"{name}: {r['n_places']} places against {r['grid_cells']} grid cells. RMS position error: graph "
+                  f"{_g(tp_['rms_position_error'])} m, grid {_g(g['rms_position_error'])} m, particles "
+                  f"{_g(p['rms_position_error'])} m; {cost}.")
+    _judge_parts(c, [(cheap, f"Cheaper in time and memory than both: {'yes' if cheap else 'no'}."),
+                     (coarse, f"Less accurate than both: {'yes' if coarse else 'no'}.")])
+
+
+@study_claim(25, text=("(Skalka 2011) The Kalman filter has the lowest time and memory cost, but cannot do global "
+                       "localization."),
+             source="Skalka 2011 §2.7.3: a Gaussian holds one hypothesis.")
+def kalman_cheap_not_global(studies: Studies, c: Claim) -> None:
+    """The EKF's cost against grid and particles, and its global-localization success (representations)."""
+    name, t, r = _table(studies)
+    cheap, cost = _cost_against(t, "kalman", c)
+    glob = {rep: t[rep]["global_success"] for rep in ("kalman", "grid", "particles")}
+    c.numbers.update({f"{rep}_global": v for rep, v in glob.items()})
+    c.measured = (f"{name} ({r['repeat']} runs): {cost}; global localization success "
+                  + ", ".join(f"{rep} {_g(100 * v)} %" for rep, v in glob.items()) + ".")
+    _judge_parts(c, [(cheap, f"Cheaper than grid and particles: {'yes' if cheap else 'no'}."),
+                     (glob["kalman"] < 0.5, f"Fails global localization: {'yes' if glob['kalman'] < 0.5 else 'no'}.")])
+
+
+@study_claim(26, text="(Skalka 2011) The grid and the particles can hold several hypotheses; the Kalman filter one.",
+             source="Skalka 2011 §2.7.3: multimodal beliefs against the single Gaussian.")
+def several_hypotheses(studies: Studies, c: Claim) -> None:
+    """The most separate hypotheses each belief held in global localization (representations)."""
+    name, t, _ = _table(studies)
+    h = {rep: int(t[rep]["hypotheses"]) for rep in ("grid", "particles", "kalman")}
+    c.numbers.update({f"{rep}_hypotheses": float(v) for rep, v in h.items()})
+    c.measured = (f"{name}, global localization, the most separate hypotheses held at one step: "
+                  + ", ".join(f"{rep} {v}" for rep, v in h.items()) + ".")
+    _judge_parts(c, [(h["grid"] >= 2, f"Grid several: {'yes' if h['grid'] >= 2 else 'no'};"),
+                     (h["particles"] >= 2, f"particles several: {'yes' if h['particles'] >= 2 else 'no'};"),
+                     (h["kalman"] <= 1, f"Kalman one: {'yes' if h['kalman'] <= 1 else 'no'}.")])
+
+
+@study_claim(27, text="(Skalka 2011) Monte Carlo localization recovers from a kidnapping; the Kalman filter does not.",
+             source="Skalka 2011 §2.7.3 and §1.4 (the kidnapped-robot problem).")
+def kidnapped_recovery(studies: Studies, c: Claim) -> None:
+    """Kidnapped-robot success of augmented MCL and the EKF (representations)."""
+    name, t, r = _table(studies)
+    p, k = t["particles"]["kidnapped_success"], t["kalman"]["kidnapped_success"]
+    c.numbers.update(particles_kidnapped=p, kalman_kidnapped=k)
+    c.measured = (f"{name} ({r['repeat']} runs, carried away at step {r['kidnap_step']}): recovered "
+                  f"particles {_g(100 * p)} %, Kalman {_g(100 * k)} %, grid {_g(100 * t['grid']['kidnapped_success'])} %, "
+                  f"graph of places {_g(100 * t['topological']['kidnapped_success'])} %, intervals "
+                  f"{_g(100 * t['intervals']['kidnapped_success'])} %.")
+    _judge_parts(c, [(p >= 0.5, f"MCL recovers: {'yes' if p >= 0.5 else 'no'};"),
+                     (k < 0.5, f"the Kalman filter does not: {'yes' if k < 0.5 else 'no'}.")])
+
+
+@study_claim(28, text=("(Skalka 2011) Choosing the motion that minimises the expected entropy localizes faster and "
+                       "more often than random or fixed motions."),
+             source="Skalka 2011 §5.2 (after Fox, Burgard & Thrun 1998): active localization.")
+def active_beats_passive(studies: Studies, c: Claim) -> None:
+    """Success rates (95 % Wilson intervals) and median times to localize (active_localization)."""
+    name, r = _first_study(studies, "active_localization")
+    e = r["entropy"]
+    parts = []
+    for other in ("random", "fixed"):
+        o = r[other]
+        more = e["success_low"] > o["success_high"]
+        parts.append((more, f"More often than {other}: {'yes' if more else 'no'} (95 % intervals disjoint);"))
+        c.numbers.update({f"{other}_success": o["success_rate"], f"{other}_median_steps": o["median_steps"]})
+    faster = all(e["median_steps"] < r[o]["median_steps"] for o in ("random", "fixed"))
+    parts.append((faster, f"faster (median steps): {'yes' if faster else 'no'}."))
+    c.numbers.update(entropy_success=e["success_rate"], entropy_median_steps=e["median_steps"])
+    c.measured = (f"{name}: {r['n_runs']} runs of {r['n_steps']} steps on {r['n_places']} places; "
+                  + "; ".join(f"{p} {_g(100 * r[p]['success_rate'])} % localized ({_g(100 * r[p]['success_low'])}–"
+                              f"{_g(100 * r[p]['success_high'])} %), median {_g(r[p]['median_steps'])} steps"
+                              for p in ("entropy", "random", "fixed")) + ".")
+    _judge_parts(c, parts)
+
+
+@study_claim(29, text=("(Skalka 2011) Set-membership localization needs no prior: it solves global localization and "
+                       "holds the robot whenever the error bounds hold."),
+             source="Skalka 2011 §2.8: interval calculus gives sets that surely hold the solution.")
+def set_membership_global(studies: Studies, c: Claim) -> None:
+    """The intervals' global and kidnapped success and their containment against bound violations (representations)."""
+    name, t, _ = _table(studies)
+    iv = t["intervals"]
+    c.numbers.update(intervals_global=iv["global_success"], intervals_kidnapped=iv["kidnapped_success"],
+                     intervals_coverage=iv["coverage_3s"], intervals_violated=iv["assumption_violated"])
+    c.measured = (f"{name}: global success {_g(100 * iv['global_success'])} %, kidnapped "
+                  f"{_g(100 * iv['kidnapped_success'])} %; the set held the truth at {_g(100 * iv['coverage_3s'])} % of "
+                  f"the checked steps, with {_g(100 * iv['assumption_violated'])} % of the errors beyond their bounds; "
+                  f"RMS error of its centre {_g(iv['rms_position_error'])} m.")
+    held = iv["coverage_3s"] == 1.0 or iv["assumption_violated"] > 0.0
+    _judge_parts(c, [(iv["global_success"] >= 0.5, f"Global: {'yes' if iv['global_success'] >= 0.5 else 'no'};"),
+                     (held, f"holds the robot where the bounds hold: {'yes' if held else 'no'}.")])
+
+
+def evaluate_claim(rows: Rows, number: int, studies: Studies | None = None) -> Claim:
+    """Evaluate claim ``number`` from the per-set tables (or, for claims 13–29, the studies' logs).
 
     Parameters
     ----------
     rows : mapping of set name to its rows (dicts from :func:`pose_uncertainty.core.table_io.read_table`)
-    number : int — the claim's number (1–12)
+    number : int — the claim's number
+    studies : mapping, optional — the studies document (``reports/studies.json``) the claims of
+        Skalka 2011's techniques read; without it they are "not measured"
 
     Returns
     -------
@@ -745,6 +1124,14 @@ def evaluate_claim(rows: Rows, number: int) -> Claim:
         The set is there but holds no run with the logged parameters the claim reads (one
         line: the claim, the set, the parameters).
     """
+    if number in _STUDY_REGISTRY:
+        text, source, study_fn = _STUDY_REGISTRY[number]
+        c = Claim(number=number, claim=text, source=source)
+        try:
+            study_fn(studies or {}, c)
+        except _Missing as exc:
+            c.verdict, c.reason, c.measured, c.figure = "not measured", str(exc), "–", None
+        return c
     text, source, fn = _REGISTRY[number]
     c = Claim(number=number, claim=text, source=source)
     try:
@@ -756,25 +1143,27 @@ def evaluate_claim(rows: Rows, number: int) -> Claim:
     return c
 
 
-def evaluate_claims(rows: Rows) -> list[Claim]:
-    """Evaluate every claim of the theses from the per-set tables (:func:`evaluate_claim` of each, by number).
+def evaluate_claims(rows: Rows, studies: Studies | None = None) -> list[Claim]:
+    """Evaluate every claim of the theses from the per-set tables and the studies (:func:`evaluate_claim`, by number).
 
     Returns
     -------
     list of Claim, in the order of their numbers; :class:`ClaimDataError` when a set a claim reads is there
     but lacks the runs it needs.
     """
-    return [evaluate_claim(rows, number) for number in sorted(_REGISTRY)]
+    return [evaluate_claim(rows, number, studies) for number in sorted({*_REGISTRY, *_STUDY_REGISTRY})]
 
 
-def write_claims(tables: Mapping[str, str | os.PathLike[str]], out: str | os.PathLike[str]) -> Path:
-    """Read the per-set CSV tables; write the claims and the method guide as JSON.
+def write_claims(tables: Mapping[str, str | os.PathLike[str]], out: str | os.PathLike[str],
+                 studies: str | os.PathLike[str] | None = None) -> Path:  # fmt: skip
+    """Read the per-set CSV tables (and the studies document, if given); write the claims and the method guide as JSON.
 
     The file holds ``{"claims": [Claim as dict, ...], "guide": [{"advice", "evidence",
     "numbers"}, ...], "unscented": ...}`` (the last: :func:`unscented_summary`, or None).
     """
     rows = {name: read_table(p) for name, p in tables.items()}
-    doc = {"claims": [asdict(c) for c in evaluate_claims(rows)], "guide": method_guide(rows),
+    study_doc = json.loads(Path(studies).read_text(encoding="utf-8")) if studies is not None else None
+    doc = {"claims": [asdict(c) for c in evaluate_claims(rows, study_doc)], "guide": method_guide(rows),
            "unscented": unscented_summary(rows)}  # fmt: skip
     p = Path(out)
     p.parent.mkdir(parents=True, exist_ok=True)

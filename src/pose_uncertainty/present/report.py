@@ -479,6 +479,28 @@ def _localization(
     return {"sets": sets, "lead": lead}
 
 
+# --- Skalka 2011's localization techniques: the sections' data, selected from the studies' logs --------
+
+
+def skalka_sections(studies: Mapping[str, Any] | None) -> dict[str, list[dict[str, Any]]]:
+    """The logged studies of Skalka 2011's techniques by section, for the report's sections on them.
+
+    Parameters
+    ----------
+    studies : mapping or None — the studies document (:func:`pose_uncertainty.experiments.study.collect_studies`)
+
+    Returns
+    -------
+    dict — kind (``relative_sensing``, ``absolute_sensing``, ``guaranteed_bounds``, ``representations``,
+    ``active_localization``) → ``[{"name", "r"}, ...]``, the studies of that kind in config order with their
+    logged results (nothing is computed: the sections format these numbers); empty without such studies
+    """
+    if not studies or not studies.get("studies"):
+        return {}
+    kinds = (studies.get("summary") or {}).get("skalka") or {}
+    return {kind: [{"name": n, "r": studies["studies"][n]} for n in names] for kind, names in kinds.items()}
+
+
 def build_report(
     manifest: Mapping[str, Any],
     tables: Mapping[str, str | os.PathLike[str]],
@@ -549,6 +571,7 @@ def build_report(
         # compact (the reports/studies.json file itself is indented): 0.4 MB of the report's 10 MB budget
         studies_json=json.dumps(studies["studies"], sort_keys=True, separators=(", ", ": ")) if studies["studies"] else "",
         localization=_localization(localization, localization_tables or {}),
+        skalka=skalka_sections(studies),  # Skalka 2011's techniques (template skalka.html.j2)
         references=[{"key": k, "entry": Markup(e)} for k, _, e in REFERENCES],
         lazy_script=LAZY_SCRIPT,
         script_hash=_csp_hash(LAZY_SCRIPT),

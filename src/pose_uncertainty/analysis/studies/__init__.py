@@ -20,6 +20,12 @@
   (:mod:`.probability_maps`).
 * ``umbmark`` (:func:`pose_uncertainty.analysis.umbmark.umbmark_experiment`) — the
   UMBmark squares of a robot with known systematic errors, before and after the correction;
+* Skalka 2011's localization techniques, measured: :func:`relative_sensing_study` (odometry, INS and
+  gyro-aided odometry, :mod:`.relative_sensing`), :func:`absolute_sensing_study` (range, bearing, GNSS
+  and compass in the three filters, :mod:`.absolute_sensing`), :func:`guaranteed_bounds_study` (interval
+  boxes and zonotopes, :mod:`.guaranteed_bounds`), :func:`representations_study` (grid, graph of
+  places, particles, Kalman filter and intervals on the same runs, :mod:`.representations`) and
+  :func:`active_localization_study` (motions chosen by expected entropy, :mod:`.active_localization`);
 * :func:`calibration_demo` — ``k`` fitted back from Monte Carlo end poses
   with both models (:mod:`.recalibration`).
 * :func:`accuracy_case` — coverage and distances of the three Gaussian methods
@@ -40,6 +46,8 @@ from __future__ import annotations
 from typing import Any
 
 from .. import umbmark as um
+from .absolute_sensing import absolute_sensing_study
+from .active_localization import active_localization_study
 from .arcs import constant_speed_trajectory, exact_constant_arc
 from .gaussian_methods import (
     accuracy_case,
@@ -48,6 +56,7 @@ from .gaussian_methods import (
     expcoords_regions,
 )
 from .growth import growth_laws, growth_laws_study, polar_vs_cartesian, polar_vs_cartesian_study
+from .guaranteed_bounds import guaranteed_bounds_study
 from .integration import integration_vs_step, method_cloud_spread, method_cloud_spread_study
 from .noise_models import (
     error_sources_study,
@@ -64,12 +73,16 @@ from .number_types import (
 )
 from .probability_maps import map_vs_sampler
 from .recalibration import calibration_demo
+from .relative_sensing import relative_sensing_study
+from .representations import representations_study
 from .summary import summarize
 
 __all__ = [
     "NUMBER_TYPES",
     "STUDIES",
+    "absolute_sensing_study",
     "accuracy_case",
+    "active_localization_study",
     "calibration_demo",
     "constant_speed_trajectory",
     "coverage_vs_distance",
@@ -77,6 +90,7 @@ __all__ = [
     "exact_constant_arc",
     "expcoords_regions",
     "growth_laws",
+    "guaranteed_bounds_study",
     "integrate_in_type",
     "integration_vs_step",
     "map_vs_sampler",
@@ -85,6 +99,8 @@ __all__ = [
     "number_type_drift",
     "polar_vs_cartesian",
     "regime_growth",
+    "relative_sensing_study",
+    "representations_study",
     "summarize",
 ]
 
@@ -105,4 +121,10 @@ STUDIES: dict[str, Any] = {
     "accuracy_vs_distance": accuracy_vs_distance_study,
     "expcoords_regions": expcoords_regions,
     "umbmark": um.umbmark_experiment,  # systematic errors: UMBmark before and after the correction
+    # Skalka 2011's localization techniques, measured
+    "relative_sensing": relative_sensing_study,
+    "absolute_sensing": absolute_sensing_study,
+    "guaranteed_bounds": guaranteed_bounds_study,
+    "representations": representations_study,
+    "active_localization": active_localization_study,
 }

@@ -8,6 +8,11 @@ from typing import Any
 
 import numpy as np
 
+#: The study kinds of Skalka 2011's localization techniques (their report sections and claims find them by kind).
+SKALKA_KINDS: tuple[str, ...] = (
+    "relative_sensing", "absolute_sensing", "guaranteed_bounds", "representations", "active_localization",
+)
+
 
 def summarize(results: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
     """The studies section's data: every study's results by name and the numbers the text quotes.
@@ -26,7 +31,8 @@ def summarize(results: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
     ``growth`` — in how many fits the power law has the smaller rms log residual, and the
     median residuals; ``calibration`` — the equal-k row of each model; ``umbmark`` — the
     first UMBmark study's name, E_max before and after the correction, their ratio and
-    which delta intervals hold the true values.
+    which delta intervals hold the true values; ``skalka`` — the names of the studies of each kind of
+    :data:`SKALKA_KINDS` (Skalka 2011's localization techniques), in config order.
     """
     studies: dict[str, Any] = {name: r["results"] for name, r in results.items()}
     table = [r["results"] for r in results.values() if r["study"] == "accuracy_case"]
@@ -52,6 +58,9 @@ def summarize(results: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
     cal = next((r["results"] for r in results.values() if r["study"] == "calibration_demo"), None)
     if cal:
         out["calibration"] = {r["coords"]: r for r in cal["rows"] if r["equal"]}
+    techniques = {kind: [name for name, r in results.items() if r["study"] == kind] for kind in SKALKA_KINDS}
+    if any(techniques.values()):
+        out["skalka"] = {kind: names for kind, names in techniques.items() if names}
     umb = next((name for name, r in results.items() if r["study"] == "umbmark"), None)
     if umb:
         out["umbmark"] = _umbmark_summary(umb, results[umb]["results"])
