@@ -74,10 +74,20 @@ def test_compute_equals_the_library_called_directly(view: explore.View) -> None:
         np.testing.assert_allclose(d2, float(pr_to_k(pr)), rtol=1e-6)
     assert "e" in view.regions
     assert view.regions["e"][0].shape[1] == 2
-    # σ along/across: the final value is Method A's logged measure
-    assert view.spreads["sigma_along"][-1] == pytest.approx(
-        view.result.metrics["A_sigma_along"], rel=1e-12
-    )
+    # σ along/across: the final values are Methods A's and C's logged measures, and C's curve is
+    # the unscented propagation's own covariances (called directly above) in the nominal frame
+    for key, prefix in (("a", "A"), ("c", "C")):
+        for w in ("along", "across"):
+            assert view.spreads[key][f"sigma_{w}"][-1] == pytest.approx(
+                view.result.metrics[f"{prefix}_sigma_{w}"], rel=1e-9
+            ), (key, w)
+    theta = view.result.poses[:, 2]
+    along_c = np.sqrt(np.einsum("ni,nij,nj->n", np.stack([np.cos(theta), np.sin(theta)], -1),
+                                c.covs[:, :2, :2], np.stack([np.cos(theta), np.sin(theta)], -1)))  # fmt: skip
+    np.testing.assert_allclose(view.spreads["c"]["sigma_along"], along_c, rtol=1e-9, atol=1e-15)
+    # the growth exponents are fits of those curves (a straight line of σ²: along ∝ s^(1/2) …)
+    assert set(view.growth) == {"a", "c"}
+    assert 0.3 < view.growth["a"]["sigma_along"]["power_exponent"] < 2.0
     assert view.distance[-1] == pytest.approx(view.result.metrics["path_length"], rel=1e-9)
 
 
@@ -208,3 +218,27 @@ def test_server_binds_loopback_by_default() -> None:
             proc.kill()
             proc.communicate()
     assert proc.returncode == 130  # interrupted: the CLI's status for SIGINT
+
+
+def test_light_run_keeps_every_number_of_the_full_run(view: explore.View) -> None:
+    """``execute(distances=False)`` (each move of a control) leaves out the density distances only:
+    every measure it keeps equals the full run's to the bit (the generator is drawn from alike)."""
+    from pose_uncertainty.experiments.run import execute
+
+    full = execute(view.config).metrics
+    light = view.result.metrics
+    left_out = set(full) - set(light)
+    assert set(light) <= set(full)
+    assert left_out
+    assert all(k.endswith(("hellinger", "kl", "model_mass_on_grid", "_floor")) for k in left_out)
+    assert {k: light[k] for k in light} == {k: full[k] for k in light}
+    # the banana's level is the one its coverage used: the share of the cloud at or above it
+    from pose_uncertainty.methods import expcoords
+
+    cfg = view.config
+    traj = trajectories.from_config(cfg.trajectory)
+    E = expcoords.propagate(traj, cfg.k_r, cfg.k_l)
+    dens = expcoords.pdf_xy(view.result.end_poses[:, :2], E.poses[-1], E.covs[-1])
+    label = pr_label(cfg.pr).replace(".", "_")
+    level = light[f"accuracy_expcoords_level_xy_{label}"]
+    assert float(np.mean(dens >= level)) == light[f"accuracy_expcoords_coverage_xy_{label}"]
