@@ -36,6 +36,7 @@ from ..experiments.config import RunConfig
 from ..experiments.drive_config import DriveConfig
 from ..experiments.run import RunResult, execute
 from ..methods import covariance, expcoords
+from ..methods.maps import ProbabilityMap
 
 __all__ = [
     "DEFAULTS",
@@ -255,18 +256,25 @@ def _banana(config: RunConfig, res: RunResult) -> list[NDArray[np.float64]]:
         return []  # a degenerate banana (no heading spread) has no planar density to contour
 
 
-def _map_region(res: RunResult, pr: float) -> list[NDArray[np.float64]]:
-    """The boundary of each map's planar Pr highest-density region (its cells of mass ≥ level)."""
+def map_region(mp: ProbabilityMap, pr: float) -> list[NDArray[np.float64]]:
+    """The boundary of a map's planar Pr highest-density region (its cells of mass ≥ the level of
+    :meth:`ProbabilityMap.region_xy`), contoured on its cell centres; empty when its grid holds less."""
     import contourpy
 
-    lines: list[NDArray[np.float64]] = []
-    for mp in res.maps:
-        level, _ = mp.region_xy(pr)
-        if not math.isfinite(level):
-            continue
-        gen = contourpy.contour_generator(mp.x, mp.y, mp.marginal_xy().T)
-        lines += [np.asarray(ln) for ln in gen.lines(level)]
-    return lines
+    level, _ = mp.region_xy(pr)
+    if not math.isfinite(level):
+        return []
+    gen = contourpy.contour_generator(mp.x, mp.y, mp.marginal_xy().T)
+    return [np.asarray(ln) for ln in gen.lines(level)]
+
+
+def map_coverage(mp: ProbabilityMap, cloud: NDArray[np.float64] | None, pr: float) -> dict[str, float] | None:
+    """The share of the cloud's positions inside the map's Pr region
+    (:func:`pose_uncertainty.analysis.accuracy.coverage_gridded`) with its 95 % interval."""
+    if cloud is None or not len(cloud):
+        return None
+    frac = coverage_gridded(mp, cloud[:, :2], [pr])[pr_label(pr)]
+    return _interval(frac, len(cloud)) if math.isfinite(frac) else None
 
 
 def _interval(frac: float, n: int) -> dict[str, float]:
@@ -308,7 +316,7 @@ def compute(
         regions["c"] = [covariance.ellipse_polyline(c_cov, pr, (m["C_mean_x"], m["C_mean_y"]))]
     regions["e"] = _banana(config, res)
     if res.maps:
-        regions["map"] = _map_region(res, pr)
+        regions["map"] = map_region(res.maps[0], pr)
     coverage: dict[str, dict[str, float]] = {}
     n = int(m.get("accuracy_grid_n_samples", 0))
     for key, prefix in _ACCURACY.items():
@@ -316,10 +324,9 @@ def compute(
         if frac is None or n == 0 or not math.isfinite(frac):
             continue
         coverage[key] = _interval(frac, n)
-    if res.maps and res.end_poses is not None and len(res.end_poses):
-        frac = coverage_gridded(res.maps[0], res.end_poses[:, :2], [pr])[pr_label(pr)]
-        if math.isfinite(frac):
-            coverage["map"] = _interval(frac, len(res.end_poses))
+    got = map_coverage(res.maps[0], res.end_poses, pr) if res.maps else None
+    if got is not None:
+        coverage["map"] = got
     ds = np.hypot(*np.diff(res.poses[:, :2], axis=0).T)
     distance = np.concatenate([[0.0], np.cumsum(ds)])
     spreads: dict[str, dict[str, NDArray[np.float64]]] = {"a": _along_across(res.poses, res.covs)}
@@ -465,18 +472,14 @@ def growth_html(view: View) -> str:
     )
 
 
-def map_html(view: View) -> str:
+def map_html(mp: ProbabilityMap, model: str, coverage: dict[str, float] | None, pr: float) -> str:
     """The map's line: its model and cell, and its coverage of the cloud."""
-    mc = view.config.maps[0] if view.config.maps else None
-    if mc is None:
-        return ""
-    c = view.coverage.get("map")
-    pr = 100 * view.config.pr
-    what = (f'<span id="coverage-map">{100 * c["fraction"]:.2f}</span> % of the Monte Carlo end positions '
-            f"inside its {pr:.4g} % region [{100 * c['low']:.2f}, {100 * c['high']:.2f}]" if c else
-            f"its {pr:.4g} % region is not on its grid")  # fmt: skip
-    cell = float(mc.params.get("resolution", math.nan))
-    return f"map ({html.escape(mc.model)} model, {100 * cell:.3g} cm cells): done, {what}."
+    what = (f'<span id="coverage-map">{100 * coverage["fraction"]:.2f}</span> % of the Monte Carlo end '
+            f"positions inside its {100 * pr:.4g} % region "
+            f"[{100 * coverage['low']:.2f}, {100 * coverage['high']:.2f}]" if coverage else
+            f"its {100 * pr:.4g} % region is not on its grid (or no Monte Carlo)")  # fmt: skip
+    return (f'<span id="map-done">map ({html.escape(model)} model, {100 * mp.resolution:.3g} cm cells)</span>: '
+            f"{what}.")  # fmt: skip
 
 
 def _options(values: Iterable[str]) -> list[str | tuple[Any, str]]:
@@ -549,8 +552,8 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
                 x_axis_label="x [m]", y_axis_label="y [m]", output_backend="webgl")  # fmt: skip
     src: dict[str, ColumnDataSource] = {
         "path": ColumnDataSource({"x": [], "y": []}),
-        "mc": ColumnDataSource({"x": [], "y": []}),
-        **{k: ColumnDataSource({"xs": [], "ys": []}) for k in ("a", "c", "e", "map")},
+        "mc": ColumnDataSource({"x": [], "y": []}, name="source-mc"),
+        **{k: ColumnDataSource({"xs": [], "ys": []}, name=f"source-{k}") for k in ("a", "c", "e", "map")},
     }
     xy.line("x", "y", source=src["path"], color="#999999", legend_label="nominal path")
     glyphs: dict[str, Any] = {"mc": xy.scatter("x", "y", source=src["mc"], size=2, alpha=0.3, color=_COLOURS["mc"],
@@ -601,10 +604,16 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
         growth_div.text = growth_html(view)
         show(None, None, None)
 
-    def draw_map(view: View | None, text: str) -> None:
-        lines = [] if view is None else view.regions.get("map", [])
+    def draw_map() -> None:
+        """The finished map's region at the shown Pr and its coverage of the shown cloud."""
+        got = state.get("map")
+        if got is None:
+            return
+        mp, model = got
+        pr = _pr_of(fields["pr"].value) if fields["pr"].value in (pr_label(p) for p in PRS) else PRS[-1]
+        lines = map_region(mp, pr)
         src["map"].data = {"xs": [ln[:, 0] for ln in lines], "ys": [ln[:, 1] for ln in lines]}
-        map_status.text = text
+        map_status.text = map_html(mp, model, map_coverage(mp, state.get("cloud"), pr), pr)
 
     def show(attr: Any, old: Any, new: Any) -> None:
         for i, k in enumerate(METHODS):
@@ -613,12 +622,15 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
     def shown_error(msg: str) -> None:
         error.text = html.escape(msg)
 
-    def finish(view: View, seconds: float) -> None:
+    def finish(view: View, seconds: float, s: dict[str, str]) -> None:
         error.text = ""
+        state["cloud"] = view.result.end_poses
         draw(view)
+        draw_map()
         m = view.result.metrics
         status.text = (f"{view.result.n_steps} steps, path {m['path_length']:.3g} m, "
-                       f"{int(m.get('MC_n', 0))} particles; computed in {1000 * seconds:.0f} ms")  # fmt: skip
+                       f"{int(m.get('MC_n', 0))} particles, k_r {html.escape(s['k_r'])}, "
+                       f"k_l {html.escape(s['k_l'])}; computed in {1000 * seconds:.0f} ms")  # fmt: skip
 
     def one(s: dict[str, str]) -> tuple[View | None, str, float]:
         t0 = time.perf_counter()
@@ -639,10 +651,17 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
             if view is None:
                 doc.add_next_tick_callback(partial(shown_error, msg))
             else:
-                doc.add_next_tick_callback(partial(finish, view, seconds))
+                doc.add_next_tick_callback(partial(finish, view, seconds, s))
 
     moves = ThreadPoolExecutor(1, thread_name_prefix="explore-move") if threaded else None
     maps = ThreadPoolExecutor(1, thread_name_prefix="explore-map") if threaded else None
+
+    def later(fn: Callable[..., None], *args: Any) -> None:
+        """Call ``fn`` on the server's next tick (from a worker thread), or now without a server."""
+        if threaded:
+            doc.add_next_tick_callback(partial(fn, *args))
+        else:
+            fn(*args)
 
     def map_job(gen: int, s: dict[str, str]) -> None:
         last = [0.0]
@@ -650,12 +669,14 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
         def progress(label: str) -> Callable[[int, int], None]:
             def tick(done: int, total: int) -> None:
                 if state["map_gen"] != gen:
-                    raise Superseded(label)
+                    raise Superseded(label)  # a newer map setting: abandon this one
                 now = time.monotonic()
-                if threaded and (now - last[0] > 0.25 or done >= total):
+                if now - last[0] > 0.25 or done >= total:
                     last[0] = now
-                    text = f"map: {html.escape(label)} {100 * done / max(total, 1):.0f} % ({done}/{total})"
-                    doc.add_next_tick_callback(partial(draw_map_if, gen, None, text, keep=True))
+                    text = (f'<span id="map-progress">map: computing, {html.escape(label)} '
+                            f"{100 * done / max(total, 1):.0f} % ({done}/{total})</span>")  # fmt: skip
+                    later(map_text, gen, text)
+
             return tick
 
         try:
@@ -663,29 +684,33 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
         except Superseded:
             return
         except ValueError as exc:
-            text = f"map: {html.escape(str(exc).splitlines()[0])}"
-            (doc.add_next_tick_callback(partial(draw_map_if, gen, None, text)) if threaded
-             else draw_map_if(gen, None, text))  # fmt: skip
+            later(map_text, gen, f"map: {html.escape(str(exc).splitlines()[0])}")
             return
-        if threaded:
-            doc.add_next_tick_callback(partial(draw_map_if, gen, view, map_html(view)))
-        else:
-            draw_map_if(gen, view, map_html(view))
+        later(map_done, gen, view.result.maps[0], s["map"])
 
-    def draw_map_if(gen: int, view: View | None, text: str, keep: bool = False) -> None:
-        if state["map_gen"] != gen:
-            return  # a newer setting's map is on its way
-        if keep:
+    def map_text(gen: int, text: str) -> None:
+        if state["map_gen"] == gen:  # else a newer setting's map is on its way
             map_status.text = text
-        else:
-            draw_map(view, text)
+
+    def map_done(gen: int, mp: ProbabilityMap, model: str) -> None:
+        if state["map_gen"] == gen:
+            state["map"] = (mp, model)
+            draw_map()
 
     def start_map(s: dict[str, str]) -> None:
-        state["map_gen"] += 1
-        if s["map"] == "none":
-            draw_map(None, "")
+        """Start the map of these settings unless it is the one computed or computing: a map
+        depends on the path and its own settings only (its coverage is redrawn on each move)."""
+        key = (repr(run_config(s)["trajectory"]), s["map"], s["map_resolution"])
+        if key == state.get("map_key"):
             return
-        draw_map(None, "map: queued")  # the old map's region is not this setting's
+        state["map_key"] = key
+        state["map_gen"] += 1
+        state["map"] = None
+        src["map"].data = {"xs": [], "ys": []}  # the old map's region is not this setting's
+        if s["map"] == "none":
+            map_status.text = ""
+            return
+        map_status.text = '<span id="map-progress">map: queued</span>'
         if maps is not None:
             maps.submit(map_job, state["map_gen"], s)
         else:
@@ -699,7 +724,7 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
             if view is None:
                 shown_error(msg)
             else:
-                finish(view, seconds)
+                finish(view, seconds, s)
             return
         status.text = "computing…"
         with lock:
