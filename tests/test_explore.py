@@ -242,3 +242,42 @@ def test_light_run_keeps_every_number_of_the_full_run(view: explore.View) -> Non
     label = pr_label(cfg.pr).replace(".", "_")
     level = light[f"accuracy_expcoords_level_xy_{label}"]
     assert float(np.mean(dens >= level)) == light[f"accuracy_expcoords_coverage_xy_{label}"]
+
+
+TINY_MAP = {**SMALL, "path": "straight", "size": "0.3", "dt": "0.05", "map": "odometry", "map_resolution": "0.02"}
+
+
+def test_page_draws_the_map_region_and_its_coverage_of_each_new_cloud() -> None:
+    """The map is the run's (its region the Pr region of the run's map), its coverage the library's
+    for the cloud shown; a k_r move redraws the coverage without recomputing the map."""
+    pytest.importorskip("bokeh")
+    from bokeh.document import Document
+
+    from pose_uncertainty.analysis.accuracy import coverage_gridded
+
+    doc = Document()
+    explore.make_document(doc, TINY_MAP, background=False)
+    status, source, err = (doc.select_one({"name": n}) for n in ("map-status", "source-map", "error"))
+    assert err.text == ""
+    view = explore.compute(explore.run_config(TINY_MAP))
+    mp = view.result.maps[0]
+    label = pr_label(view.config.pr)
+    want = coverage_gridded(mp, view.result.end_poses[:, :2], [view.config.pr])[label]
+    assert re.search(r'id="coverage-map">([0-9.]+)<', status.text).group(1) == f"{100 * want:.2f}"
+    assert len(source.data["xs"]) >= 1
+    # the drawn boundary encloses the map's Pr region: its cells of mass ≥ the level
+    level, _ = mp.region_xy(view.config.pr)
+    ring = np.column_stack([source.data["xs"][0], source.data["ys"][0]])
+    from matplotlib.path import Path as Polygon
+
+    marg = mp.marginal_xy()
+    i, j = np.unravel_index(int(np.argmax(marg)), marg.shape)
+    assert marg[i, j] >= level
+    assert Polygon(ring).contains_point((mp.x[i], mp.y[j]))
+    # a k_r move: a new cloud, the same map (not recomputed), the coverage of the new cloud
+    doc.select_one({"name": "field-k_r"}).value = "6e-3"
+    moved = explore.compute(explore.run_config({**TINY_MAP, "k_r": "6e-3"}))
+    np.testing.assert_array_equal(moved.result.maps[0].values, mp.values)  # the map ignores k_r
+    again = coverage_gridded(mp, moved.result.end_poses[:, :2], [view.config.pr])[label]
+    assert re.search(r'id="coverage-map">([0-9.]+)<', status.text).group(1) == f"{100 * again:.2f}"
+    assert again != want

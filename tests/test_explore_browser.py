@@ -57,9 +57,12 @@ def _shown(view: explore.View, key: str) -> str:
 
 
 @contextlib.contextmanager
-def explorer_page(chromium: str, tmp_path: Path) -> Iterator[tuple[CDP, str]]:  # noqa: F811 - a path, not the fixture
+def explorer_page(
+    browser: str, tmp_path: Path, server_cpu: int | None = None
+) -> Iterator[tuple[CDP, str]]:
     """The explorer started as the command and opened in headless Chromium: ``(cdp, url)``.
 
+    ``server_cpu`` pins the server process to that CPU (the benchmark's one core).
     The DevTools domains Page, Network, Runtime and Log are enabled before the page loads, so
     that ``cdp.events`` holds every request, console message and exception.
     """
@@ -68,10 +71,12 @@ def explorer_page(chromium: str, tmp_path: Path) -> Iterator[tuple[CDP, str]]:  
         [sys.executable, "-m", "pose_uncertainty.cli", "explore"],
         stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=env,
     )  # fmt: skip
+    if server_cpu is not None:
+        os.sched_setaffinity(server.pid, {server_cpu})
     port = _free_port()
     errlog = open(tmp_path / "chromium.log", "wb")  # noqa: SIM115 - closed in the finally below
     proc = subprocess.Popen(
-        [chromium, *FLAGS, f"--user-data-dir={tmp_path / 'profile'}", f"--remote-debugging-port={port}", "about:blank"],
+        [browser, *FLAGS, f"--user-data-dir={tmp_path / 'profile'}", f"--remote-debugging-port={port}", "about:blank"],
         stdout=subprocess.DEVNULL, stderr=errlog,
     )  # fmt: skip
     cdp = None
@@ -138,6 +143,8 @@ def redraw_ms(cdp: CDP, value: str) -> float:
     """Milliseconds from setting k_r in the page to the redrawn views (:data:`REDRAW_MS`)."""
     out = cdp.call("Runtime.evaluate", expression=f"{REDRAW_MS}({json.dumps(value)})", awaitPromise=True,
                    returnByValue=True)  # fmt: skip
+    if "exceptionDetails" in out or not isinstance(out["result"].get("value"), int | float):
+        raise AssertionError(f"the in-page timer failed: {out}")
     return float(out["result"]["value"])
 
 

@@ -210,8 +210,8 @@ class View:
     coverage : dict of str to dict — per method key: ``fraction`` [1] of the cloud inside its
         region, the 95 % Wilson interval ``low``, ``high`` [1], and ``n`` [1]
     distance : ndarray (N+1,) — distance along the path [m]
-    spreads : dict of str to dict of str to ndarray — per method key (``a``, ``c``; ``mc`` at the
-        Monte Carlo checkpoints, with its own ``distance``): ``sigma_along``, ``sigma_across`` [m]
+    spreads : dict of str to dict of str to ndarray — per method key (``a``; ``c`` without a
+        drive): ``sigma_along``, ``sigma_across`` [m] at every pose
     growth : dict of str to dict of str to dict — per method key and spread, :func:`fit_growth`
         against distance
     """
@@ -332,18 +332,11 @@ def compute(
     spreads: dict[str, dict[str, NDArray[np.float64]]] = {"a": _along_across(res.poses, res.covs)}
     if res.unscented_covs is not None:
         spreads["c"] = _along_across(res.poses, res.unscented_covs)
-    if res.checkpoints:
-        steps = sorted(res.checkpoints)
-        clouds = np.stack([res.checkpoints[k] for k in steps])  # (C, n, 3)
-        mc_covs = np.stack([np.cov(c.T) for c in clouds]) if clouds.shape[1] >= 2 else None
-        if mc_covs is not None:
-            spreads["mc"] = {**_along_across(res.poses[steps], mc_covs), "distance": distance[steps]}
     growth: dict[str, dict[str, dict[str, float]]] = {}
     for key, sp in spreads.items():
-        s_of = sp.get("distance", distance)
         for k in ("sigma_along", "sigma_across"):
             try:
-                growth.setdefault(key, {})[k] = fit_growth(s_of, sp[k])
+                growth.setdefault(key, {})[k] = fit_growth(distance, sp[k])
             except ValueError:  # turning in place: no distance to grow over
                 pass
     return View(config, res, regions, coverage, distance, spreads, growth)
