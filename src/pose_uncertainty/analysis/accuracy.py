@@ -308,6 +308,7 @@ def evaluate_expcoords(
     supersample: int = 4,
     n_threshold: int = 200_000,
     distances: bool = True,
+    levels: bool = False,
 ) -> dict[str, float]:
     """All accuracy measures of the exponential-coordinates Gaussian ``μ exp(N(0, cov))``.
 
@@ -316,8 +317,9 @@ def evaluate_expcoords(
     from ``rng``); the pose region and NEES use the exponential coordinates
     ``ε = log(μ⁻¹ g)``.
 
-    Parameters and returned keys as :func:`evaluate_cartesian` (``cov`` is Σ of ε), and
-    ``level_xy_<pr>`` [1/m²]: the density level ``c`` of each planar region.
+    Parameters and returned keys as :func:`evaluate_cartesian` (``cov`` is Σ of ε); with
+    ``levels`` also ``level_xy_<pr>`` [1/m²]: the density level ``c`` of each planar region
+    (what its boundary is drawn at).
     """
     s = _check_samples(samples)
     mu = check_last_axis("pose", pose, 3)
@@ -330,11 +332,12 @@ def evaluate_expcoords(
         # Σ singular given θ (one step of a two-wheel drive): the planar density, its regions and
         # the distances on the grid are undefined here (NaN); the pose-space measures are not
         dens = None
-    levels = ec.hdr_threshold(mu, C, np.asarray(prs), rng, n=n_threshold) if dens is not None else None
+    thresholds = ec.hdr_threshold(mu, C, np.asarray(prs), rng, n=n_threshold) if dens is not None else None
     for i, pr in enumerate(prs):
-        out[f"coverage_xy_{pr_label(pr)}"] = (float(np.mean(dens >= levels[i])) if dens is not None
-                                              and levels is not None else math.nan)  # fmt: skip
-        out[f"level_xy_{pr_label(pr)}"] = float(levels[i]) if levels is not None else math.nan
+        out[f"coverage_xy_{pr_label(pr)}"] = (float(np.mean(dens >= thresholds[i])) if dens is not None
+                                              and thresholds is not None else math.nan)  # fmt: skip
+        if levels:
+            out[f"level_xy_{pr_label(pr)}"] = float(thresholds[i]) if thresholds is not None else math.nan
     eps = ec.coordinates(s, mu)
     for key, val in coverage_ellipsoid(eps, np.zeros(3), C, prs).items():
         out[f"coverage_pose_{key}"] = val
@@ -411,6 +414,7 @@ def compare_methods(
     n_threshold: int = 200_000,
     unscented: tuple[ArrayLike, ArrayLike] | None = None,
     distances: bool = True,
+    levels: bool = False,
 ) -> dict[str, dict[str, float]]:
     """Every method against one Monte Carlo cloud, on one grid.
 
@@ -429,6 +433,8 @@ def compare_methods(
     distances : bool — False: no density distances on the grid (the floors, ``hellinger``,
         ``kl``, ``model_mass_on_grid``), the costly part; every other entry is the same number
         as with True (the generator is drawn from alike)
+    levels : bool — True: the banana's entry also holds its regions' density levels
+        ``level_xy_<pr>`` (:func:`evaluate_expcoords`)
 
     Returns
     -------
@@ -449,7 +455,7 @@ def compare_methods(
     if expcoords is not None:
         pose_e, cov_e = (np.asarray(v, dtype=float) for v in expcoords)
         res["expcoords"] = evaluate_expcoords(s, pose_e, cov_e, rng, grid, prs, n_threshold=n_threshold,
-                                              distances=distances)
+                                              distances=distances, levels=levels)
     if unscented is not None:  # Method C
         pose_c, cov_c = (np.asarray(v, dtype=float) for v in unscented)
         res["unscented"] = evaluate_cartesian(s, pose_c, cov_c, grid, prs, distances=distances)

@@ -145,9 +145,6 @@ _DEFINITIONS: tuple[tuple[str, str, str], ...] = (
     (r"accuracy_(cartesian|expcoords)_coverage_pose_(.+)", "1",
      ("fraction of Monte Carlo end poses inside the {1} Gaussian's {2} % ellipsoid in its own "
      "coordinates")),
-    (r"accuracy_expcoords_level_xy_(.+)", "1/m^2",
-     ("density level c of the expcoords Gaussian's planar {1} % highest-density region {{p ≥ c}} "
-     "(the (1 − Pr)-quantile of its density at its own draws), the boundary of its banana")),
     (r"accuracy_(cartesian|expcoords)_hellinger", "1",
      ("Hellinger distance of the {1} Gaussian's cell probabilities from the Monte Carlo histogram "
      "on the stated grid")),

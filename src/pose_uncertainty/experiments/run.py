@@ -73,6 +73,9 @@ class RunResult(Measured):
         model's own sampler along the run's controls
     unscented_covs : ndarray, shape (N+1, 3, 3) or None — Method C's covariance at every pose
         (None with a drive: Method C is the differential drive's)
+    expcoords_levels : dict of str to float — per Pr label (``"98_89"``), the density level
+        [1/m²] of the exponential-coordinates Gaussian's planar region whose coverage the run
+        measured (where its boundary is drawn); not logged, empty without the accuracy comparison
     metrics : dict of str to float — every measure of the run
         (:mod:`pose_uncertainty.analysis.measures`), deterministic
     metric_units : dict of str to str — unit of each metric
@@ -90,6 +93,7 @@ class RunResult(Measured):
     maps: tuple[ProbabilityMap, ...] = ()
     map_samplers: dict[str, NDArray[np.float64]] = field(default_factory=dict)
     unscented_covs: NDArray[np.float64] | None = None
+    expcoords_levels: dict[str, float] = field(default_factory=dict)
 
     @property
     def n_steps(self) -> int:
@@ -177,16 +181,23 @@ def execute(
         if ds is not None:  # the growth laws and the skid-steer's turn bias
             metrics.update(drive_measures(ds, poses, covs, config.monte_carlo.checkpoints,
                                           checkpoints, end_poses))  # fmt: skip
+    # the banana's region levels: what its boundary is drawn at, kept beside the measures (not logged)
+    levels = {k[len(_LEVEL):]: metrics.pop(k) for k in [k for k in metrics if k.startswith(_LEVEL)]}
     timings["total_s"] = time.perf_counter() - t_all
     return RunResult(
         config=config, times=np.ascontiguousarray(traj.times, dtype=np.float64), poses=poses,
         covs=covs, end_poses=end_poses, checkpoints=checkpoints, maps=tuple(maps),
         map_samplers=samplers, metrics=metrics,
         unscented_covs=None if ures is None else np.ascontiguousarray(ures.covs, dtype=np.float64),
+        expcoords_levels=levels,
         metric_units={k: measures.describe(k)[0] for k in metrics},
         metric_definitions={k: measures.describe(k)[1] for k in metrics},
         timings=timings, provenance=provenance(),
     )  # fmt: skip
+
+
+#: The prefix of the banana's region levels in the accuracy comparison's flattened entries.
+_LEVEL = "accuracy_expcoords_level_xy_"
 
 
 @contextlib.contextmanager
@@ -344,7 +355,7 @@ def _accuracy_metrics(
     res = accuracy.compare_methods(
         end_poses, (poses[-1], covs[-1]), (E.poses[-1], E.covs[-1]),
         np.random.default_rng([config.seed, 1]), n_threshold=50_000, unscented=c_end,
-        distances=distances,
+        distances=distances, levels=True,
     )  # fmt: skip
     return accuracy.flatten(res)
 

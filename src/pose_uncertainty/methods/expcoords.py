@@ -783,8 +783,8 @@ def region_xy_at(
 ) -> list[NDArray[np.float64]]:
     """Boundary of the planar region ``{p(x, y) ≥ level}`` contoured on the grid ``x × y``.
 
-    :func:`pr_region_xy` with a known level (e.g. a run's logged threshold,
-    ``accuracy_expcoords_level_xy_<pr>``): the density on the grid's points
+    :func:`pr_region_xy` with a known level (e.g. the threshold a run's coverage used,
+    ``RunResult.expcoords_levels``): the density on the grid's points
     (:func:`marginal_xy_grid`) and its contour at ``level``.
 
     Parameters

@@ -230,8 +230,9 @@ _ACCURACY = {"a": "accuracy_cartesian", "c": "accuracy_unscented", "e": "accurac
 
 
 def _banana(config: RunConfig, res: RunResult) -> list[NDArray[np.float64]]:
-    """The banana's boundary at the run's Pr: contoured at the run's logged level on a grid over the
-    cloud, or (no Monte Carlo, no level) :func:`expcoords.pr_region_xy` with its own draws."""
+    """The banana's boundary at the run's Pr: contoured at the level whose coverage the run measured
+    (:attr:`RunResult.expcoords_levels`) on a grid over the cloud, or (no Monte Carlo, no level)
+    :func:`expcoords.pr_region_xy` with its own draws."""
     from ..core import trajectories
     from ..experiments import drive_run
 
@@ -242,7 +243,7 @@ def _banana(config: RunConfig, res: RunResult) -> list[NDArray[np.float64]]:
         E = expcoords.propagate(traj, config.k_r, config.k_l)
     else:
         E = drive_run.expcoords(drive_run.setup(config.drive, traj, config.k_r, config.k_l), None)
-    level = res.metrics.get(f"accuracy_expcoords_level_xy_{pr_label(config.pr)}".replace(".", "_"), math.nan)
+    level = res.expcoords_levels.get(pr_label(config.pr).replace(".", "_"), math.nan)
     try:
         if math.isfinite(level) and res.end_poses is not None and len(res.end_poses):
             lo, hi = res.end_poses[:, :2].min(axis=0), res.end_poses[:, :2].max(axis=0)
