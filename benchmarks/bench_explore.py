@@ -81,6 +81,7 @@ def browser_times(k_values: list[str], chromium: str = "/usr/bin/chromium") -> l
 
 def main(repeat: int = 12, browser: bool = True) -> dict[str, Any]:
     """Run the benchmark and write the results file."""
+    load_before = os.getloadavg()[0]  # others' work on this machine slows every time below alike
     all_cpus = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else None
     _one_cpu()
     k_values = [f"{k:.4g}" for k in np.geomspace(1e-4, 4e-3, repeat + 1)]
@@ -119,7 +120,7 @@ def main(repeat: int = 12, browser: bool = True) -> dict[str, Any]:
         "setting": {**SETTING, "n_steps": 500, "methods": "A, C, banana, Monte Carlo", "cores": 1,
                     "change": "k_r, geometric steps 1e-4 … 4e-3 m"},
         "goal": {"p95_s": GOAL_P95_S},
-        "machine_load": {"loadavg_1min_before": os.getloadavg()[0], "cpus": float(os.cpu_count() or 0)},
+        "machine_load": {"loadavg_1min_before": load_before, "cpus": float(os.cpu_count() or 0)},
         "full_run": {**_stats(full), "what": "execute(config): every measure, as pose-uncertainty run"},
         "compute": {**compute, "speedup_p50_vs_full_run": float(np.median(full)) / compute["p50_s"]},
         "compute_parts_median": {k: float(np.median(v)) for k, v in parts.items()},
