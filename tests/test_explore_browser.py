@@ -22,10 +22,13 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from test_report_browser import CDP, FLAGS, _free_port, chromium  # noqa: F401 - the fixture
 
+from pose_uncertainty.cli import main
 from pose_uncertainty.present import explore
+from pose_uncertainty.records.formats import open_run
 
 SRC = Path(__file__).resolve().parents[1] / "src"
 
@@ -118,7 +121,23 @@ def explorer_page(
             server.communicate()
 
 
-def set_field(cdp: CDP, name: str, value: str) -> None:
+def _evaluate(cdp: CDP, expression: str) -> Any:
+    """The value of a JavaScript expression in the page."""
+    out = cdp.call("Runtime.evaluate", expression=expression, returnByValue=True)
+    assert "exceptionDetails" not in out, out
+    return out["result"].get("value")
+
+
+#: JavaScript: click the page's "Save as run config" button (found through the shadow roots).
+CLICK_SAVE = (
+    "(() => { const all = []; const walk = (root) => { for (const el of root.querySelectorAll('*')) {"
+    " if (el.tagName === 'BUTTON' && el.textContent.trim() === 'Save as run config') all.push(el);"
+    " if (el.shadowRoot) walk(el.shadowRoot); } }; walk(document); all.forEach(b => b.click());"
+    " return all.length; })()"
+)
+
+
+def set_field(cdp: CDP, name: str, value: str | float) -> None:
     """Set a control's value in the page (the widget's model, as a user's edit does)."""
     cdp.call("Runtime.evaluate",
              expression=f"Bokeh.documents[0].get_model_by_name({json.dumps(name)}).value = {json.dumps(value)}")  # fmt: skip
@@ -184,6 +203,35 @@ def test_explorer_in_chromium(chromium: str, tmp_path: Path) -> None:  # noqa: F
         moved = explore.compute(explore.run_config({**explore.DEFAULTS, "k_r": "3e-3"}))
         assert second == _shown(moved, "a")
         assert _text(cdp, "coverage-c") == _shown(moved, "c")
+        # the drawn ellipse is the library's for the new setting
+        xs = _evaluate(cdp, "Array.from(Bokeh.documents[0].get_model_by_name('source-a').data.xs[0])")
+        np.testing.assert_allclose(xs, moved.regions["a"][0][:, 0], rtol=1e-12, atol=1e-15)
+        # the slider (log10 k_r) writes the field, and the page redraws
+        set_field(cdp, "slider-k_r", -2.5)
+        _wait_status(cdp, "k_r 0.00316,")
+        slid = explore.compute(explore.run_config({**explore.DEFAULTS, "k_r": "0.00316"}))
+        assert _text(cdp, "coverage-a") == _shown(slid, "a")
+        # a bad value: its one-line error in the page, the last good picture kept
+        set_field(cdp, "field-k_l", "-1")
+        deadline = time.monotonic() + 120
+        while "k_l" not in str(_evaluate(cdp, "Bokeh.documents[0].get_model_by_name('error').text")):
+            assert time.monotonic() < deadline, "no error shown for k_l = -1"
+            time.sleep(0.25)
+        shown_error = str(_evaluate(cdp, "Bokeh.documents[0].get_model_by_name('error').text"))
+        assert "-1" in shown_error
+        assert "\n" not in shown_error
+        assert _text(cdp, "coverage-a") == _shown(slid, "a")
+        set_field(cdp, "field-k_l", explore.DEFAULTS["k_l"])
+        _wait_text(cdp, "coverage-a", None, timeout=120)
+        # "Save as run config" from the page: the run of that file logs the numbers the page shows
+        saved = tmp_path / "explored.yaml"
+        set_field(cdp, "save-path", str(saved))
+        assert _evaluate(cdp, CLICK_SAVE) == 1
+        _wait_status(cdp, "wrote")
+        assert main(["run", str(saved), "-o", str(tmp_path / "explored.mcap")]) == 0
+        logged = open_run(tmp_path / "explored.mcap").metrics
+        for key, name in (("a", "cartesian"), ("c", "unscented"), ("e", "expcoords")):
+            assert _text(cdp, f"coverage-{key}") == f"{100 * logged[f'accuracy_{name}_coverage_xy_98_89']:.2f}"
         shot = cdp.call("Page.captureScreenshot", format="png")
         cdp.call("Runtime.evaluate", expression="1")  # drain
     assert shot["data"]

@@ -622,9 +622,11 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
         draw(view)
         draw_map()
         m = view.result.metrics
+        newer = s != state.get("requested")  # a newer setting is being computed: this one is not the last
         status.text = (f"{view.result.n_steps} steps, path {m['path_length']:.3g} m, "
                        f"{int(m.get('MC_n', 0))} particles, k_r {html.escape(s['k_r'])}, "
-                       f"k_l {html.escape(s['k_l'])}; computed in {1000 * seconds:.0f} ms")  # fmt: skip
+                       f"k_l {html.escape(s['k_l'])}; computed in {1000 * seconds:.0f} ms"
+                       + ("; computing the newest setting…" if newer else ""))  # fmt: skip
 
     def one(s: dict[str, str]) -> tuple[View | None, str, float]:
         t0 = time.perf_counter()
@@ -712,6 +714,7 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
 
     def update(attr: Any, old: Any, new: Any) -> None:
         s = settings_now()
+        state["requested"] = s
         start_map(s)
         if moves is None:
             view, msg, seconds = one(s)
