@@ -74,10 +74,20 @@ def test_compute_equals_the_library_called_directly(view: explore.View) -> None:
         np.testing.assert_allclose(d2, float(pr_to_k(pr)), rtol=1e-6)
     assert "e" in view.regions
     assert view.regions["e"][0].shape[1] == 2
-    # σ along/across: the final value is Method A's logged measure
-    assert view.spreads["sigma_along"][-1] == pytest.approx(
-        view.result.metrics["A_sigma_along"], rel=1e-12
-    )
+    # σ along/across: the final values are Methods A's and C's logged measures, and C's curve is
+    # the unscented propagation's own covariances (called directly above) in the nominal frame
+    for key, prefix in (("a", "A"), ("c", "C")):
+        for w in ("along", "across"):
+            assert view.spreads[key][f"sigma_{w}"][-1] == pytest.approx(
+                view.result.metrics[f"{prefix}_sigma_{w}"], rel=1e-9
+            ), (key, w)
+    theta = view.result.poses[:, 2]
+    along_c = np.sqrt(np.einsum("ni,nij,nj->n", np.stack([np.cos(theta), np.sin(theta)], -1),
+                                c.covs[:, :2, :2], np.stack([np.cos(theta), np.sin(theta)], -1)))  # fmt: skip
+    np.testing.assert_allclose(view.spreads["c"]["sigma_along"], along_c, rtol=1e-9, atol=1e-15)
+    # the growth exponents are fits of those curves (a straight line of σ²: along ∝ s^(1/2) …)
+    assert set(view.growth) == {"a", "c"}
+    assert 0.3 < view.growth["a"]["sigma_along"]["power_exponent"] < 2.0
     assert view.distance[-1] == pytest.approx(view.result.metrics["path_length"], rel=1e-9)
 
 
@@ -208,3 +218,67 @@ def test_server_binds_loopback_by_default() -> None:
             proc.kill()
             proc.communicate()
     assert proc.returncode == 130  # interrupted: the CLI's status for SIGINT
+
+
+def test_light_run_keeps_every_number_of_the_full_run(view: explore.View) -> None:
+    """``execute(distances=False)`` (each move of a control) leaves out the density distances only:
+    every measure it keeps equals the full run's to the bit (the generator is drawn from alike)."""
+    from pose_uncertainty.experiments.run import execute
+
+    full = execute(view.config).metrics
+    light = view.result.metrics
+    left_out = set(full) - set(light)
+    assert set(light) <= set(full)
+    assert left_out
+    assert all(k.endswith(("hellinger", "kl", "model_mass_on_grid", "_floor")) for k in left_out)
+    assert {k: light[k] for k in light} == {k: full[k] for k in light}
+    # the banana's level is the one its coverage used: the share of the cloud at or above it
+    from pose_uncertainty.methods import expcoords
+
+    cfg = view.config
+    traj = trajectories.from_config(cfg.trajectory)
+    E = expcoords.propagate(traj, cfg.k_r, cfg.k_l)
+    dens = expcoords.pdf_xy(view.result.end_poses[:, :2], E.poses[-1], E.covs[-1])
+    label = pr_label(cfg.pr).replace(".", "_")
+    level = view.result.expcoords_levels[label]
+    assert float(np.mean(dens >= level)) == light[f"accuracy_expcoords_coverage_xy_{label}"]
+    assert not any("level" in k for k in full)  # the levels are not logged measures
+
+
+TINY_MAP = {**SMALL, "path": "straight", "size": "0.3", "dt": "0.05", "map": "odometry", "map_resolution": "0.02"}
+
+
+def test_page_draws_the_map_region_and_its_coverage_of_each_new_cloud() -> None:
+    """The map is the run's (its region the Pr region of the run's map), its coverage the library's
+    for the cloud shown; a k_r move redraws the coverage without recomputing the map."""
+    pytest.importorskip("bokeh")
+    from bokeh.document import Document
+
+    from pose_uncertainty.analysis.accuracy import coverage_gridded
+
+    doc = Document()
+    explore.make_document(doc, TINY_MAP, background=False)
+    status, source, err = (doc.select_one({"name": n}) for n in ("map-status", "source-map", "error"))
+    assert err.text == ""
+    view = explore.compute(explore.run_config(TINY_MAP))
+    mp = view.result.maps[0]
+    label = pr_label(view.config.pr)
+    want = coverage_gridded(mp, view.result.end_poses[:, :2], [view.config.pr])[label]
+    assert re.search(r'id="coverage-map">([0-9.]+)<', status.text).group(1) == f"{100 * want:.2f}"
+    assert len(source.data["xs"]) >= 1
+    # the drawn boundary encloses the map's Pr region: its cells of mass ≥ the level
+    level, _ = mp.region_xy(view.config.pr)
+    ring = np.column_stack([source.data["xs"][0], source.data["ys"][0]])
+    from matplotlib.path import Path as Polygon
+
+    marg = mp.marginal_xy()
+    i, j = np.unravel_index(int(np.argmax(marg)), marg.shape)
+    assert marg[i, j] >= level
+    assert Polygon(ring).contains_point((mp.x[i], mp.y[j]))
+    # a k_r move: a new cloud, the same map (not recomputed), the coverage of the new cloud
+    doc.select_one({"name": "field-k_r"}).value = "6e-3"
+    moved = explore.compute(explore.run_config({**TINY_MAP, "k_r": "6e-3"}))
+    np.testing.assert_array_equal(moved.result.maps[0].values, mp.values)  # the map ignores k_r
+    again = coverage_gridded(mp, moved.result.end_poses[:, :2], [view.config.pr])[label]
+    assert re.search(r'id="coverage-map">([0-9.]+)<', status.text).group(1) == f"{100 * again:.2f}"
+    assert again != want

@@ -256,6 +256,7 @@ def evaluate_cartesian(
     grid: Grid | None = None,
     prs: Sequence[float] = PRS,
     supersample: int = 4,
+    distances: bool = True,
 ) -> dict[str, float]:
     """All accuracy measures of the Cartesian Gaussian ``N(pose, cov)`` (Method A) against a cloud.
 
@@ -266,6 +267,8 @@ def evaluate_cartesian(
     cov : array_like, shape (3, 3) — its covariance, positive definite
     grid : Grid, optional — default :meth:`Grid.covering` of the samples
     prs : probabilities of the credible regions; supersample : see :func:`cell_probabilities`
+    distances : bool — False: leave out the density distances on the grid (``hellinger``,
+        ``kl``, ``model_mass_on_grid``, the costly part); the other measures are unchanged
 
     Returns
     -------
@@ -281,8 +284,9 @@ def evaluate_cartesian(
         out[f"coverage_xy_{key}"] = val
     for key, val in coverage_ellipsoid(s, mu, C, prs).items():
         out[f"coverage_pose_{key}"] = val
-    q = cell_probabilities(_gauss2_pdf(mu[:2], C[:2, :2]), g, supersample)
-    out.update(_distances(g.histogram_xy(s[:, :2]), q))
+    if distances:
+        q = cell_probabilities(_gauss2_pdf(mu[:2], C[:2, :2]), g, supersample)
+        out.update(_distances(g.histogram_xy(s[:, :2]), q))
     d3 = mahalanobis_sq(s, mu, C)
     d2 = mahalanobis_sq(s[:, :2], mu[:2], C[:2, :2])
     _, logdet3 = np.linalg.slogdet(C)
@@ -303,6 +307,8 @@ def evaluate_expcoords(
     prs: Sequence[float] = PRS,
     supersample: int = 4,
     n_threshold: int = 200_000,
+    distances: bool = True,
+    levels: bool = False,
 ) -> dict[str, float]:
     """All accuracy measures of the exponential-coordinates Gaussian ``μ exp(N(0, cov))``.
 
@@ -311,7 +317,9 @@ def evaluate_expcoords(
     from ``rng``); the pose region and NEES use the exponential coordinates
     ``ε = log(μ⁻¹ g)``.
 
-    Parameters and returned keys as :func:`evaluate_cartesian` (``cov`` is Σ of ε).
+    Parameters and returned keys as :func:`evaluate_cartesian` (``cov`` is Σ of ε); with
+    ``levels`` also ``level_xy_<pr>`` [1/m²]: the density level ``c`` of each planar region
+    (what its boundary is drawn at).
     """
     s = _check_samples(samples)
     mu = check_last_axis("pose", pose, 3)
@@ -324,17 +332,19 @@ def evaluate_expcoords(
         # Σ singular given θ (one step of a two-wheel drive): the planar density, its regions and
         # the distances on the grid are undefined here (NaN); the pose-space measures are not
         dens = None
-    levels = ec.hdr_threshold(mu, C, np.asarray(prs), rng, n=n_threshold) if dens is not None else None
+    thresholds = ec.hdr_threshold(mu, C, np.asarray(prs), rng, n=n_threshold) if dens is not None else None
     for i, pr in enumerate(prs):
-        out[f"coverage_xy_{pr_label(pr)}"] = (float(np.mean(dens >= levels[i])) if dens is not None
-                                              and levels is not None else math.nan)  # fmt: skip
+        out[f"coverage_xy_{pr_label(pr)}"] = (float(np.mean(dens >= thresholds[i])) if dens is not None
+                                              and thresholds is not None else math.nan)  # fmt: skip
+        if levels:
+            out[f"level_xy_{pr_label(pr)}"] = float(thresholds[i]) if thresholds is not None else math.nan
     eps = ec.coordinates(s, mu)
     for key, val in coverage_ellipsoid(eps, np.zeros(3), C, prs).items():
         out[f"coverage_pose_{key}"] = val
-    if dens is not None:
+    if dens is not None and distances:
         q = cell_probabilities(lambda pts: ec.pdf_xy(pts, mu, C), g, supersample)
         out.update(_distances(g.histogram_xy(s[:, :2]), q))
-    else:
+    elif distances:
         out.update(hellinger=math.nan, kl=math.nan, model_mass_on_grid=math.nan)
     out["loglik_pose"] = float(np.mean(ec.logpdf_pose(s, mu, C)))
     out["loglik_xy"] = _safe_mean_log(dens) if dens is not None else math.nan
@@ -376,9 +386,17 @@ def evaluate_gridded(
     return out
 
 
-def _floor(pose: NDArray, cov_xy: NDArray, n: int, grid: Grid, rng: np.random.Generator) -> dict:
-    """Distances of the Cartesian Gaussian to a histogram of ``n`` of its own draws."""
+def _floor(
+    pose: NDArray, cov_xy: NDArray, n: int, grid: Grid, rng: np.random.Generator, distances: bool = True
+) -> dict:
+    """Distances of the Cartesian Gaussian to a histogram of ``n`` of its own draws.
+
+    The draws are taken from ``rng`` even without ``distances`` (then nothing is returned):
+    what the generator gives next (the banana's thresholds) is the same either way.
+    """
     draws = rng.multivariate_normal(pose[:2], cov_xy, size=n, method="eigh")
+    if not distances:
+        return {}
     q = cell_probabilities(_gauss2_pdf(pose[:2], cov_xy), grid, 4)
     p = grid.histogram_xy(draws)
     h, kl = _shape_distances(p, q)
@@ -395,6 +413,8 @@ def compare_methods(
     n_bins: int = 60,
     n_threshold: int = 200_000,
     unscented: tuple[ArrayLike, ArrayLike] | None = None,
+    distances: bool = True,
+    levels: bool = False,
 ) -> dict[str, dict[str, float]]:
     """Every method against one Monte Carlo cloud, on one grid.
 
@@ -410,6 +430,11 @@ def compare_methods(
     unscented : (pose (3,), cov (3, 3)) or None — Method C (the unscented transform): a
         Cartesian Gaussian about its own mean, measured as :func:`evaluate_cartesian`
         (uses no randomness: the other entries are the same with or without it)
+    distances : bool — False: no density distances on the grid (the floors, ``hellinger``,
+        ``kl``, ``model_mass_on_grid``), the costly part; every other entry is the same number
+        as with True (the generator is drawn from alike)
+    levels : bool — True: the banana's entry also holds its regions' density levels
+        ``level_xy_<pr>`` (:func:`evaluate_expcoords`)
 
     Returns
     -------
@@ -422,17 +447,18 @@ def compare_methods(
     grid = Grid.covering(s[:, :2], n_bins=n_bins)
     pose_a, cov_a = (np.asarray(v, dtype=float) for v in cartesian)
     res: dict[str, dict[str, float]] = {"grid": {**grid.describe(), "n_samples": float(len(s))}}
-    mc = _floor(pose_a, cov_a[:2, :2], len(s), grid, rng)
+    mc = _floor(pose_a, cov_a[:2, :2], len(s), grid, rng, distances)
     for pr in prs:
         mc[f"coverage_se_{pr_label(pr)}"] = math.sqrt(pr * (1 - pr) / len(s))
     res["monte_carlo"] = mc
-    res["cartesian"] = evaluate_cartesian(s, pose_a, cov_a, grid, prs)
+    res["cartesian"] = evaluate_cartesian(s, pose_a, cov_a, grid, prs, distances=distances)
     if expcoords is not None:
         pose_e, cov_e = (np.asarray(v, dtype=float) for v in expcoords)
-        res["expcoords"] = evaluate_expcoords(s, pose_e, cov_e, rng, grid, prs, n_threshold=n_threshold)
+        res["expcoords"] = evaluate_expcoords(s, pose_e, cov_e, rng, grid, prs, n_threshold=n_threshold,
+                                              distances=distances, levels=levels)
     if unscented is not None:  # Method C
         pose_c, cov_c = (np.asarray(v, dtype=float) for v in unscented)
-        res["unscented"] = evaluate_cartesian(s, pose_c, cov_c, grid, prs)
+        res["unscented"] = evaluate_cartesian(s, pose_c, cov_c, grid, prs, distances=distances)
     for name, dens in (densities or {}).items():
         res[name] = evaluate_gridded(dens, s, grid, prs)
     return res

@@ -20,7 +20,7 @@ import contextlib
 import dataclasses
 import math
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -32,6 +32,7 @@ from ..core.grids import Grid
 from ..core.provenance import provenance
 from ..core.table_io import jsonable
 from ..methods import covariance, expcoords, maps, motion_models, sampling, unscented
+from ..methods.covariance import CovarianceResult
 from ..methods.maps import ProbabilityMap
 from . import cost
 from .config import MapConfig, MonteCarloConfig, RunConfig, map_kind
@@ -70,6 +71,11 @@ class RunResult(Measured):
     maps : tuple of ProbabilityMap — each with its name, parameters and centre
     map_samplers : dict of str to ndarray, shape (n, 3) — per map name, the draws of its
         model's own sampler along the run's controls
+    unscented_covs : ndarray, shape (N+1, 3, 3) or None — Method C's covariance at every pose
+        (None with a drive: Method C is the differential drive's)
+    expcoords_levels : dict of str to float — per Pr label (``"98_89"``), the density level
+        [1/m²] of the exponential-coordinates Gaussian's planar region whose coverage the run
+        measured (where its boundary is drawn); not logged, empty without the accuracy comparison
     metrics : dict of str to float — every measure of the run
         (:mod:`pose_uncertainty.analysis.measures`), deterministic
     metric_units : dict of str to str — unit of each metric
@@ -86,6 +92,8 @@ class RunResult(Measured):
     checkpoints: dict[int, NDArray[np.float64]] = field(default_factory=dict)
     maps: tuple[ProbabilityMap, ...] = ()
     map_samplers: dict[str, NDArray[np.float64]] = field(default_factory=dict)
+    unscented_covs: NDArray[np.float64] | None = None
+    expcoords_levels: dict[str, float] = field(default_factory=dict)
 
     @property
     def n_steps(self) -> int:
@@ -104,12 +112,27 @@ class RunResult(Measured):
 # --- execution ------------------------------------------------------------------------------
 
 
-def execute(config: RunConfig) -> RunResult:
+def execute(
+    config: RunConfig,
+    *,
+    distances: bool = True,
+    progress: Callable[[str], Callable[[int, int], None]] | None = None,
+) -> RunResult:
     """Compute one run: trajectory, covariance, Monte Carlo, maps and every measure.
 
     Parameters
     ----------
     config : RunConfig
+    distances : bool
+        False: the accuracy comparison leaves out its density distances on a grid
+        (``accuracy_*_hellinger``, ``_kl``, ``_model_mass_on_grid``, the floors), which cost
+        most of a run's measures; every measure it keeps is the same number as with True
+        (what the explorer computes on each move of a control; a run logs them all).
+    progress : callable, optional
+        ``progress(label)`` gives the ``(done, total)`` callback of the long loop ``label``
+        (the Monte Carlo, each map); default a :class:`~pose_uncertainty.experiments.progress.Progress`
+        on stderr. An exception raised by a callback stops the run (the explorer abandons
+        a superseded map this way).
 
     Returns
     -------
@@ -124,6 +147,7 @@ def execute(config: RunConfig) -> RunResult:
         exceeds the limits (``POSE_UNCERTAINTY_MAX_MEMORY``, ``POSE_UNCERTAINTY_MAX_SECONDS``).
     """
     cost.check(config)  # the guard: one line naming the estimate, the limit and the drivers
+    bar = progress or (lambda label: Progress(f"{config.name}: {label}"))
     timings: dict[str, float] = {}
     t_all = time.perf_counter()
     with _timed(timings, "trajectory_s"):
@@ -135,6 +159,7 @@ def execute(config: RunConfig) -> RunResult:
         else:  # the drive following the path (experiments/drive_run.py)
             cres = drive_method_a(ds, _cov0(config))
     c_end = None
+    ures: CovarianceResult | None = None
     if ds is None:  # Method C, on the differential drive's wheel-noise model
         with _timed(timings, "unscented_s"):
             ures = unscented.propagate(traj, config.k_r, config.k_l, cov0=_cov0(config))
@@ -145,26 +170,34 @@ def execute(config: RunConfig) -> RunResult:
     checkpoints: dict[int, NDArray[np.float64]] = {}
     if config.monte_carlo.n_particles > 0:
         with _timed(timings, "monte_carlo_s"):
-            end_poses, checkpoints = _monte_carlo(config, traj, ds)
+            end_poses, checkpoints = _monte_carlo(config, traj, ds, bar("Monte Carlo"))
     maps, samplers = [], {}
     for i, mcfg in enumerate(config.maps):
         with _timed(timings, f"map_{mcfg.name}_s"):
-            maps.append(_compute_map(mcfg, traj, Progress(f"{config.name}: map {mcfg.name}")))
+            maps.append(_compute_map(mcfg, traj, bar(f"map {mcfg.name}")))
             samplers[mcfg.name] = _map_sampler(config, mcfg, traj, i)
     with _timed(timings, "measures_s"):
-        metrics = _measures(config, traj, poses, covs, end_poses, maps, samplers, c_end, ds)
+        metrics = _measures(config, traj, poses, covs, end_poses, maps, samplers, c_end, ds, distances)
         if ds is not None:  # the growth laws and the skid-steer's turn bias
             metrics.update(drive_measures(ds, poses, covs, config.monte_carlo.checkpoints,
                                           checkpoints, end_poses))  # fmt: skip
+    # the banana's region levels: what its boundary is drawn at, kept beside the measures (not logged)
+    levels = {k[len(_LEVEL):]: metrics.pop(k) for k in [k for k in metrics if k.startswith(_LEVEL)]}
     timings["total_s"] = time.perf_counter() - t_all
     return RunResult(
         config=config, times=np.ascontiguousarray(traj.times, dtype=np.float64), poses=poses,
         covs=covs, end_poses=end_poses, checkpoints=checkpoints, maps=tuple(maps),
         map_samplers=samplers, metrics=metrics,
+        unscented_covs=None if ures is None else np.ascontiguousarray(ures.covs, dtype=np.float64),
+        expcoords_levels=levels,
         metric_units={k: measures.describe(k)[0] for k in metrics},
         metric_definitions={k: measures.describe(k)[1] for k in metrics},
         timings=timings, provenance=provenance(),
     )  # fmt: skip
+
+
+#: The prefix of the banana's region levels in the accuracy comparison's flattened entries.
+_LEVEL = "accuracy_expcoords_level_xy_"
 
 
 @contextlib.contextmanager
@@ -182,7 +215,10 @@ def _cov0(config: RunConfig) -> NDArray[np.float64] | None:
 
 
 def _monte_carlo(
-    config: RunConfig, traj: trajectories.Trajectory, ds: DriveSetup | None = None
+    config: RunConfig,
+    traj: trajectories.Trajectory,
+    ds: DriveSetup | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> tuple[NDArray[np.float64], dict[int, NDArray[np.float64]]]:
     """Monte Carlo end poses (n, 3) and the clouds at the checkpoint steps (of the drive, if any)."""
     mc = config.monte_carlo
@@ -192,7 +228,7 @@ def _monte_carlo(
         out = sampling.sample_end_poses(
             traj, config.k_r, config.k_l, mc.n_particles, rng,
             regime=mc.regime, method=mc.method, cov0=config.cov0, checkpoints=steps,
-            progress=Progress(f"{config.name}: Monte Carlo"),
+            progress=progress,
         )  # fmt: skip
     else:
         out = drive_sample(ds, mc.n_particles, rng, regime=mc.regime, method=mc.method,
@@ -205,7 +241,7 @@ def _monte_carlo(
 
 
 def _compute_map(
-    mcfg: MapConfig, traj: trajectories.Trajectory, progress: Progress | None = None
+    mcfg: MapConfig, traj: trajectories.Trajectory, progress: Callable[[int, int], None] | None = None
 ) -> ProbabilityMap:
     """Compute one probability map with :mod:`pose_uncertainty.methods.maps`.
 
@@ -261,6 +297,7 @@ def _measures(
     samplers: dict[str, NDArray[np.float64]],
     c_end: tuple[NDArray[np.float64], NDArray[np.float64]] | None,
     ds: DriveSetup | None = None,
+    distances: bool = True,
 ) -> dict[str, float]:
     """Every measure of the run (:mod:`pose_uncertainty.analysis.measures`), computed once here.
 
@@ -278,7 +315,7 @@ def _measures(
     for mp in maps_:
         out.update(measures.map_measures(mp, config.pr, samplers.get(mp.name)))
     if end_poses is not None and end_poses.shape[0] >= 10:
-        out.update(_accuracy_metrics(config, traj, poses, covs, end_poses, c_end, ds))
+        out.update(_accuracy_metrics(config, traj, poses, covs, end_poses, c_end, ds, distances))
     return out
 
 
@@ -290,6 +327,7 @@ def _accuracy_metrics(
     end_poses: NDArray[np.float64],
     c_end: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
     ds: DriveSetup | None = None,
+    distances: bool = True,
 ) -> dict[str, float]:
     """How wrong each Gaussian method is against this run's Monte Carlo cloud.
 
@@ -317,6 +355,7 @@ def _accuracy_metrics(
     res = accuracy.compare_methods(
         end_poses, (poses[-1], covs[-1]), (E.poses[-1], E.covs[-1]),
         np.random.default_rng([config.seed, 1]), n_threshold=50_000, unscented=c_end,
+        distances=distances, levels=True,
     )  # fmt: skip
     return accuracy.flatten(res)
 

@@ -92,6 +92,7 @@ __all__ = [
     "propagate",
     "propagate_recursive",
     "propagate_twists",
+    "region_xy_at",
     "sample",
     "to_cartesian_cov",
 ]
@@ -774,8 +775,31 @@ def pr_region_xy(
     pad = 0.1 * (hi - lo) + 1e-12
     x = np.linspace(lo[0] - pad[0], hi[0] + pad[0], n_grid)
     y = np.linspace(lo[1] - pad[1], hi[1] + pad[1], n_grid)
-    Z = marginal_xy_grid(x, y, mu, S)
+    return region_xy_at(x, y, mu, S, level)
+
+
+def region_xy_at(
+    x: ArrayLike, y: ArrayLike, mean_pose: ArrayLike, cov: ArrayLike, level: float
+) -> list[NDArray[np.float64]]:
+    """Boundary of the planar region ``{p(x, y) ≥ level}`` contoured on the grid ``x × y``.
+
+    :func:`pr_region_xy` with a known level (e.g. the threshold a run's coverage used,
+    ``RunResult.expcoords_levels``): the density on the grid's points
+    (:func:`marginal_xy_grid`) and its contour at ``level``.
+
+    Parameters
+    ----------
+    x : array_like, shape (nx,); y : array_like, shape (ny,) — increasing grid points [m]
+    mean_pose : array_like, shape (3,); cov : array_like, shape (3, 3)
+    level : float — density level [1/m²]
+
+    Returns
+    -------
+    list of ndarray, each shape (m, 2) [m] — polylines (closed unless cut by the grid's edge)
+    """
+    xx, yy = check_finite("x", x), check_finite("y", y)
+    Z = marginal_xy_grid(xx, yy, mean_pose, cov)
     import contourpy  # imported where used: only these contours need it
 
-    gen = contourpy.contour_generator(x, y, Z.T)
-    return [np.asarray(line) for line in gen.lines(level)]
+    gen = contourpy.contour_generator(xx, yy, Z.T)
+    return [np.asarray(line) for line in gen.lines(float(level))]
