@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import errno
 import os
 import sys
@@ -21,6 +22,7 @@ __all__ = [
     "EXIT_OK",
     "CommandError",
     "add_follow_symlink",
+    "json_object",
     "load_config_file",
     "one_line_errors",
 ]
@@ -49,6 +51,19 @@ def _os_error_line(exc: OSError) -> str:
     what = exc.strerror or first_line(exc)
     code = errno.errorcode.get(exc.errno or 0)
     return f"{where}{what}{f' ({code})' if code and code not in what else ''}"
+
+
+def json_object(text: str) -> dict[str, Any]:
+    """An argparse type: one JSON object given as a command-line argument (a job's configuration)."""
+    import json
+
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise argparse.ArgumentTypeError(f"not valid JSON ({exc.msg} at character {exc.pos})") from None
+    if not isinstance(value, dict):
+        raise argparse.ArgumentTypeError(f"must be a JSON object, got {type(value).__name__}")
+    return value
 
 
 def one_line_errors(func: Callable[[], int], *, debug: bool = False) -> int:
