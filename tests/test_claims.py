@@ -262,7 +262,7 @@ def test_claim12_branches():
 
 def test_every_claim_is_not_measured_without_its_sets():
     claims = evaluate_claims({})
-    assert [c.number for c in claims] == list(range(1, 13))
+    assert [c.number for c in claims] == [*range(1, 13), *range(30, 35)]  # the theses' and your robot's
     assert {c.verdict for c in claims} == {"not measured"}
     assert all("needs" in c.reason for c in claims)
 
