@@ -128,7 +128,7 @@ def simulate_robot(spec: Mapping[str, Any], bag_out: str | os.PathLike[str], tru
     """
     robot = SimulatedRobot(**spec["simulate"])
     segments = calibration_drive(**spec["drive"])
-    path = write_simulated_bag(bag_out, robot, np.random.default_rng(int(spec["seed"])), segments, storage="mcap-file")
+    path = write_simulated_bag(Path(bag_out), robot, np.random.default_rng(int(spec["seed"])), segments, storage="mcap-file")
     doc = {
         "format": ROBOT_TRUTH_FORMAT, "format_version": "1", "seed": int(spec["seed"]),
         "simulate": dict(spec["simulate"]), "drive": dict(spec["drive"]),
@@ -180,7 +180,7 @@ def calibrate_robot(
     robot = read_robot_file(spec["robot_file"]) if spec.get("robot_file") else RobotConfig()
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
-    cal = calibrate_bag(bag, robot, out, seed=int(spec["seed"]), figure_files=True,
+    cal = calibrate_bag(Path(bag), robot, out, seed=int(spec["seed"]), figure_files=True,
                         progress=lambda text: print(text, file=sys.stderr, flush=True))  # fmt: skip
     doc = json.loads(Path(truth).read_text(encoding="utf-8")) if truth is not None else None
     if doc is not None and doc.get("format") != ROBOT_TRUTH_FORMAT:
