@@ -22,6 +22,7 @@ __all__ = [
     "EXIT_OK",
     "CommandError",
     "add_follow_symlink",
+    "job_parser",
     "json_object",
     "load_config_file",
     "one_line_errors",
@@ -64,6 +65,13 @@ def json_object(text: str) -> dict[str, Any]:
     if not isinstance(value, dict):
         raise argparse.ArgumentTypeError(f"must be a JSON object, got {type(value).__name__}")
     return value
+
+
+def job_parser(prog: str, description: str) -> tuple[argparse.ArgumentParser, Any]:
+    """The parser of a pipeline job runner (``--debug``, then one ``KIND`` subcommand) and its subparsers."""
+    parser = argparse.ArgumentParser(prog=prog, description=description)
+    parser.add_argument("--debug", action="store_true", help="print the full traceback after an error's line")
+    return parser, parser.add_subparsers(dest="kind", required=True, metavar="KIND")
 
 
 def one_line_errors(func: Callable[[], int], *, debug: bool = False) -> int:

@@ -29,15 +29,13 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from ._common import json_object, one_line_errors
+from ._common import job_parser, json_object, one_line_errors
 
 __all__ = ["main"]
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="python -m pose_uncertainty.cli.job", description=__doc__.split("\n")[0])
-    parser.add_argument("--debug", action="store_true", help="print the full traceback after an error's line")
-    sub = parser.add_subparsers(dest="kind", required=True, metavar="KIND")
+    parser, sub = job_parser("python -m pose_uncertainty.cli.job", __doc__.split("\n")[0])
     for kind, what in (("simulate-run", "a dead-reckoning run"), ("simulate-localization", "a localization run")):
         p = sub.add_parser(kind, help=f"execute {what} and write its log and timings")
         p.add_argument("config", type=json_object, help="the run configuration as a JSON object")

@@ -24,34 +24,40 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from ._common import json_object, one_line_errors
+from ._common import job_parser, json_object, one_line_errors
 
-__all__ = ["main"]
+__all__ = ["main", "parser"]
 
 
-def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="python -m pose_uncertainty.cli.robot_job", description=__doc__.split("\n")[0])
-    parser.add_argument("--debug", action="store_true", help="print the full traceback after an error's line")
-    sub = parser.add_subparsers(dest="kind", required=True, metavar="KIND")
-    p = sub.add_parser("simulate", help="write a simulated robot's bag and its true parameters")
-    p.add_argument("spec", type=json_object, help="one entry of the config's robots.runs as a JSON object")
-    p.add_argument("bag", help="output bag, *.mcap")
-    p.add_argument("truth", help="output true parameters, *.json")
-    p = sub.add_parser("calibrate", help="calibrate one robot of the config's robots section")
-    p.add_argument("spec", type=json_object, help="one entry of the config's robots.runs as a JSON object")
-    p.add_argument("bag", help="the bag (rosbag2 folder, .mcap, .db3 or ROS 1 .bag)")
-    p.add_argument("outdir", help="folder of the outputs")
-    p.add_argument("--truth", help="a simulated robot's true parameters (the simulate command's output)")
-    return parser
+_SPEC = "one entry of the config's robots.runs as a JSON object"
+
+#: Each command: its help and its arguments (name, help; the first is the robot's entry as JSON).
+_COMMANDS: tuple[tuple[str, str, tuple[tuple[str, str], ...]], ...] = (
+    ("simulate", "write a simulated robot's bag and its true parameters",
+     (("spec", _SPEC), ("bag", "output bag, *.mcap"), ("truth", "output true parameters, *.json"))),
+    ("calibrate", "calibrate one robot of the config's robots section",
+     (("spec", _SPEC), ("bag", "the bag (rosbag2 folder, .mcap, .db3 or ROS 1 .bag)"), ("outdir", "folder of the outputs"),
+      ("--truth", "a simulated robot's true parameters (the simulate command's output)"))),
+)  # fmt: skip
+
+
+def parser() -> argparse.ArgumentParser:
+    """The argument parser of the robot jobs (module docstring)."""
+    out, sub = job_parser("python -m pose_uncertainty.cli.robot_job", __doc__.split("\n")[0])
+    for kind, what, arguments in _COMMANDS:
+        command = sub.add_parser(kind, help=what)
+        for name, text in arguments:
+            command.add_argument(name, type=json_object if name == "spec" else str, help=text)
+    return out
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one robot job; returns the exit status (see the module docstring)."""
-    args = _parser().parse_args(argv)
-    return one_line_errors(lambda: _dispatch(args), debug=args.debug)
+    args = parser().parse_args(argv)
+    return one_line_errors(lambda: _run_robot_job(args), debug=args.debug)
 
 
-def _dispatch(args: argparse.Namespace) -> int:
+def _run_robot_job(args: argparse.Namespace) -> int:
     from ..experiments.environment import check_environment
     from ..pipeline import robots
 

@@ -29,25 +29,28 @@ from .config_keys import FROM_CODE, Key, section_values
 __all__ = ["DRIVE_KEYS", "ROBOTS_KEYS", "ROBOT_KEYS", "SIMULATED_ROBOT_KEYS", "code_defaults", "robots_config"]
 
 
+def _code_number(name: str, unit: str, doc: str, *, positive: bool = True) -> Key:
+    """A number key whose default is its code's, > 0 (``positive``) or >= 0."""
+    return Key(name, "number", unit, doc, FROM_CODE, lo=0.0, lo_open=positive)
+
+
 #: The simulated robot (:class:`~pose_uncertainty.robot.simulate.SimulatedRobot`): its truth and its recording.
 SIMULATED_ROBOT_KEYS: tuple[Key, ...] = (
-    Key("radius_left", "number", "m", "True radius of the left wheel.", FROM_CODE, lo=0.0, lo_open=True),
-    Key("radius_right", "number", "m", "True radius of the right wheel.", FROM_CODE, lo=0.0, lo_open=True),
-    Key("track", "number", "m", "True wheel separation b.", FROM_CODE, lo=0.0, lo_open=True),
-    Key("nominal_radius", "number", "m", "Wheel radius the robot's own odometry assumes (both wheels).", FROM_CODE, lo=0.0, lo_open=True),
-    Key("nominal_track", "number", "m", "Wheel separation the robot's own odometry assumes.", FROM_CODE, lo=0.0, lo_open=True),
-    Key("k_r", "number", "m", "True right-wheel error constant: travel variance per metre travelled (Method A).",
-        FROM_CODE, lo=0.0),
-    Key("k_l", "number", "m", "True left-wheel error constant: travel variance per metre travelled (Method A).",
-        FROM_CODE, lo=0.0),
-    Key("truth_position_std", "number", "m", "Noise of each ground-truth position sample (x and y).", FROM_CODE, lo=0.0),
-    Key("truth_heading_std", "number", "rad", "Noise of each ground-truth heading sample.", FROM_CODE, lo=0.0),
+    _code_number("radius_left", "m", "True radius of the left wheel."),
+    _code_number("radius_right", "m", "True radius of the right wheel."),
+    _code_number("track", "m", "True wheel separation b."),
+    _code_number("nominal_radius", "m", "Wheel radius the robot's own odometry assumes (both wheels)."),
+    _code_number("nominal_track", "m", "Wheel separation the robot's own odometry assumes."),
+    _code_number("k_r", "m", "True right-wheel error constant: travel variance per metre travelled (Method A).", positive=False),
+    _code_number("k_l", "m", "True left-wheel error constant: travel variance per metre travelled (Method A).", positive=False),
+    _code_number("truth_position_std", "m", "Noise of each ground-truth position sample (x and y).", positive=False),
+    _code_number("truth_heading_std", "rad", "Noise of each ground-truth heading sample.", positive=False),
     Key("wheel_rate", "number", "Hz", "Rate of the wheel (joint state) messages.", FROM_CODE, lo=0.0, hi=10000.0,
         lo_open=True),
     Key("truth_rate", "number", "Hz", "Rate of the ground-truth messages.", FROM_CODE, lo=0.0, hi=10000.0, lo_open=True),
-    Key("truth_offset", "number", "s", "Offset of the ground-truth stamps from the wheel stamps.", FROM_CODE, lo=0.0),
-    Key("speed", "number", "m/s", "Mean speed of the straight legs and arcs.", FROM_CODE, lo=0.0, lo_open=True),
-    Key("angular_speed", "number", "rad/s", "Mean angular speed of the turns in place.", FROM_CODE, lo=0.0, lo_open=True),
+    _code_number("truth_offset", "s", "Offset of the ground-truth stamps from the wheel stamps.", positive=False),
+    _code_number("speed", "m/s", "Mean speed of the straight legs and arcs."),
+    _code_number("angular_speed", "rad/s", "Mean angular speed of the turns in place."),
 )
 
 #: The commanded drive (:func:`~pose_uncertainty.robot.simulate.calibration_drive`).

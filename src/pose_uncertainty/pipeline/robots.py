@@ -43,7 +43,7 @@ from ..robot.simulate import SimulatedRobot, calibration_drive, write_simulated_
 __all__ = ["ROBOT_TRUTH_FORMAT", "calibrate_robot", "collect_robot_table", "recovery", "robot_row", "simulate_robot"]
 
 
-def _read(path: Path) -> Any:
+def _load(path: Path) -> Any:
     return json.loads(path.read_text(encoding="utf-8"))
 
 
@@ -99,7 +99,7 @@ def collect_robot_table(names: Sequence[str], outdirs: Sequence[str | os.PathLik
     rows = []
     for name, d in zip(names, outdirs, strict=True):
         p = Path(d)
-        rows.append(robot_row(name, _read(p / "calibration.json"), _read(p / "recovery.json"), _read(p / "horizon.json")))
+        rows.append(robot_row(name, _load(p / "calibration.json"), _load(p / "recovery.json"), _load(p / "horizon.json")))
     return write_table(rows, out, first=("robot", "seed", "bag"))
 
 
