@@ -38,7 +38,7 @@ from .align import AlignedRecording, interpolate_poses
 
 __all__ = ["MIN_PIECE", "REST", "find_laps", "lap_returns", "umbmark_from_recording"]
 
-#: Pieces of less motion than this [m] (travel plus |Δθ| b/2) are blips, not legs or turns (module docstring).
+#: Pieces of less motion than this [m] (travel plus ``|Δθ| b/2``) are blips, not legs or turns (module docstring).
 MIN_PIECE: float = 0.01
 #: Wheel travel [m] below which the robot counts as at rest between a lap's end and a ground-truth sample.
 REST: float = 1e-4
