@@ -30,6 +30,7 @@ include: "workflow/rules/figures.smk"
 include: "workflow/rules/tables.smk"
 include: "workflow/rules/studies.smk"
 include: "workflow/rules/localization.smk"
+include: "workflow/rules/robots.smk"
 include: "workflow/rules/report.smk"
 
 
@@ -47,6 +48,7 @@ localrules:
     render_study_figure,
     collect_metrics,
     collect_localization_metrics,
+    collect_robots,
     collect_studies,
     evaluate_claims,
     summarize_pipeline,

@@ -108,8 +108,8 @@ def test_the_claims_job_exits_with_one_line(tmp_path: Path) -> None:
     table = write_table([{**r, "param.trajectory.name": "rotation"} for r in rows], tmp_path / "B3_speed.csv")
     out, log = tmp_path / "claims.json", tmp_path / "claims.log"
     sm = types.SimpleNamespace(
-        input=types.SimpleNamespace(tables=[str(table)], loc_tables=[]), output=[str(out)], log=[str(log)],
-        params=types.SimpleNamespace(sets=["B3_speed"], loc_sets=[]))  # fmt: skip
+        input=types.SimpleNamespace(tables=[str(table)], loc_tables=[], robot_tables=[]), output=[str(out)], log=[str(log)],
+        params=types.SimpleNamespace(sets=["B3_speed"], loc_sets=[], robot_sets=[]))  # fmt: skip
     with pytest.raises(SystemExit) as err:
         runpy.run_path(str(ROOT / "workflow/scripts/evaluate_claims.py"), init_globals={"snakemake": sm})
     line = "evaluate_claims: claim 8 (velocity_speed_no_effect): the set B3_speed has no run with trajectory.name = 'straight'"

@@ -98,7 +98,7 @@ def test_command_examples_parse() -> None:
 
 
 def test_yaml_examples_are_accepted_by_the_config_readers() -> None:
-    """Run, drive, localization, experiment-set and study examples load as the code reads them."""
+    """Run, drive, localization, experiment-set, study and robot examples load as the code reads them."""
     import jsonschema
 
     from pose_uncertainty.experiments.localization import LocalizationConfig
@@ -120,6 +120,11 @@ def test_yaml_examples_are_accepted_by_the_config_readers() -> None:
         elif "studies" in data:
             jsonschema.validate(data["studies"], {"$defs": schema["$defs"], **schema["properties"]["studies"]})
             kinds.append("study")
+        elif "robots" in data:
+            from pose_uncertainty.experiments.robot_config import robots_config
+
+            jsonschema.validate(data["robots"], schema["properties"]["robots"])
+            kinds += [f"robot {name}" for name in robots_config(data)]
         elif set(data) == {"drive"}:
             RunConfig.from_dict({"name": "doc", "trajectory": {"name": "arc", "radius": 1.0}, **data})
             kinds.append("drive")
@@ -129,6 +134,7 @@ def test_yaml_examples_are_accepted_by_the_config_readers() -> None:
         assert kinds, where
     assert {"localization", "study", "drive", "run"} <= set(kinds)
     assert any(k.startswith("set") for k in kinds)
+    assert any(k.startswith("robot") for k in kinds)
 
 
 # --- the build ----------------------------------------------------------------------------------

@@ -149,15 +149,14 @@ def test_abstract_check_catches_a_wrong_number() -> None:
 # --- a report built from one small run -----------------------------------------------------
 
 
-@pytest.fixture(scope="module")
-def small_report(tmp_path_factory: pytest.TempPathFactory) -> tuple[str, Path]:
+def small_report_inputs(tmp: Path) -> tuple[dict[str, Any], dict[str, Path], Path, Path]:
+    """The inputs of a report of one small run: manifest, tables, claims.json and pipeline.json, written in ``tmp``."""
     from pose_uncertainty.experiments.run import RunConfig, execute
     from pose_uncertainty.pipeline.claims import write_claims
     from pose_uncertainty.pipeline.summary import summarize_pipeline
     from pose_uncertainty.pipeline.tables import collect_table
     from pose_uncertainty.records.run import write_run
 
-    tmp = tmp_path_factory.mktemp("small_report")
     cfg = {"name": "r1", "seed": 5, "k_r": 5e-4, "k_l": 5e-4, "n_ellipses": 2, "monte_carlo": {"n_particles": 200},
            "trajectory": {"name": "straight", "length": 1.0, "dt": 0.1, "speed": 0.5, "track": 0.2}}
     log = write_run(tmp / "r1.mcap", execute(RunConfig.from_dict(cfg)))
@@ -167,8 +166,14 @@ def small_report(tmp_path_factory: pytest.TempPathFactory) -> tuple[str, Path]:
     run = {"id": "r1", "log": str(log), "swept": {"k_r": 0}, "figures": {"trajectory": str(png)}}
     manifest = {"sets": [{"name": "S_small", "title": "Chassis", "source": "Šafránek 2022 §4.2", "description": "",
                           "table": str(table), "figures": {}, "runs": [run]}], "config": {}}  # fmt: skip
-    out = rp.build_report(manifest, {"S_small": table}, write_claims({"S_small": table}, tmp / "claims.json"),
-                          summarize_pipeline({"S_small": table}, [], [], tmp / "pipeline.json"), tmp / "r.html")
+    return (manifest, {"S_small": table}, write_claims({"S_small": table}, tmp / "claims.json"),
+            summarize_pipeline({"S_small": table}, [], [], tmp / "pipeline.json"))
+
+
+@pytest.fixture(scope="module")
+def small_report(tmp_path_factory: pytest.TempPathFactory) -> tuple[str, Path]:
+    tmp = tmp_path_factory.mktemp("small_report")
+    out = rp.build_report(*small_report_inputs(tmp), tmp / "r.html")
     return out.read_text(encoding="utf-8"), tmp
 
 

@@ -13,6 +13,7 @@ from pose_uncertainty.core.trajectories import Line, Turn
 from pose_uncertainty.robot.align import align, interpolate_poses
 from pose_uncertainty.robot.bag import BagError, PoseStream, Recording, WheelStream, read_bag
 from pose_uncertainty.robot.bag_write import open_bag, write_recording
+from pose_uncertainty.robot.calibrate import stream_warnings
 from pose_uncertainty.robot.config import RobotConfig, robot_from_mapping
 from pose_uncertainty.robot.messages import ODOMETRY, TF_MESSAGE
 from pose_uncertainty.robot.simulate import SimulatedRobot, simulate_recording
@@ -85,6 +86,11 @@ def test_messy_wheels_are_sorted_deduplicated_and_counted(rec: Recording, tmp_pa
     c = al.counts["wheels"]
     assert (c.duplicates, c.gaps, c.dropped) == (2, 2, 4)
     assert c.out_of_order == 2  # stamps earlier than the one before: the swap, the first appended copy
+    # the counts reach the user: calibration.json's warnings and the progress lines are these
+    (line,) = stream_warnings(al)
+    assert line.startswith("wheels: ")
+    for what in ("2 duplicates", "2 out of order", "4 dropped"):
+        assert what in line, line
     clean = align(rec)
     keep = np.ones(rec.wheels.t_ns.size, bool)
     keep[[100, 101, 102, 300]] = False

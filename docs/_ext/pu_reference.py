@@ -134,9 +134,10 @@ class CliDirective(_Generated):
 
         from pose_uncertainty.cli import build_parser
         from pose_uncertainty.cli.job import _parser as job_parser
+        from pose_uncertainty.cli.robot_job import parser as robot_job_parser
 
         os.environ["COLUMNS"] = "200"
-        return [*_cli_lines(build_parser(), 1), *_cli_lines(job_parser(), 1)]
+        return [*_cli_lines(build_parser(), 1), *_cli_lines(job_parser(), 1), *_cli_lines(robot_job_parser(), 1)]
 
 
 # --- the configuration keys ---------------------------------------------------------------------

@@ -188,6 +188,7 @@ def all_benchmarks(wildcards=None):
     out.extend(f"data/benchmarks/run_study/{name}.tsv" for name in STUDIES)
     out.extend(f"data/benchmarks/render_study_figure/{Path(f).stem}.tsv" for f in studies_figures().values())
     out.extend(localization_benchmarks())
+    out.extend(robot_benchmarks())  # workflow/rules/robots.smk
     return out
 
 
@@ -220,7 +221,7 @@ def report_manifest():
 
 def all_outputs():
     return ["reports/comparison.html", *all_tables(), *all_figures(), *studies_figures().values(),
-            *localization_tables(), *localization_figures()]
+            *localization_tables(), *localization_figures(), *robot_tables()]
 
 
 def polar_logs(wildcards):

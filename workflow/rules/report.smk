@@ -8,11 +8,13 @@ rule evaluate_claims:
         loc_tables=localization_tables,
         # the studies' logged results: the claims of Skalka 2011's techniques read them
         studies=studies_json,
+        robot_tables=robot_tables,
     output:
         "reports/claims.json",
     params:
         sets=SETS,
         loc_sets=localization_table_names(),
+        robot_sets=["robots"] if ROBOTS else [],
         source=script_source("evaluate_claims"),
     log:
         "logs/evaluate_claims.log",
@@ -50,6 +52,8 @@ rule build_report:
         studies_figures=lambda w: list(studies_figures().values()),
         loc_tables=localization_tables,
         loc_figures=localization_figures,
+        # the section "Your robot": each robot's calibration outputs (workflow/rules/robots.smk)
+        robots=lambda w: [f for r in robot_manifest() for f in r["files"].values()],
         # the speed benchmarks' results, when `make bench` has written them (not made by the DAG)
         speed=lambda w: sorted(str(p) for p in Path("benchmarks/results").glob("*.json")),
     output:
@@ -60,7 +64,8 @@ rule build_report:
         title=config["report"]["title"],
         studies_figures=studies_figures(),
         loc_sets=LOC_SETS,
-        source=script_source("build_report", data=(REPORT_TEMPLATE,)),
+        robots=robot_manifest(),
+        source=script_source("build_report", data=(REPORT_TEMPLATE, ROBOTS_TEMPLATE)),
     # the last job, alone: it encodes the figures on the machine's cores (OMP_NUM_THREADS = its
     # threads; Snakemake scales them down to --cores; a cluster run has no --cores: a local rule)
     threads: min(8, os.cpu_count() or 1)

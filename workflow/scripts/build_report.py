@@ -21,4 +21,5 @@ with open(sm.log[0], "w", encoding="utf-8") as log, redirect_stderr(log):
         speed_dir="benchmarks/results",
         localization=sm.params.manifest.get("localization"),
         localization_tables=dict(zip(sm.params.loc_sets, sm.input.loc_tables, strict=True)),
+        robots=list(sm.params.robots),
     )

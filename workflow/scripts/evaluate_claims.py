@@ -14,6 +14,7 @@ error = None
 with open(sm.log[0], "w", encoding="utf-8") as log, redirect_stderr(log):
     tables = dict(zip(sm.params.sets, sm.input.tables, strict=True))
     tables |= dict(zip(sm.params.loc_sets, sm.input.loc_tables, strict=True))  # localization/<set>
+    tables |= dict(zip(sm.params.robot_sets, sm.input.robot_tables, strict=True))  # robots
     try:
         studies = list(getattr(sm.input, "studies", []))  # reports/studies.json, when studies are configured
         write_claims(tables, sm.output[0], studies=studies[0] if studies else None)

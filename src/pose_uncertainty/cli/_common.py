@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import errno
 import os
 import sys
@@ -21,6 +22,8 @@ __all__ = [
     "EXIT_OK",
     "CommandError",
     "add_follow_symlink",
+    "job_parser",
+    "json_object",
     "load_config_file",
     "one_line_errors",
 ]
@@ -49,6 +52,26 @@ def _os_error_line(exc: OSError) -> str:
     what = exc.strerror or first_line(exc)
     code = errno.errorcode.get(exc.errno or 0)
     return f"{where}{what}{f' ({code})' if code and code not in what else ''}"
+
+
+def json_object(text: str) -> dict[str, Any]:
+    """An argparse type: one JSON object given as a command-line argument (a job's configuration)."""
+    import json
+
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise argparse.ArgumentTypeError(f"not valid JSON ({exc.msg} at character {exc.pos})") from None
+    if not isinstance(value, dict):
+        raise argparse.ArgumentTypeError(f"must be a JSON object, got {type(value).__name__}")
+    return value
+
+
+def job_parser(prog: str, description: str) -> tuple[argparse.ArgumentParser, Any]:
+    """The parser of a pipeline job runner (``--debug``, then one ``KIND`` subcommand) and its subparsers."""
+    parser = argparse.ArgumentParser(prog=prog, description=description)
+    parser.add_argument("--debug", action="store_true", help="print the full traceback after an error's line")
+    return parser, parser.add_subparsers(dest="kind", required=True, metavar="KIND")
 
 
 def one_line_errors(func: Callable[[], int], *, debug: bool = False) -> int:

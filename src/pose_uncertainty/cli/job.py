@@ -26,38 +26,24 @@ left. ``--debug`` (before KIND) adds the full traceback to the log.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from collections.abc import Sequence
-from typing import Any
 
-from ._common import one_line_errors
+from ._common import job_parser, json_object, one_line_errors
 
 __all__ = ["main"]
 
 
-def _object(text: str) -> dict[str, Any]:
-    try:
-        value = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise argparse.ArgumentTypeError(f"not valid JSON ({exc.msg} at character {exc.pos})") from None
-    if not isinstance(value, dict):
-        raise argparse.ArgumentTypeError(f"must be a JSON object, got {type(value).__name__}")
-    return value
-
-
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="python -m pose_uncertainty.cli.job", description=__doc__.split("\n")[0])
-    parser.add_argument("--debug", action="store_true", help="print the full traceback after an error's line")
-    sub = parser.add_subparsers(dest="kind", required=True, metavar="KIND")
+    parser, sub = job_parser("python -m pose_uncertainty.cli.job", __doc__.split("\n")[0])
     for kind, what in (("simulate-run", "a dead-reckoning run"), ("simulate-localization", "a localization run")):
         p = sub.add_parser(kind, help=f"execute {what} and write its log and timings")
-        p.add_argument("config", type=_object, help="the run configuration as a JSON object")
+        p.add_argument("config", type=json_object, help="the run configuration as a JSON object")
         p.add_argument("log", help="output log, *.mcap")
         p.add_argument("timings", help="output timings, *.json")
     p = sub.add_parser("run-study", help="run one study and write its results")
     p.add_argument("name", help="the study's name")
-    p.add_argument("spec", type=_object, help='its configuration as a JSON object ({"study": kind, ...})')
+    p.add_argument("spec", type=json_object, help='its configuration as a JSON object ({"study": kind, ...})')
     p.add_argument("out", help="output, *.json")
     return parser
 

@@ -30,14 +30,18 @@ from .config_checks import builder_keywords
 from .config_keys import Key, keys_schema
 from .localization_config import LOCALIZATION_KEYS
 from .localization_config import code_defaults as localization_code_defaults
+from .robot_config import ROBOT_KEYS, ROBOTS_KEYS
+from .robot_config import code_defaults as robot_code_defaults
 
-__all__ = ["HEADER", "config_schema", "localization_run_schema", "render", "run_schema", "sweep_axis_schema"]
+__all__ = ["HEADER", "config_schema", "localization_run_schema", "render", "robots_schema", "run_schema",
+           "sweep_axis_schema"]
 
 HEADER = (
-    "# GENERATED in part: $defs.run, $defs.localization_run and the sweep axes of $defs.set and\n"
-    "# $defs.localization_set come from the key tables of pose_uncertainty.experiments.config, .drive_config\n"
-    "# and .localization (python -m pose_uncertainty.experiments.schema workflow/schemas/config.schema.yaml,\n"
-    "# or make schema). Edit the key tables, not those parts.\n"
+    "# GENERATED in part: $defs.run, $defs.localization_run, the sweep axes of $defs.set and\n"
+    "# $defs.localization_set, and properties.robots come from the key tables of\n"
+    "# pose_uncertainty.experiments.config, .drive_config, .localization and .robot_config\n"
+    "# (python -m pose_uncertainty.experiments.schema workflow/schemas/config.schema.yaml, or make schema).\n"
+    "# Edit the key tables, not those parts.\n"
 )
 
 
@@ -107,12 +111,34 @@ def sweep_axis_schema() -> dict[str, Any]:
     }
 
 
+def robots_schema() -> dict[str, Any]:
+    """The JSON Schema of the ``robots`` section, from :data:`~.robot_config.ROBOTS_KEYS` and :data:`~.robot_config.ROBOT_KEYS`."""
+    entry = {"type": "object", "additionalProperties": False, "properties": keys_schema(ROBOT_KEYS, robot_code_defaults())}
+    return {
+        "description": ("Your robot (pose_uncertainty.experiments.robot_config): each entry a bag calibrated by a "
+                        "pipeline job as `pose-uncertainty robot calibrate` does (calibration.json, the ros2_control, "
+                        "nav2 AMCL and robot_localization YAML files, horizon.json in data/robots/<name>/), a "
+                        "simulated robot's bag written by the pipeline itself when `bag` is null; the report's "
+                        "section \"Your robot\".\n"),
+        "type": "object",
+        "additionalProperties": False,
+        "default": {"enabled": True, "runs": {}},
+        "properties": {
+            **keys_schema(ROBOTS_KEYS),
+            "runs": {"description": "Named robots; the name is a directory name under data/robots/.",
+                     "type": "object", "default": {}, "propertyNames": {"pattern": "^[A-Za-z0-9_-]+$"},
+                     "additionalProperties": entry},
+        },
+    }  # fmt: skip
+
+
 def config_schema(current: Mapping[str, Any]) -> dict[str, Any]:
     """The pipeline schema ``current`` with its run keys regenerated from the key tables."""
     out = copy.deepcopy(dict(current))
     out["$defs"]["run"] = run_schema()
     out["$defs"]["set"]["properties"]["sweep"]["items"] = sweep_axis_schema()
     out["$defs"]["localization_run"] = localization_run_schema()
+    out["properties"]["robots"] = robots_schema()
     out["$defs"].pop("localization_motion", None)  # now inline, from the key table
     names = "|".join(["labels", *(k.name for k in LOCALIZATION_KEYS)])
     loc_axis = out["$defs"]["localization_set"]["properties"]["sweep"]["items"]

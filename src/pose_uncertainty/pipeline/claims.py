@@ -57,7 +57,7 @@ class Claim:
 
     Attributes
     ----------
-    number : int — the claim's number (its row of the report's claims table; 13–29: Skalka 2011's techniques)
+    number : int — the claim's number (its row of the report's claims table; 13–29: Skalka 2011's techniques; 30–34: your robot)
     claim : str — the claim as the theses make it
     source : str — what the source showed
     measured : str — what we measured, with numbers and units
@@ -1101,6 +1101,161 @@ def set_membership_global(studies: Studies, c: Claim) -> None:
     held = iv["coverage_3s"] == 1.0 or iv["assumption_violated"] > 0.0
     _judge_parts(c, [(iv["global_success"] >= 0.5, f"Global: {'yes' if iv['global_success'] >= 0.5 else 'no'};"),
                      (held, f"holds the robot where the bounds hold: {'yes' if held else 'no'}.")])
+
+
+# --- your robot (claims 30–34): the robots' table, reports/tables/robots/robots.csv --------------------------
+# One row per robot of the config's robots section (pose_uncertainty.pipeline.robots.robot_row): what its
+# calibration job logged, the truth and whether each interval holds it only for a simulated robot.
+
+
+def _robots(rows: Rows, simulated: bool = False) -> list[Mapping[str, Any]]:
+    """The robots' rows (only those with a known truth when ``simulated``); :class:`_Missing` when there are none."""
+    got = [r for r in rows.get("robots") or () if not simulated or r.get("E_d.covers") is not None]
+    if not got:
+        raise _Missing("needs a simulated robot in the config's robots section" if simulated
+                       else "needs a robot in the config's robots section")  # fmt: skip
+    return got
+
+
+def _max_misses(n: int, p: float, prob: float = 0.99) -> int:
+    """The smallest m with P(Binomial(n, p) <= m) >= ``prob``: the most misses right intervals give, but rarely."""
+    total, m = 0.0, 0
+    while True:
+        total += math.comb(n, m) * p**m * (1.0 - p) ** (n - m)
+        if total >= prob or m == n:
+            return m
+        m += 1
+
+
+_ROBOT_QUANTITIES = ("E_d", "E_b", "wheel_radius_left", "wheel_radius_right", "track", "k_r", "k_l")
+
+
+@claim(30, text=("A bag of the robot with a ground-truth topic recovers its wheel radii, track, E_d, E_b and wheel "
+                 "error constants k_r, k_l within their 95 % intervals."),
+       source=("Borenstein & Feng 1996: E_d and E_b from UMBmark squares; Siegwart & Nourbakhsh 2004: the wheel error "
+               "constants of the odometry error model. Here fitted to segments of a recorded drive."))
+def robot_parameters_recovered(rows: Rows, c: Claim) -> None:
+    """Each simulated robot's seven intervals against its true values; misses against Binomial(N, 0.05)."""
+    robots = _robots(rows, simulated=True)
+    n = len(robots) * len(_ROBOT_QUANTITIES)
+    covered = sum(int(_get(r, f"{q}.covers")) for r in robots for q in _ROBOT_QUANTITIES)
+    z = {f"{r['robot']}.{q}": (_get(r, q) - _get(r, f"{q}.true")) / _get(r, f"{q}.std_error")
+         for r in robots for q in _ROBOT_QUANTITIES}  # fmt: skip
+    worst = max(z, key=lambda k: abs(z[k]))
+    m_max = _max_misses(n, 0.05)
+    c.numbers.update(n_covered=covered, n_intervals=n, max_misses=m_max, worst_z=abs(z[worst]))
+    c.measured = (f"{covered} of {n} intervals hold the true value ({len(robots)} simulated "
+                  f"robot{'s' if len(robots) > 1 else ''}); the farthest estimate, {worst}, lies {abs(z[worst]):.2f} "
+                  "standard errors from the truth.")  # fmt: skip
+    if n - covered <= m_max:
+        c.verdict = "confirmed"
+        c.reason = (f"{n - covered} misses; right 95 % intervals miss at most {m_max} of {n} with probability 0.99 "
+                    "(Binomial(N, 0.05)).")  # fmt: skip
+    else:
+        c.verdict = "refuted" if covered == 0 else "qualified"
+        c.reason = f"{n - covered} misses, more than the {m_max} that right 95 % intervals give with probability 0.99."
+    c.figure = None
+
+
+@claim(31, text="On held-out segments the calibrated model's NEES and the coverage of its 95 % ellipses are a right model's.",
+       source=("The consistency checks of a Gaussian error model: a mean NEES of 3 in x, y, θ and 95 % ellipses "
+               "that hold 95 % (Wilson 1927: the coverage's interval)."))
+def robot_fit_checks(rows: Rows, c: Claim) -> None:
+    """Each robot's held-out mean NEES against its band and the Wilson interval of its ellipse coverage."""
+    parts = []
+    for r in _robots(rows):
+        name = str(r["robot"])
+        nees, cov = _get(r, "held_out.nees_mean"), _get(r, "held_out.ellipse_coverage")
+        lo, hi = _get(r, "held_out.nees_band_lo"), _get(r, "held_out.nees_band_hi")
+        clo, chi = _get(r, "held_out.coverage_lo"), _get(r, "held_out.coverage_hi")
+        n = int(_get(r, "held_out.n_segments"))
+        c.numbers.update({f"nees_mean.{name}": nees, f"coverage.{name}": cov, f"n_segments.{name}": n})
+        ok_n, ok_c = lo <= nees <= hi, clo <= 0.95 <= chi
+        parts.append((ok_n, (f"{name}: mean NEES {nees:.3g} over {n} segments, band {lo:.3g}–{hi:.3g} "
+                            f"({'within' if ok_n else 'outside'});")))  # fmt: skip
+        parts.append((ok_c, (f"ellipse coverage {100 * cov:.3g} %, Wilson interval {100 * clo:.3g}–{100 * chi:.3g} % "
+                            f"({'holds' if ok_c else 'misses'} 95 %).")))  # fmt: skip
+    c.measured = " ".join(t for _, t in parts)
+    _judge_parts(c, parts, " The bands assume known parameters; the fitted ones raise the held-out NEES slightly.")
+
+
+#: Structural allowance of nav2's model against the wheel model's cloud: nav2 draws its two rotations
+#: independently where the wheels tie the lateral drift to the heading (tests/test_robot_nav2.py).
+NAV2_STRUCTURE: float = 0.02
+
+
+@claim(32, text=("nav2 AMCL's differential motion model with the fitted alpha1–alpha4 reproduces the calibrated wheel "
+                 "model's spread between AMCL updates."),
+       source=("Thrun, Burgard & Fox 2005 §5.4: the odometry motion model (nav2's differential model); the wheel model "
+               "of Method A as the reference."))
+def robot_nav2_coverage(rows: Rows, c: Claim) -> None:
+    """Coverage of the wheel model's draws by nav2's 95 % region, overall and per motion class, against a band of
+    4 binomial standard errors plus :data:`NAV2_STRUCTURE`."""
+    parts = []
+    for r in _robots(rows):
+        name, level = str(r["robot"]), _get(r, "nav2.level")
+        per_draws = _get(r, "nav2.n_samples")
+        cases = [("overall", _get(r, "nav2.coverage"), _get(r, "nav2.n_draws"))]
+        for cls in ("translation", "rotation", "mixed"):
+            if r.get(f"nav2.{cls}.coverage") is not None and _get(r, f"nav2.{cls}.increments") > 0:
+                cases.append((cls, _get(r, f"nav2.{cls}.coverage"), _get(r, f"nav2.{cls}.increments") * per_draws))
+        for cls, cov, n in cases:
+            band = 4.0 * math.sqrt(level * (1.0 - level) / n) + NAV2_STRUCTURE
+            ok = abs(cov - level) <= band
+            c.numbers[f"coverage_{cls}.{name}"] = cov
+            parts.append((ok, f"{name} {cls}: {100 * cov:.3g} % (band ±{100 * band:.2g} points, {'in' if ok else 'out'});"))
+    c.measured = "Fraction of wheel-model draws inside nav2's 95 % region — " + " ".join(t for _, t in parts)
+    _judge_parts(c, parts, " nav2's variances grow as the square of the increment, the wheel model's as the increment: "
+                           "the fit holds at the update thresholds it was made for.")  # fmt: skip
+
+
+#: Relative standard error of an empirical 95th percentile of n distances, times √n: that of a half-normal
+#: |N(0, σ)| (the straight path's error, across the path), the larger of it and a Rayleigh's (an isotropic one):
+#: √(p(1−p)) / (q f(q)) with q = 1.96 σ, f(q) = 2φ(1.96)/σ, so q f(q) = 0.229.
+_Q95_SE_SQRT_N: float = math.sqrt(0.95 * 0.05) / (1.959964 * 2.0 * 0.058441)
+
+
+@claim(33, text="Method A's uncertainty horizon (distance until the 95 % position error reaches a threshold) agrees with Monte Carlo.",
+       source="Siegwart & Nourbakhsh 2004 §5.2.4: the error ellipses of odometry; Monte Carlo of the same wheel model as the truth.")
+def robot_horizon_checked(rows: Rows, c: Claim) -> None:
+    """The Monte Carlo 95th percentile over the threshold at each crossing, within 4 of its standard errors of 1."""
+    parts = []
+    for r in _robots(rows):
+        n = _get(r, "horizon.n_mc")
+        tol = 4.0 * _Q95_SE_SQRT_N / math.sqrt(n)
+        c.numbers[f"tolerance.{r['robot']}"] = tol
+        for col in sorted(k for k in r if k.startswith("horizon.") and k.endswith(".mc_ratio") and r[k] is not None):
+            ratio = _get(r, col)
+            ok = abs(ratio - 1.0) <= tol
+            label = col[len("horizon."):-len(".mc_ratio")]
+            c.numbers[f"{r['robot']}.{label}"] = ratio
+            parts.append((ok, f"{label} m: {ratio:.3f} ({'within' if ok else 'beyond'} ±{tol:.3f});"))
+    if not parts:
+        raise _Missing("needs the horizon's Monte Carlo check")
+    c.measured = "Monte Carlo 95th percentile of the position error over the threshold, at each crossing — " + " ".join(
+        t for _, t in parts)
+    _judge_parts(c, parts)
+
+
+@claim(34, text=("UMBmark squares found in the recording give E_d and E_b within their intervals of the truth, less "
+                 "precisely than the fit on segments of the whole drive."),
+       source="Borenstein & Feng 1996: UMBmark's squares driven both ways give E_d and E_b.")
+def robot_umbmark_recorded(rows: Rows, c: Claim) -> None:
+    """UMBmark's E_d, E_b intervals against the truth, and their widths against the segment fit's."""
+    parts = []
+    for r in _robots(rows, simulated=True):
+        name = str(r["robot"])
+        if r.get("umbmark.E_d") is None:
+            raise _Missing(f"needs two UMBmark laps each way in the recording of {name}")
+        for q in ("E_d", "E_b"):
+            true, lo, hi = _get(r, f"{q}.true"), _get(r, f"umbmark.{q}.ci_lo"), _get(r, f"umbmark.{q}.ci_hi")
+            ratio = (hi - lo) / (_get(r, f"{q}.ci_hi") - _get(r, f"{q}.ci_lo"))
+            c.numbers.update({f"umbmark_{q}.{name}": _get(r, f"umbmark.{q}"), f"width_ratio_{q}.{name}": ratio})
+            parts.append((lo <= true <= hi, (f"{name} {q}: UMBmark {_get(r, f'umbmark.{q}'):.5f} ({lo:.5f}–{hi:.5f}), "
+                                            f"true {true:.5f};")))  # fmt: skip
+            parts.append((ratio > 1.0, f"its interval {ratio:.2g} times the segment fit's."))
+    c.measured = " ".join(t for _, t in parts)
+    _judge_parts(c, parts)
 
 
 def evaluate_claim(rows: Rows, number: int, studies: Studies | None = None) -> Claim:

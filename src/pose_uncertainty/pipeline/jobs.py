@@ -77,3 +77,4 @@ def simulate_localization(config: Mapping[str, Any], out: str | os.PathLike[str]
     Parameters and return as :func:`simulate_run`, for a ``kind: localization`` configuration.
     """
     return _simulate("localization", config, out, timings_out)
+

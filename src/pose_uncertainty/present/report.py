@@ -15,6 +15,8 @@
   differential drive" (their table rows as they are);
 * every run's parameters as it logged them: the ``param.*`` columns and ``seed`` of its table
   row (:func:`logged_params`), never the workflow's copy of the config;
+* the robots of the ``robots`` section (section "Your robot", :mod:`pose_uncertainty.present.robot_report`:
+  their calibration outputs as the jobs logged them);
 * the figures (inlined as ``data:`` URIs: no network request, works offline; each PNG
   re-encoded as lossless WebP, the same pixels in about 20 % fewer bytes) and the speed
   benchmarks' result files when ``make bench`` has written them.
@@ -47,6 +49,7 @@ from ..core.drives import DRIVES
 from ..core.provenance import MACHINE_KEYS
 from ..core.stats import COVERAGE_LEVELS
 from ..core.table_io import read_table
+from .robot_report import robot_section
 
 __all__ = ["REFERENCES", "RUN_COLUMNS", "SUMMARY_COLUMNS", "build_report", "cite", "logged_params",
            "read_speed_results"]
@@ -515,6 +518,7 @@ def build_report(
     speed_dir: str | os.PathLike[str] | None = None,
     localization: Mapping[str, Any] | None = None,
     localization_tables: Mapping[str, str | os.PathLike[str]] | None = None,
+    robots: list[Mapping[str, Any]] | None = None,
 ) -> Path:
     """Render ``reports/comparison.html``.
 
@@ -537,6 +541,8 @@ def build_report(
         runs: [{id, log, swept, figures}]}]}``: the localization sets (section "From dead reckoning to
         localization"; its lead run is the first run of the first set)
     localization_tables : mapping, optional — ``localization/<set>`` (or ``<set>``) to its CSV
+    robots : list, optional — the robots of the section "Your robot" with their output files
+        (:func:`pose_uncertainty.present.robot_report.robot_section`)
     """
     claims = _read_json(claims_path)
     pipeline = _read_json(pipeline_path)
@@ -544,7 +550,7 @@ def build_report(
     prov = pipeline["provenance"]
     sets = _sets(manifest, tables)
     env = _environment()
-    encoded = _encode_all(_pngs(manifest, localization or {}, dict(studies_figures or {})))
+    encoded = _encode_all(_pngs(manifest, localization or {}, dict(studies_figures or {}), robots or []))
     env.filters["datauri"] = lambda path: _data_uri(path, encoded)
     env.filters["img"] = lambda path, alt, eager=False: _img(path, alt, env.filters["datauri"], eager=eager)
     text = env.get_template("comparison.html.j2").render(
@@ -572,6 +578,7 @@ def build_report(
         studies_json=json.dumps(studies["studies"], sort_keys=True, separators=(", ", ": ")) if studies["studies"] else "",
         localization=_localization(localization, localization_tables or {}),
         skalka=skalka_sections(studies),  # Skalka 2011's techniques (template skalka.html.j2)
+        robots=robot_section(robots or []),  # the section "Your robot" (templates/robots.html.j2)
         references=[{"key": k, "entry": Markup(e)} for k, _, e in REFERENCES],
         lazy_script=LAZY_SCRIPT,
         script_hash=_csp_hash(LAZY_SCRIPT),

@@ -14,7 +14,8 @@ installed (the ``rosbags`` library). One module per step:
 * :mod:`.nav2` — nav2 AMCL's differential motion model and its alphas fitted to the wheel model;
 * :mod:`.horizon` — distance and time until the 95 % position error reaches a threshold;
 * :mod:`.exports` — ``ros2_control.yaml``, ``nav2_amcl.yaml``, ``robot_localization.yaml``;
-* :mod:`.simulate` — a simulated robot written as a bag (known truth, for tests and the pipeline);
+* :mod:`.simulated` — a simulated robot's parameters (known truth) and its commanded drive;
+* :mod:`.simulate` — that robot simulated and written as a bag (for tests and the pipeline);
 * :mod:`.run_bag` — a run log of this project exported as a ROS 2 bag;
 * :mod:`.calibrate` — the whole procedure, writing the outputs of ``robot calibrate``.
 

@@ -8,7 +8,10 @@ Writes into OUTDIR (each file atomically, :mod:`..core.atomic`):
   recorded squares, the stream counts and the warnings;
 * ``ros2_control.yaml``, ``nav2_amcl.yaml``, ``robot_localization.yaml`` (:mod:`.exports`);
 * ``horizon.json`` (:mod:`.horizon`);
-* ``report.html`` — a self-contained page (inline PNG images) with the figures.
+* ``report.html`` — a self-contained page (inline PNG images) with the figures;
+* with ``figure_files``, the figures also as ``drive.png``, ``growth.png`` and
+  ``horizon.png`` (:data:`FIGURE_FILES`, at twice the page's resolution), for a report that
+  inlines them itself (the pipeline's section "Your robot").
 
 A bag without ground truth is refused with one line (:class:`NoGroundTruth`); the
 horizon can still be predicted from known constants (:func:`predict`).
@@ -25,24 +28,27 @@ from typing import Any
 
 import numpy as np
 
-from ..core.atomic import atomic_write_text
+from ..core.atomic import atomic_write_bytes, atomic_write_text
 from ..core.kinematics import integrate
+from ..core.provenance import provenance
 from .align import AlignedRecording, align
 from .bag import read_bag
 from .config import RobotConfig
 from .exports import nav2_amcl_yaml, robot_localization_yaml, ros2_control_yaml
-from .figures import growth_figure, horizon_figure, path_figure
+from .figures import DPI, growth_figure, horizon_figure, path_figure
 from .fit import calibrate_aligned
 from .geometry_fit import nominal_from_odometry
 from .horizon import horizon
 from .laps import umbmark_from_recording
 from .nav2 import fit_nav2_alphas
 
-__all__ = ["OUTPUT_FILES", "NoGroundTruth", "calibrate_bag", "nominal_geometry", "predict", "stream_warnings"]
+__all__ = ["FIGURE_FILES", "OUTPUT_FILES", "NoGroundTruth", "calibrate_bag", "nominal_geometry", "predict", "stream_warnings"]
 
 OUTPUT_FILES: tuple[str, ...] = (
     "calibration.json", "ros2_control.yaml", "nav2_amcl.yaml", "robot_localization.yaml", "horizon.json", "report.html",
 )  # fmt: skip
+#: The figure files written with ``figure_files`` (module docstring), by their title on the page.
+FIGURE_FILES: dict[str, str] = {"Drive": "drive.png", "Residual growth": "growth.png", "Uncertainty horizon": "horizon.png"}
 Say = Callable[[str], None]
 
 
@@ -126,11 +132,14 @@ def calibrate_bag(
     *,
     seed: int = 0,
     progress: Say | None = None,
+    figure_files: bool = False,
 ) -> dict[str, Any]:
     """Calibrate from ``bag`` and write :data:`OUTPUT_FILES` into ``outdir`` (module docstring).
 
     Randomness (the nav2 fit's and the horizon's Monte Carlo) comes from
-    ``numpy.random.default_rng(seed)``. Returns the content of ``calibration.json``.
+    ``numpy.random.default_rng(seed)``. ``figure_files`` also writes :data:`FIGURE_FILES`.
+    Returns the content of ``calibration.json``; its ``units`` give the unit of every number
+    outside the quantities (which carry their own).
     """
     cfg = robot if robot is not None else RobotConfig()
     src = str(bag)
@@ -166,17 +175,26 @@ def calibrate_bag(
         "nav2_amcl": nav2,
         "streams": {k: vars(v) for k, v in rec.counts.items()},
         "warnings": warnings, "seed": seed,
+        "units": {"nominal": "m", "ground_truth_noise": {"truth_position_std": "m", "truth_heading_std": "rad"},
+                  "held_out": {"nees_mean": "1", "nees_band95": "1", "ellipse_coverage": "1", "n_segments": "1"},
+                  "nav2_amcl": {"alpha1": "1", "alpha2": "rad^2/m^2", "alpha3": "1", "alpha4": "m^2/rad^2",
+                                "update_min_d": "m", "update_min_a": "rad", "coverage": "1"}},
+        "provenance": provenance(),
         "methods": {
             "geometry": "generalised least squares on segment increments; 95 % = value +- 1.96 se (Fisher)",
             "k": "maximum likelihood of segment residuals under Method A; 95 % profile-likelihood intervals",
         },
     }  # fmt: skip
     out = Path(outdir)
-    figures = {
-        "Drive": path_figure(_paths(rec, q, nominal)),
-        "Residual growth": growth_figure(fit.segments.travel, fit.residuals, fit.covariances),
-        "Uncertainty horizon": horizon_figure(hz),
+    draw = {
+        "Drive": lambda dpi: path_figure(_paths(rec, q, nominal), dpi),
+        "Residual growth": lambda dpi: growth_figure(fit.segments.travel, fit.residuals, fit.covariances, dpi),
+        "Uncertainty horizon": lambda dpi: horizon_figure(hz, dpi),
     }
+    figures = {name: fn(DPI) for name, fn in draw.items()}
+    if figure_files:
+        for name, fn in draw.items():
+            atomic_write_bytes(out / FIGURE_FILES[name], fn(2 * DPI))
     atomic_write_text(out / "calibration.json", json.dumps(cal, indent=2, default=float) + "\n")
     atomic_write_text(out / "ros2_control.yaml", ros2_control_yaml(q, nominal, cfg.nominal_speed, cfg.update_rate,
                                                                    cfg.covariance_distance))  # fmt: skip

@@ -12,17 +12,22 @@ import matplotlib.pyplot as plt
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["growth_figure", "horizon_figure", "path_figure"]
+__all__ = ["DPI", "growth_figure", "horizon_figure", "path_figure"]
 
 
-def _png(fig: Any) -> bytes:
+#: Resolution of the figures [dots per inch]; a page showing them at half their pixels (a report for
+#: high-density screens) asks for twice this.
+DPI = 110
+
+
+def _png(fig: Any, dpi: int = DPI) -> bytes:
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
+    fig.savefig(buf, format="png", dpi=dpi)
     plt.close(fig)
     return buf.getvalue()
 
 
-def path_figure(paths: dict[str, NDArray[np.float64]]) -> bytes:
+def path_figure(paths: dict[str, NDArray[np.float64]], dpi: int = DPI) -> bytes:
     """The drive: each named path (n, 3) in (x, y) [m]."""
     fig, ax = plt.subplots(figsize=(6.0, 5.0), layout="constrained")
     for name, p in paths.items():
@@ -32,10 +37,10 @@ def path_figure(paths: dict[str, NDArray[np.float64]]) -> bytes:
     ax.set_ylabel("y [m]")
     ax.set_title("Recorded drive: ground truth, robot odometry, calibrated odometry", fontsize=9)
     ax.legend(fontsize=8)
-    return _png(fig)
+    return _png(fig, dpi)
 
 
-def growth_figure(travel: NDArray, r: NDArray, Sigma: NDArray) -> bytes:
+def growth_figure(travel: NDArray, r: NDArray, Sigma: NDArray, dpi: int = DPI) -> bytes:
     """Squared residuals of the segments against Method A's variances, by segment travel."""
     fig, axes = plt.subplots(1, 3, figsize=(10.0, 3.4), layout="constrained")
     labels = ("x [m²]", "y [m²]", "θ [rad²]")
@@ -48,10 +53,10 @@ def growth_figure(travel: NDArray, r: NDArray, Sigma: NDArray) -> bytes:
         ax.set_ylabel(labels[i])
     axes[0].legend(fontsize=7)
     fig.suptitle("Segment residuals against the calibrated model (Method A + ground-truth noise)", fontsize=9)
-    return _png(fig)
+    return _png(fig, dpi)
 
 
-def horizon_figure(h: dict[str, Any]) -> bytes:
+def horizon_figure(h: dict[str, Any], dpi: int = DPI) -> bytes:
     """95 % position error radius against distance, straight and turning, with the thresholds."""
     fig, ax = plt.subplots(figsize=(6.0, 4.0), layout="constrained")
     for kind in ("straight", "turning"):
@@ -65,4 +70,4 @@ def horizon_figure(h: dict[str, Any]) -> bytes:
     ax.set_ylabel("95 % position error radius [m]")
     ax.set_title("Uncertainty horizon (Method A with the calibrated constants)", fontsize=9)
     ax.legend(fontsize=8)
-    return _png(fig)
+    return _png(fig, dpi)

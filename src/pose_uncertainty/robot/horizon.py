@@ -32,7 +32,13 @@ from ..core.trajectories import Trajectory
 from ..methods import covariance as cv
 from ..methods.sampling import sample_end_poses
 
-__all__ = ["PATHS", "horizon", "radius95"]
+__all__ = ["PATHS", "UNITS", "horizon", "radius95"]
+
+#: The unit of each quantity of the horizon (:func:`horizon`'s keys; a threshold's and a curve's by their names).
+UNITS: dict[str, str] = {
+    "speed": "m/s", "turn_radius": "m", "level": "1", "k_r": "m", "k_l": "m", "track": "m", "n_mc": "1",
+    "radius": "m", "distance": "m", "time": "s", "mc_r95": "m", "mc_ratio": "1", "r95": "m",
+}  # fmt: skip
 
 PATHS: tuple[str, ...] = ("straight", "turning")
 _N_GRID = 2000
@@ -86,10 +92,12 @@ def horizon(
     """Distance [m] and time [s] until ``r95`` reaches each threshold, straight and turning.
 
     Returns ``{path: {"thresholds": [{"radius", "distance", "time", "mc_r95", "mc_ratio"}],
-    "curve": {"distance": [...], "r95": [...]}}}``; a threshold not reached within
+    "curve": {"distance": [...], "r95": [...]}}}`` with the inputs, ``n_mc`` (0 without the
+    check) and the ``units`` of every quantity (:data:`UNITS`); a threshold not reached within
     ``max_distance`` has distance and time None. ``rng`` None skips the Monte Carlo check.
     """
-    out: dict[str, Any] = {"speed": speed, "turn_radius": turn_radius, "level": 0.95, "k_r": k_r, "k_l": k_l, "track": track}
+    out: dict[str, Any] = {"speed": speed, "turn_radius": turn_radius, "level": 0.95, "k_r": k_r, "k_l": k_l, "track": track,
+                           "n_mc": n_mc if rng is not None else 0, "units": dict(UNITS)}
     top = max(thresholds)
     for kind in PATHS:
         D = 1.0

@@ -24,80 +24,22 @@ Recorded streams
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..core.kinematics import integrate, step
-from ..core.trajectories import Arc, Line, Segment, Turn, from_segments
-from ..core.validation import check_nonnegative, check_positive, check_positive_int
+from ..core.trajectories import Segment, from_segments
 from .bag import PoseStream, Recording, WheelStream
 from .bag_write import write_recording
+from .simulated import TRUTH_UNITS, SimulatedRobot, calibration_drive
 
-__all__ = ["EPOCH_NS", "SimulatedRobot", "calibration_drive", "simulate_recording", "write_simulated_bag"]
+__all__ = ["EPOCH_NS", "TRUTH_UNITS", "SimulatedRobot", "calibration_drive", "simulate_recording", "write_simulated_bag"]
+
 
 #: Stamp of the first wheel sample [ns] (a plausible wall-clock time, 2023-11-14).
 EPOCH_NS: int = 1_700_000_000 * 1_000_000_000
-
-
-@dataclass(frozen=True)
-class SimulatedRobot:
-    """The true and nominal geometry, the error constants and the recording rates.
-
-    Attributes
-    ----------
-    radius_left, radius_right, track : float [m] — the truth
-    nominal_radius, nominal_track : float [m] — what the robot's odometry assumes
-    k_r, k_l : float [m] — wheel-travel variance per metre travelled (Method A)
-    truth_position_std [m], truth_heading_std [rad] — noise of each ground-truth sample
-    wheel_rate, truth_rate : float [Hz]; truth_offset : float [s]
-    ticks_per_revolution : int or None — None: JointState positions
-    tick_offset : int — counter value at the start (near 2³¹ − 1 makes it wrap)
-    speed [m/s], angular_speed [rad/s] — mean speeds of the path's segments
-    """
-
-    radius_left: float = 0.0502
-    radius_right: float = 0.0498
-    track: float = 0.306
-    nominal_radius: float = 0.05
-    nominal_track: float = 0.30
-    k_r: float = 1.2e-4
-    k_l: float = 0.8e-4
-    truth_position_std: float = 5e-4
-    truth_heading_std: float = 2e-3
-    wheel_rate: float = 50.0
-    truth_rate: float = 40.0
-    truth_offset: float = 0.0037
-    ticks_per_revolution: int | None = None
-    tick_offset: int = 0
-    speed: float = 0.5
-    angular_speed: float = 1.0
-
-    def __post_init__(self) -> None:
-        for name in ("radius_left", "radius_right", "track", "nominal_radius", "nominal_track",
-                     "wheel_rate", "truth_rate", "speed", "angular_speed"):  # fmt: skip
-            check_positive(name, getattr(self, name))
-        for name in ("k_r", "k_l", "truth_position_std", "truth_heading_std", "truth_offset"):
-            check_nonnegative(name, getattr(self, name))
-        if self.ticks_per_revolution is not None:
-            check_positive_int("ticks_per_revolution", self.ticks_per_revolution)
-
-
-def calibration_drive(side: float = 2.0, laps: int = 3, arcs: int = 2) -> list[Segment]:
-    """The commanded path: ``laps`` UMBmark squares cw, ``laps`` ccw, then ``arcs`` S-bends.
-
-    Squares of ``side`` [m] turning in place by ∓π/2 at each corner (Borenstein & Feng
-    1996); each S-bend is a quarter arc of radius 1 m left and one right.
-    """
-    L = float(check_positive("side", side))
-    segs: list[Segment] = []
-    for sign in (-1, 1):
-        segs += [Line(L), Turn(sign * math.pi / 2)] * (4 * check_positive_int("laps", laps))
-    for _ in range(int(arcs)):
-        segs += [Arc(1.0, math.pi / 2), Arc(1.0, -math.pi / 2)]
-    return segs
 
 
 def _encoder_angles(robot: SimulatedRobot, segments: list[Segment]) -> tuple[NDArray, NDArray]:
