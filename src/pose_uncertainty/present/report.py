@@ -349,6 +349,18 @@ def read_speed_results(directory: str | os.PathLike[str]) -> list[dict[str, Any]
     return out
 
 
+def _abridged(node: Any, limit: int = 12) -> Any:
+    """A JSON document with each list of more than ``limit`` items (a cloud of points, a polyline) replaced by
+    a note of its length: what the report prints of the studies' results (the file keeps them whole)."""
+    if isinstance(node, Mapping):
+        return {k: _abridged(v, limit) for k, v in node.items()}
+    if isinstance(node, list):
+        if len(node) > limit:
+            return f"[{len(node)} items: see reports/studies.json]"
+        return [_abridged(v, limit) for v in node]
+    return node
+
+
 def _read_json(path: str | os.PathLike[str] | None) -> Any:
     if path is None or not Path(path).is_file():
         return None
@@ -546,8 +558,10 @@ def build_report(
         studies=studies["studies"],
         summary=studies["summary"],
         studies_figures={k: str(v) for k, v in (studies_figures or {}).items() if Path(v).is_file()},
-        # compact (the reports/studies.json file itself is indented): 0.4 MB of the report's 10 MB budget
-        studies_json=json.dumps(studies["studies"], sort_keys=True, separators=(", ", ": ")) if studies["studies"] else "",
+        # compact, and without the long arrays (clouds, polylines: reports/studies.json has them): every
+        # byte of the file is loaded before its first paint
+        studies_json=json.dumps(_abridged(studies["studies"]), sort_keys=True, separators=(", ", ": "))
+        if studies["studies"] else "",
         localization=_localization(localization, localization_tables or {}),
         references=[{"key": k, "entry": Markup(e)} for k, _, e in REFERENCES],
         lazy_script=LAZY_SCRIPT,
