@@ -117,7 +117,8 @@ def cite(text: Any) -> Markup:
 
 
 #: The page's only script: a run's figures are kept in a ``<template>`` (inert: not decoded, not laid
-#: out) and put into the page when the reader opens the run, or follows a link into it.
+#: out) and put into the page when the reader opens the run, or follows a link into it; before printing,
+#: the lazy figures are loaded.
 LAZY_SCRIPT = """(function () {
   function fill(d) { var t = d.querySelector(':scope > template'); if (t) { d.appendChild(t.content.cloneNode(true)); t.remove(); } }
   document.addEventListener('toggle', function (e) { if (e.target.tagName === 'DETAILS' && e.target.open) fill(e.target); }, true);
@@ -134,6 +135,10 @@ LAZY_SCRIPT = """(function () {
     }
   }
   window.addEventListener('hashchange', reveal); reveal();
+  // print: the figures below the screen are lazy; load them all before the page is laid out for paper
+  window.addEventListener('beforeprint', function () {
+    document.querySelectorAll('img[loading="lazy"]').forEach(function (i) { i.loading = 'eager'; });
+  });
 })();"""
 
 
