@@ -97,9 +97,17 @@ def run(report: Path, preset: str, port: int, chrome: str) -> dict[str, Any]:
 def _median_of(report: Path, preset: str, port: int, chrome: str, n: int) -> dict[str, Any]:
     """``n`` runs of one preset: the run of median performance, with every run's score and the mean load."""
     runs, loads = [], []
-    for _ in range(n):
+    failures = 0
+    while len(runs) < n:
         loads.append(os.getloadavg()[0])
-        runs.append(run(report, preset, port, chrome))
+        try:
+            runs.append(run(report, preset, port, chrome))
+        except SystemExit as exc:  # a DevTools timeout under load: try again, at most n times in all
+            failures += 1
+            print(f"{preset}: {exc}; {'giving up' if failures >= n else 'again'}", file=sys.stderr)
+            if failures >= n:
+                raise
+            loads.pop()
     ranked = sorted(runs, key=lambda r: r.get("score_performance") or 0.0)
     return {**ranked[(n - 1) // 2], "runs": n, "load_average_1min": sum(loads) / n,
             "score_performance_runs": ", ".join(f"{r.get('score_performance')}" for r in runs)}  # fmt: skip
