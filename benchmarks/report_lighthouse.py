@@ -78,12 +78,17 @@ def summarize(lhr: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def run(report: Path, preset: str, port: int, chrome: str) -> dict[str, Any]:
+#: The categories measured; ``--performance-only`` keeps the first (the others read the page's whole
+#: body over DevTools, which times out on a large page on a loaded machine).
+CATEGORIES = ("performance", "accessibility", "best-practices", "seo")
+
+
+def run(report: Path, preset: str, port: int, chrome: str, categories: tuple[str, ...] = CATEGORIES) -> dict[str, Any]:
     """One Lighthouse run (``preset``: "desktop" or "mobile") on the served report; its summary."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "lhr.json"
         cmd = [str(LIGHTHOUSE), f"http://127.0.0.1:{port}/{report.name}", "--output=json", f"--output-path={out}",
-               f"--chrome-flags={CHROME_FLAGS}", "--quiet", "--only-categories=performance,accessibility,best-practices,seo",
+               f"--chrome-flags={CHROME_FLAGS}", "--quiet", f"--only-categories={','.join(categories)}",
                "--max-wait-for-load=120000"]  # fmt: skip
         if preset == "desktop":
             cmd.append("--preset=desktop")
@@ -94,14 +99,15 @@ def run(report: Path, preset: str, port: int, chrome: str) -> dict[str, Any]:
         return summarize(json.loads(out.read_text(encoding="utf-8")))
 
 
-def _median_of(report: Path, preset: str, port: int, chrome: str, n: int) -> dict[str, Any]:
+def _median_of(report: Path, preset: str, port: int, chrome: str, n: int,
+               categories: tuple[str, ...] = CATEGORIES) -> dict[str, Any]:  # fmt: skip
     """``n`` runs of one preset: the run of median performance, with every run's score and the mean load."""
     runs, loads = [], []
     failures = 0
     while len(runs) < n:
         loads.append(os.getloadavg()[0])
         try:
-            runs.append(run(report, preset, port, chrome))
+            runs.append(run(report, preset, port, chrome, categories))
         except SystemExit as exc:  # a DevTools timeout under load: try again, at most n times in all
             failures += 1
             print(f"{preset}: {exc}; {'giving up' if failures >= n else 'again'}", file=sys.stderr)
@@ -117,6 +123,8 @@ def main(argv: list[str] | None = None) -> Path:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("report", nargs="?", default="reports/comparison.html")
     ap.add_argument("--name", default="report", help="results file benchmarks/results/<name>.json")
+    ap.add_argument("--performance-only", action="store_true",
+                    help="measure the performance category only (the others time out on a large page under load)")
     ap.add_argument("--runs", type=int, default=3, help="Lighthouse runs per preset (the median is kept; default 3)")
     args = ap.parse_args(argv)
     if args.runs < 1:
@@ -133,7 +141,9 @@ def main(argv: list[str] | None = None) -> Path:
     threading.Thread(target=server.serve_forever, daemon=True).start()
     try:
         port = server.server_address[1]
-        results = {preset: _median_of(report, preset, port, chrome, args.runs) for preset in ("desktop", "mobile")}
+        categories = CATEGORIES[:1] if args.performance_only else CATEGORIES
+        results = {preset: _median_of(report, preset, port, chrome, args.runs, categories)
+                   for preset in ("desktop", "mobile")}  # fmt: skip
     finally:
         server.shutdown()
     for preset, r in results.items():
