@@ -15,7 +15,9 @@ deliverable and this is its only rendering check.
 from __future__ import annotations
 
 import base64
+import contextlib
 import json
+import math
 import os
 import shutil
 import socket
@@ -23,6 +25,7 @@ import struct
 import subprocess
 import time
 import urllib.request
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -372,3 +375,149 @@ def test_report_reads_first_screen_and_opens_runs(chromium: str, tmp_path: Path,
               or (e["method"] == "Log.entryAdded" and e["params"]["entry"]["level"] in ("error", "warning"))
               or e["method"] == "Runtime.exceptionThrown"]  # fmt: skip
     assert errors == [], f"console errors: {errors}"
+
+
+# --- print to PDF: the page count a bound predicts, no figure split across pages -------------------
+
+#: A4 with Chromium's default margins (0.4 in): the printable box in CSS px (96 per inch).
+PAPER_IN, MARGIN_IN = (8.27, 11.69), 0.4
+PRINT_W, PRINT_H = round((PAPER_IN[0] - 2 * MARGIN_IN) * 96), round((PAPER_IN[1] - 2 * MARGIN_IN) * 96)
+
+#: Evaluated in the page laid out for print (print media, the printable width): the content's height,
+#: the blocks that must not be split (``break-inside: avoid``) and what print shows of the details.
+_PRINT_LAYOUT_JS = """(() => {
+  const shown = e => e.getClientRects().length > 0;
+  const figs = [...document.querySelectorAll('figure')].filter(shown);
+  const atoms = [...document.querySelectorAll('figure, tr, .abstract li')].filter(shown);
+  const heads = [...document.querySelectorAll('h2, h3')].filter(shown);
+  return {
+    height: document.documentElement.scrollHeight,
+    body_scroll: document.documentElement.scrollWidth - document.documentElement.clientWidth,
+    figures: figs.map(f => ({id: f.id, h: f.getBoundingClientRect().height,
+                             avoid: getComputedStyle(f).breakInside, imgs: f.querySelectorAll('img').length})),
+    atoms_h: atoms.reduce((s, e) => s + e.getBoundingClientRect().height, 0),
+    heads_h: heads.reduce((s, e) => s + e.getBoundingClientRect().height, 0),
+    max_atom: Math.max(0, ...atoms.map(e => e.getBoundingClientRect().height)),
+    images: [...document.images].filter(shown).length,
+    // how many shown images carry each picture (a figure may be shown twice: the PDF keeps one image of it)
+    pictures: Object.values([...document.images].filter(shown).reduce((n, i) => (n[i.src] = (n[i.src] || 0) + 1, n), {})),
+    run_details_shown: [...document.querySelectorAll('details.run, details.full')].filter(shown).length,
+    open_details: [...document.querySelectorAll('details[open]')].filter(shown).length,
+  };
+})()"""
+
+
+def pdf_pages(pdf: bytes) -> list[set[int]]:
+    """The pages of a PDF written by Chromium (Skia: plain objects, no object streams), in no particular
+    order, each as the set of image objects its resources name (a figure split over two pages draws its
+    image on both: the same object from two pages)."""
+    import re
+
+    objs = {int(n): body for n, body in re.findall(rb"(\d+) 0 obj\s*(.*?)\s*endobj", pdf, re.DOTALL)}
+    assert not any(b"/Type /ObjStm" in b for b in objs.values()), "object streams: this reader cannot follow them"
+
+    def deref(body: bytes, key: bytes) -> bytes:
+        m = re.search(key + rb"\s*(\d+) 0 R", body)
+        if m:
+            return objs[int(m.group(1))]
+        m = re.search(key + rb"\s*<<", body)
+        if not m:
+            return b""
+        depth, i = 1, m.end()
+        while depth:  # the inline dictionary up to its matching >>
+            if body.startswith(b"<<", i):
+                depth, i = depth + 1, i + 2
+            elif body.startswith(b">>", i):
+                depth, i = depth - 1, i + 2
+            else:
+                i += 1
+        return body[m.end():i - 2]
+
+    pages = []
+    for body in objs.values():
+        if re.match(rb"<<\s*/Type /Page\b(?!s)", body) or re.search(rb"/Type /Page\b(?!s)", body.split(b"stream")[0]):
+            xobjects = deref(deref(body, rb"/Resources"), rb"/XObject")
+            refs = {int(n) for n in re.findall(rb"(\d+) 0 R", xobjects)}
+            pages.append({r for r in refs if b"/Subtype /Image" in objs.get(r, b"").split(b"stream")[0]})
+    return pages
+
+
+@contextlib.contextmanager
+def _page(chromium: str, tmp_path: Path, width: int, height: int) -> Iterator[CDP]:
+    """A headless Chromium of that window size, its first page over the DevTools protocol (Page, Runtime
+    and Log enabled); closed and the browser ended on exit."""
+    port = _free_port()
+    flags = [f for f in FLAGS if not f.startswith("--window-size")] + [f"--window-size={width},{height}"]
+    proc = subprocess.Popen([chromium, *flags, f"--user-data-dir={tmp_path / 'profile'}", f"--remote-debugging-port={port}",
+                             "about:blank"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    cdp = None
+    try:
+        deadline = time.monotonic() + 30
+        targets: list[dict[str, Any]] = []
+        while not targets:
+            assert time.monotonic() < deadline, "Chromium did not open a DevTools page target"
+            try:
+                with urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=2) as r:
+                    targets = [t for t in json.load(r) if t.get("type") == "page"]
+            except OSError:
+                time.sleep(0.2)
+        cdp = CDP(targets[0]["webSocketDebuggerUrl"], timeout=120)
+        for domain in ("Page", "Runtime", "Log"):
+            cdp.call(f"{domain}.enable")
+        yield cdp
+    finally:
+        if cdp is not None:
+            cdp.close()
+        proc.terminate()
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(timeout=10)
+
+
+@pytest.mark.slow
+def test_report_prints_to_pdf_with_the_pages_a_bound_predicts(chromium: str, tmp_path: Path,
+                                                               tmp_path_factory: pytest.TempPathFactory) -> None:
+    """``Page.printToPDF`` (A4, default margins): the page count lies between two bounds measured on the
+    print layout, every figure fits on a page and asks not to be split, and no image is drawn on two pages.
+
+    The bounds, with ``H`` the content's height laid out for print at the printable width and ``P`` the
+    printable height: a page holds at most ``P`` of content, so ``pages ≥ ⌈H/P⌉``; a page ends early only
+    to keep an unsplittable block (a figure, a table row, a finding, or a heading kept with what follows)
+    whole, and each such block is pushed at most once, so the space lost is at most the sum of their
+    heights ``S`` and ``pages ≤ ⌈(H + S)/P⌉``; and no page loses more than the tallest block ``M``, so
+    also ``pages ≤ ⌈H/(P − M)⌉``.
+    """
+    work = quick_pipeline(tmp_path_factory.getbasetemp())
+    url = (work / "reports/comparison.html").resolve().as_uri()
+    with _page(chromium, tmp_path, PRINT_W, PRINT_H) as cdp:
+        cdp.call("Page.navigate", url=url)
+        cdp.wait_event("Page.loadEventFired", timeout=120)
+        cdp.call("Emulation.setEmulatedMedia", media="print")
+        cdp.call("Emulation.setDeviceMetricsOverride", width=PRINT_W, height=PRINT_H, deviceScaleFactor=1, mobile=False)
+        lay = cdp.call("Runtime.evaluate", expression=_PRINT_LAYOUT_JS, returnByValue=True)["result"]["value"]
+        cdp.call("Emulation.clearDeviceMetricsOverride")
+        pdf = base64.b64decode(cdp.call("Page.printToPDF", paperWidth=PAPER_IN[0], paperHeight=PAPER_IN[1],
+                                        marginTop=MARGIN_IN, marginBottom=MARGIN_IN, marginLeft=MARGIN_IN,
+                                        marginRight=MARGIN_IN, printBackground=False)["data"])  # fmt: skip
+    (tmp_path / "report.pdf").write_bytes(pdf)
+    pages = pdf_pages(pdf)
+    n = len(pages)
+    low = math.ceil(lay["height"] / PRINT_H)
+    high = min(math.ceil((lay["height"] + lay["atoms_h"] + lay["heads_h"]) / PRINT_H),
+               math.ceil(lay["height"] / max(1.0, PRINT_H - lay["max_atom"])))  # fmt: skip
+    assert low <= n <= high, f"{n} pages, expected {low}–{high} (print layout {lay['height']} px on pages of {PRINT_H} px)"
+    assert lay["body_scroll"] <= 0, f"in print the page is {lay['body_scroll']} px too wide"
+    assert lay["figures"], "no figure in print"
+    for f in lay["figures"]:
+        assert f["avoid"] == "avoid", f"figure {f['id']} may be split (break-inside: {f['avoid']})"
+        assert f["h"] <= PRINT_H, f"figure {f['id']} is taller ({f['h']} px) than a page ({PRINT_H} px)"
+    assert lay["run_details_shown"] == 0  # the runs' figures and full tables are left to the screen
+    # every image print shows is in the PDF (the lazy ones too: the page loads them before it prints),
+    # each on one page only: no figure was split
+    drawn = [i for p in pages for i in p]
+    assert lay["images"] == sum(lay["pictures"])
+    # a picture shown k times is on k pages (k figures, each whole on its page); a split figure adds a page
+    assert sorted(drawn.count(i) for i in set(drawn)) == sorted(lay["pictures"]), (
+        f"images on pages {sorted(drawn.count(i) for i in set(drawn))}, shown {sorted(lay['pictures'])}: a figure split over pages")

@@ -149,6 +149,18 @@ def test_abstract_check_catches_a_wrong_number() -> None:
 # --- a report built from one small run -----------------------------------------------------
 
 
+#: A results file of ``make bench-report`` (two presets, the median of three runs each).
+LIGHTHOUSE_RESULTS = {
+    "benchmark": "report", "machine": {"cores": 2},
+    "results": {preset: {"score_performance": perf, "score_accessibility": 0.97, "score_best_practices": 1.0,
+                         "first_contentful_paint_s": fcp, "largest_contentful_paint_s": fcp + 0.1,
+                         "time_to_interactive_s": fcp + 0.5, "page_weight_MB": 1.234, "dom_elements": 4321,
+                         "lighthouse": "12.2.3", "runs": 3, "load_average_1min": 6.5,
+                         "score_performance_runs": f"{perf}, 0.5, 0.61"}
+                for preset, perf, fcp in (("desktop", 0.58, 3.25), ("mobile", 0.31, 19.5))},
+}  # fmt: skip
+
+
 def small_report_inputs(tmp: Path) -> tuple[dict[str, Any], dict[str, Path], Path, Path]:
     """The inputs of a report of one small run: manifest, tables, claims.json and pipeline.json, written in ``tmp``."""
     from pose_uncertainty.experiments.run import RunConfig, execute
@@ -173,7 +185,9 @@ def small_report_inputs(tmp: Path) -> tuple[dict[str, Any], dict[str, Path], Pat
 @pytest.fixture(scope="module")
 def small_report(tmp_path_factory: pytest.TempPathFactory) -> tuple[str, Path]:
     tmp = tmp_path_factory.mktemp("small_report")
-    out = rp.build_report(*small_report_inputs(tmp), tmp / "r.html")
+    (tmp / "results").mkdir()  # a Lighthouse results file as benchmarks/report_lighthouse.py writes it
+    (tmp / "results/report.json").write_text(json.dumps(LIGHTHOUSE_RESULTS), encoding="utf-8")
+    out = rp.build_report(*small_report_inputs(tmp), tmp / "r.html", speed_dir=tmp / "results")
     return out.read_text(encoding="utf-8"), tmp
 
 
@@ -247,3 +261,21 @@ def test_log_axes_show_every_point_with_room() -> None:
         assert y0 < y < y1
     assert x1 >= 40.0 * 1.6  # room on the right for the run's label
     assert y1 < 2.0  # the points it cannot draw on log axes do not stretch them
+
+
+def test_the_small_report_shows_the_lighthouse_results(small_report: tuple[str, Path]) -> None:
+    """``benchmarks/results/report.json`` (``make bench-report``) is shown: every preset with its scores,
+    paint times, weight, the runs' scores and the load they ran under."""
+    html, _ = small_report
+    section = html[html.index('<h3 id="speed-report">'):]
+    section = section[:section.index("</table>")]
+    assert "Lighthouse 12.2.3" in section
+    for preset, r in LIGHTHOUSE_RESULTS["results"].items():
+        row = re.search(rf"<tr><td>{preset}</td>(.*?)</tr>", section, re.DOTALL)
+        assert row is not None, preset
+        cells = re.findall(r'<td class="n">([^<]*)</td>', row.group(1))
+        assert cells == [rp._fmt(r["score_performance"], 2), rp._fmt(r["score_accessibility"], 2),
+                         rp._fmt(r["score_best_practices"], 2), rp._fmt(r["first_contentful_paint_s"], 2),
+                         rp._fmt(r["largest_contentful_paint_s"], 2), rp._fmt(r["time_to_interactive_s"], 2),
+                         rp._fmt(r["page_weight_MB"], 3), rp._fmt(r["dom_elements"], 5), r["score_performance_runs"],
+                         rp._fmt(r["load_average_1min"], 2)]  # fmt: skip

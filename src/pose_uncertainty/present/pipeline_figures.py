@@ -249,44 +249,50 @@ def cloud_polar_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") 
 
 
 def expcoords_figure(data: Mapping[str, Any]) -> Figure:
-    """Monte Carlo end positions of long paths with both Gaussian methods' Pr regions over them.
+    """Monte Carlo end positions with every method's Pr region over them: the report's headline figure.
 
     Draws the logged results of the ``expcoords_regions`` study
-    (:func:`pose_uncertainty.analysis.studies.expcoords_regions`), one panel per
-    case: the cloud, Method A's Pr-ellipse (red), the boundary of the
-    exponential-coordinates Gaussian's planar Pr highest-density region (blue),
-    Method C's Pr-ellipse about its mean (green, dash-dot) and the nominal path; the
-    legend gives the logged share of the cloud inside each.
+    (:func:`pose_uncertainty.analysis.studies.expcoords_regions`), one axes per case: the
+    cloud, Method A's Pr-ellipse, the boundary of the exponential-coordinates Gaussian's
+    planar Pr highest-density region, Method C's Pr-ellipse about its mean (dash-dot),
+    Method B's map region (dotted, in logs that have it) and the nominal path, in the
+    methods' colours (:data:`pose_uncertainty.present.figures.METHOD_COLOURS`); the legend
+    gives the logged share of the cloud inside each region.
     """
     cases = data["cases"]
     pr, n = float(data["pr"]), int(data["n"])
     fig = figures.new_figure((5.2 * len(cases), 5.0), dpi=figures.WIDE_DPI)
+    colour = figures.METHOD_COLOURS
     for j, case in enumerate(cases):
         cloud, path = np.asarray(case["cloud_xy"]), np.asarray(case["path_xy"])
         ell, end = np.asarray(case["ellipse_xy"]), case["end"]
         ax = fig.add_subplot(1, len(cases), j + 1)
-        ax.scatter(cloud[:, 0], cloud[:, 1], s=1.0, color=figures.METHOD_COLOURS["MC"], alpha=0.35, linewidths=0,
+        ax.scatter(cloud[:, 0], cloud[:, 1], s=1.0, color=colour["MC"], alpha=0.35, linewidths=0,
                    rasterized=True, label=f"Monte Carlo, {n} runs")  # fmt: skip
-        ax.plot(ell[:, 0], ell[:, 1], color=figures.METHOD_COLOURS["A"], lw=1.4,
-                label=f"Method A ellipse {100 * pr:.2f} % (holds {100 * case['inside_ellipse']:.1f} %)")
-        for i, poly in enumerate(case["banana_xy"]):
-            poly = np.asarray(poly)
-            ax.plot(poly[:, 0], poly[:, 1], color=figures.METHOD_COLOURS["expcoords"], lw=1.4,
-                    label=f"exp. coords {100 * pr:.2f} % (holds {100 * case['inside_banana']:.1f} %)"
-                    if i == 0 else None)  # fmt: skip
+        ax.plot(ell[:, 0], ell[:, 1], color=colour["A"], lw=1.4, label=f"A: ellipse, holds {100 * case['inside_ellipse']:.1f} %")
+        if "map" in case:  # Method B, in logs that have it
+            for i, line in enumerate(case["map"]["boundary_xy"]):
+                line = np.asarray(line)
+                ax.plot(line[:, 0], line[:, 1], color=colour["B"], lw=1.6, ls=":",
+                        label=f"B: map region, holds {100 * case['inside_map']:.1f} %" if i == 0 else None)  # fmt: skip
         if "c_ellipse_xy" in case:  # Method C, in logs that have it
             cel, cm = np.asarray(case["c_ellipse_xy"]), case["c_mean"]
-            ax.plot(cel[:, 0], cel[:, 1], color=figures.METHOD_COLOURS["C"], lw=1.4, ls="-.",
-                    label=f"Method C ellipse {100 * pr:.2f} % (holds {100 * case['inside_c']:.1f} %)")
-            ax.plot([cm[0]], [cm[1]], marker="x", color=figures.METHOD_COLOURS["C"], ms=7, ls="none")
+            ax.plot(cel[:, 0], cel[:, 1], color=colour["C"], lw=1.4, ls="-.",
+                    label=f"C: ellipse, holds {100 * case['inside_c']:.1f} %")
+            ax.plot([cm[0]], [cm[1]], marker="x", color=colour["C"], ms=7, ls="none")
+        for i, poly in enumerate(case["banana_xy"]):
+            poly = np.asarray(poly)
+            ax.plot(poly[:, 0], poly[:, 1], color=colour["expcoords"], lw=1.4,
+                    label=f"exp. coords: region, holds {100 * case['inside_banana']:.1f} %" if i == 0 else None)  # fmt: skip
         ax.plot(path[:, 0], path[:, 1], color="k", lw=0.6, ls="--", label="noiseless path")
         ax.plot([end[0]], [end[1]], marker="+", color="k", ms=8)
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
-        ax.set_title(f"{case['label']}, k = {data['k']:g} m, b = {data['track']:g} m", fontsize="medium")
+        ax.set_title(f"{case['label']}: {100 * pr:.2f} % regions; k = {data['k']:g} m, b = {data['track']:g} m",
+                     fontsize="medium")  # fmt: skip
         ax.grid(True, lw=0.3, alpha=0.5)
-        ax.legend(fontsize="small", loc="lower left")
+        ax.legend(fontsize="small", loc="best", framealpha=0.9)
     return fig
 
 

@@ -120,7 +120,8 @@ def cite(text: Any) -> Markup:
 
 
 #: The page's only script: a run's figures are kept in a ``<template>`` (inert: not decoded, not laid
-#: out) and put into the page when the reader opens the run, or follows a link into it.
+#: out) and put into the page when the reader opens the run, or follows a link into it; before printing,
+#: the lazy figures are loaded.
 LAZY_SCRIPT = """(function () {
   function fill(d) { var t = d.querySelector(':scope > template'); if (t) { d.appendChild(t.content.cloneNode(true)); t.remove(); } }
   document.addEventListener('toggle', function (e) { if (e.target.tagName === 'DETAILS' && e.target.open) fill(e.target); }, true);
@@ -137,6 +138,10 @@ LAZY_SCRIPT = """(function () {
     }
   }
   window.addEventListener('hashchange', reveal); reveal();
+  // print: the figures below the screen are lazy; load them all before the page is laid out for paper
+  window.addEventListener('beforeprint', function () {
+    document.querySelectorAll('img[loading="lazy"]').forEach(function (i) { i.loading = 'eager'; });
+  });
 })();"""
 
 
@@ -350,6 +355,18 @@ def read_speed_results(directory: str | os.PathLike[str]) -> list[dict[str, Any]
         except (OSError, ValueError, TypeError, AttributeError) as exc:
             out.append({"benchmark": f.stem, "file": str(f), "error": str(exc), "results": {}})
     return out
+
+
+def _abridged(node: Any, limit: int = 12) -> Any:
+    """A JSON document with each list of more than ``limit`` items (a cloud of points, a polyline) replaced by
+    a note of its length: what the report prints of the studies' results (the file keeps them whole)."""
+    if isinstance(node, Mapping):
+        return {k: _abridged(v, limit) for k, v in node.items()}
+    if isinstance(node, list):
+        if len(node) > limit:
+            return f"[{len(node)} items: see reports/studies.json]"
+        return [_abridged(v, limit) for v in node]
+    return node
 
 
 def _read_json(path: str | os.PathLike[str] | None) -> Any:
@@ -574,8 +591,10 @@ def build_report(
         studies=studies["studies"],
         summary=studies["summary"],
         studies_figures={k: str(v) for k, v in (studies_figures or {}).items() if Path(v).is_file()},
-        # compact (the reports/studies.json file itself is indented): 0.4 MB of the report's 10 MB budget
-        studies_json=json.dumps(studies["studies"], sort_keys=True, separators=(", ", ": ")) if studies["studies"] else "",
+        # compact, and without the long arrays (clouds, polylines: reports/studies.json has them): every
+        # byte of the file is loaded before its first paint
+        studies_json=json.dumps(_abridged(studies["studies"]), sort_keys=True, separators=(", ", ": "))
+        if studies["studies"] else "",
         localization=_localization(localization, localization_tables or {}),
         skalka=skalka_sections(studies),  # Skalka 2011's techniques (template skalka.html.j2)
         robots=robot_section(robots or []),  # the section "Your robot" (templates/robots.html.j2)
