@@ -1,7 +1,7 @@
 """The explorer in headless Chromium: it loads with no console error and a k_r change redraws.
 
 The server is started as the command (``pose-uncertainty explore``, loopback, a free port);
-Chromium is driven over the DevTools protocol with the client of the report's browser test.
+Chromium is driven over the DevTools protocol (``tests/browser.py``).
 Every request the page makes must go to 127.0.0.1. The numbers read from the page's DOM (inside
 Bokeh's shadow roots) must equal :func:`pose_uncertainty.present.explore.compute` of the same
 settings, before and after k_r is changed in the page.
@@ -9,19 +9,16 @@ settings, before and after k_r is changed in the page.
 
 from __future__ import annotations
 
-import json
 import os
 import re
 import signal
 import subprocess
 import sys
 import time
-import urllib.request
 from pathlib import Path
-from typing import Any
 
 import pytest
-from test_report_browser import CDP, FLAGS, _free_port, chromium  # noqa: F401 - the fixture
+from browser import CDP, open_chromium
 
 from pose_uncertainty.present import explore
 
@@ -55,64 +52,39 @@ def _shown(view: explore.View, key: str) -> str:
 
 
 @pytest.mark.slow
-def test_explorer_in_chromium(chromium: str, tmp_path: Path) -> None:  # noqa: F811 - the fixture
+def test_explorer_in_chromium(chromium: str, tmp_path: Path) -> None:
     env = {**os.environ, "PYTHONPATH": f"{SRC}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
     server = subprocess.Popen(
         [sys.executable, "-m", "pose_uncertainty.cli", "explore"],
         stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=env,
     )  # fmt: skip
-    port = _free_port()
-    errlog = open(tmp_path / "chromium.log", "wb")  # noqa: SIM115 - closed in the finally below
-    proc = subprocess.Popen(
-        [chromium, *FLAGS, f"--user-data-dir={tmp_path / 'profile'}", f"--remote-debugging-port={port}", "about:blank"],
-        stdout=subprocess.DEVNULL, stderr=errlog,
-    )  # fmt: skip
-    cdp = None
     try:
         line = server.stdout.readline() if server.stdout else ""
         m = re.search(r"(http://127\.0\.0\.1:\d+/)", line)
         assert m, line
         url = m.group(1)
-        deadline = time.monotonic() + 30
-        targets: list[dict[str, Any]] = []
-        while time.monotonic() < deadline and not targets:
-            try:
-                with urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=2) as r:
-                    targets = [t for t in json.load(r) if t.get("type") == "page"]
-            except OSError:
-                time.sleep(0.2)
-        assert targets, "Chromium did not open a DevTools page target"
-        cdp = CDP(targets[0]["webSocketDebuggerUrl"], timeout=120)
-        for domain in ("Page", "Network", "Runtime", "Log"):
-            cdp.call(f"{domain}.enable")
-        cdp.call("Page.navigate", url=url)
-        cdp.wait_event("Page.loadEventFired", timeout=60)
-        first = _wait_text(cdp, "coverage-a", None, timeout=120)
-        want = explore.compute(explore.run_config(explore.DEFAULTS))
-        assert first == _shown(want, "a")
-        assert _text(cdp, "coverage-c") == _shown(want, "c")
-        assert _text(cdp, "coverage-e") == _shown(want, "e")
-        # move k_r in the page (the widget's model, as the slider's edit would)
-        cdp.call(
-            "Runtime.evaluate",
-            expression="Bokeh.documents[0].get_model_by_name('field-k_r').value = '3e-3'",
-        )
-        second = _wait_text(cdp, "coverage-a", first, timeout=120)
-        moved = explore.compute(explore.run_config({**explore.DEFAULTS, "k_r": "3e-3"}))
-        assert second == _shown(moved, "a")
-        assert _text(cdp, "coverage-c") == _shown(moved, "c")
-        shot = cdp.call("Page.captureScreenshot", format="png")
-        cdp.call("Runtime.evaluate", expression="1")  # drain
+        with open_chromium(chromium, tmp_path, timeout=120) as cdp:
+            for domain in ("Page", "Network", "Runtime", "Log"):
+                cdp.call(f"{domain}.enable")
+            cdp.call("Page.navigate", url=url)
+            cdp.wait_event("Page.loadEventFired", timeout=60)
+            first = _wait_text(cdp, "coverage-a", None, timeout=120)
+            want = explore.compute(explore.run_config(explore.DEFAULTS))
+            assert first == _shown(want, "a")
+            assert _text(cdp, "coverage-c") == _shown(want, "c")
+            assert _text(cdp, "coverage-e") == _shown(want, "e")
+            # move k_r in the page (the widget's model, as the slider's edit would)
+            cdp.call(
+                "Runtime.evaluate",
+                expression="Bokeh.documents[0].get_model_by_name('field-k_r').value = '3e-3'",
+            )
+            second = _wait_text(cdp, "coverage-a", first, timeout=120)
+            moved = explore.compute(explore.run_config({**explore.DEFAULTS, "k_r": "3e-3"}))
+            assert second == _shown(moved, "a")
+            assert _text(cdp, "coverage-c") == _shown(moved, "c")
+            shot = cdp.call("Page.captureScreenshot", format="png")
+            cdp.call("Runtime.evaluate", expression="1")  # drain
     finally:
-        if cdp is not None:
-            cdp.close()
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout=10)
-        errlog.close()
         server.send_signal(signal.SIGINT)
         try:
             server.communicate(timeout=20)
