@@ -27,11 +27,34 @@ def chromium() -> str:
 
 #: fixtures that run the quick pipeline end to end (a minute or more): their tests are slow
 PIPELINE_FIXTURES = {"quick", "quick_report"}
+#: the modules whose tests read the quick pipeline's one build (``test_pipeline.quick_pipeline``, in the
+#: session's base temporary folder) and run Snakemake in it: on one process of ``pytest -n``, in turn
+PIPELINE_MODULES = {"test_pipeline", "test_one_source", "test_rebuild_scope", "test_report_browser", "test_slurm"}
+#: modules of a minute or more of work besides the quick pipeline's, handed out first after it (the longest
+#: first, so that the two processes of ``pytest -n 2`` end together)
+LONG_MODULES = ("test_faults", "test_docs", "test_robot_calibration", "test_lint", "test_notebook")
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Mark every test that needs the quick pipeline ``slow`` (``make test`` runs them all;
-    ``pytest -m "not slow"`` is the subset to run while working)."""
+    ``pytest -m "not slow"`` is the subset to run while working).
+
+    With pytest-xdist (``make test`` runs ``-n 2 --dist loadgroup``) each module's tests go to one
+    process, so that a module's fixtures are built once; the modules of the quick pipeline share
+    one process (one build, one Snakemake at a time in its folder); that group is handed out first,
+    then :data:`LONG_MODULES`."""
+    xdist = config.pluginmanager.hasplugin("xdist")
     for item in items:
         if PIPELINE_FIXTURES & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.slow)
+        if xdist:
+            module = item.path.stem
+            item.add_marker(pytest.mark.xdist_group("quick_pipeline" if module in PIPELINE_MODULES else module))
+    if hasattr(config, "workerinput"):  # a process of pytest -n: the order the groups are handed out in
+        def rank(item: pytest.Item) -> int:
+            module = item.path.stem
+            if module in PIPELINE_MODULES:
+                return 0
+            return 1 + LONG_MODULES.index(module) if module in LONG_MODULES else 1 + len(LONG_MODULES)
+
+        items.sort(key=rank)
