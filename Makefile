@@ -37,7 +37,7 @@ TEST_PROCESSES ?= 2
 
 test: $(STAMP)
 	$(COMPILE)
-	$(BIN)/python -m pytest -n $(TEST_PROCESSES) --dist loadgroup
+	$(BIN)/python -m pytest -n $(TEST_PROCESSES) --dist loadscope
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks workflow/scripts
