@@ -32,9 +32,12 @@ quick: $(STAMP)
 	$(COMPILE)
 	$(LOCKED) $(BIN)/snakemake --profile workflow/profiles/default --cores $(CORES) --configfile config/quick.yaml
 
+# the whole suite on TEST_PROCESSES processes (pytest-xdist; a module's tests on one, tests/conftest.py)
+TEST_PROCESSES ?= 2
+
 test: $(STAMP)
 	$(COMPILE)
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n $(TEST_PROCESSES) --dist loadscope
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks workflow/scripts

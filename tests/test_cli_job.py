@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 from default_runs import CONFIGS
+from hostile import run_cli
 
 from pose_uncertainty.cli.job import main
 from pose_uncertainty.experiments.study import run_study
@@ -41,11 +40,9 @@ def test_run_study_writes_the_results_of_the_library_call(tmp_path: Path) -> Non
         (["simulate-orbit", "{}", "a", "b"], "invalid choice: 'simulate-orbit'"),
     ],
 )
-@pytest.mark.slow
 def test_bad_usage_exits_2_and_says_why(tmp_path: Path, argv: list[str], says: str) -> None:
-    res = subprocess.run([sys.executable, "-m", "pose_uncertainty.cli.job", *argv], cwd=tmp_path,
-                         capture_output=True, text=True, check=False)  # fmt: skip
-    assert res.returncode == 2
+    res = run_cli(argv, tmp_path, module="pose_uncertainty.cli.job")  # as `python -m` ends: argparse's exit
+    assert res.code == 2
     assert says in res.stderr.strip().splitlines()[-1]
     assert not list(tmp_path.iterdir())  # nothing written
 

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import html
-import json
 import os
 import re
 import shlex
@@ -20,7 +19,6 @@ import subprocess
 import sys
 import textwrap
 import time
-import urllib.request
 from pathlib import Path
 from typing import Any
 from urllib.parse import unquote, urlsplit
@@ -262,29 +260,11 @@ def test_internal_links_resolve_and_nothing_is_fetched(site: Path) -> None:
 
 
 @pytest.mark.slow
-def test_three_pages_render_in_chromium(site: Path, tmp_path: Path) -> None:
-    from test_report_browser import CDP, CHROMIUM, FLAGS, _free_port
+def test_three_pages_render_in_chromium(site: Path, chromium: str, tmp_path: Path) -> None:
+    from browser import open_chromium
 
-    if not (os.path.isfile(CHROMIUM) and os.access(CHROMIUM, os.X_OK)):
-        pytest.fail(f"Chromium not found at {CHROMIUM}: apt-get update && apt-get install -y chromium", pytrace=False)
-    port = _free_port()
-    errlog = open(tmp_path / "chromium.log", "wb")  # noqa: SIM115 - closed in the finally below
-    proc = subprocess.Popen([CHROMIUM, *FLAGS, f"--user-data-dir={tmp_path / 'profile'}",
-                             f"--remote-debugging-port={port}", "about:blank"],
-                            stdout=subprocess.DEVNULL, stderr=errlog)  # fmt: skip
     results: dict[str, dict[str, Any]] = {}
-    cdp = None
-    try:
-        deadline = time.monotonic() + 30
-        targets: list[dict[str, Any]] = []
-        while time.monotonic() < deadline and not targets:
-            try:
-                with urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=2) as r:
-                    targets = [t for t in json.load(r) if t.get("type") == "page"]
-            except OSError:
-                time.sleep(0.2)
-        assert targets, (tmp_path / "chromium.log").read_text(errors="replace")[-2000:]
-        cdp = CDP(targets[0]["webSocketDebuggerUrl"])
+    with open_chromium(chromium, tmp_path) as cdp:
         for domain in ("Page", "Network", "Runtime", "Log"):
             cdp.call(f"{domain}.enable")
         for name in BROWSER_PAGES:
@@ -318,16 +298,6 @@ def test_three_pages_render_in_chromium(site: Path, tmp_path: Path) -> None:
             ]  # fmt: skip
             state["failed"] = [e["params"] for e in events if e["method"] == "Network.loadingFailed"]
             results[name] = state
-    finally:
-        if cdp is not None:
-            cdp.close()
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout=10)
-        errlog.close()
 
     for name, s in results.items():
         external = [u for u in s["requests"] if not u.startswith(("file:", "data:", "about:", "blob:"))]

@@ -199,6 +199,7 @@ def _listening(pid: int) -> list[tuple[str, int]]:
     return out
 
 
+@pytest.mark.slow  # the server in a new interpreter (imports bokeh)
 def test_server_binds_loopback_by_default() -> None:
     pytest.importorskip("bokeh")
     env = {**os.environ, "PYTHONPATH": f"{SRC}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}

@@ -17,14 +17,13 @@ import signal
 import subprocess
 import sys
 import time
-import urllib.request
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
-from test_report_browser import CDP, FLAGS, _free_port, chromium  # noqa: F401 - the fixture
+from browser import CDP, open_chromium
 
 from pose_uncertainty.cli import main
 from pose_uncertainty.present import explore
@@ -76,43 +75,18 @@ def explorer_page(
     )  # fmt: skip
     if server_cpu is not None:
         os.sched_setaffinity(server.pid, {server_cpu})
-    port = _free_port()
-    errlog = open(tmp_path / "chromium.log", "wb")  # noqa: SIM115 - closed in the finally below
-    proc = subprocess.Popen(
-        [browser, *FLAGS, f"--user-data-dir={tmp_path / 'profile'}", f"--remote-debugging-port={port}", "about:blank"],
-        stdout=subprocess.DEVNULL, stderr=errlog,
-    )  # fmt: skip
-    cdp = None
     try:
         line = server.stdout.readline() if server.stdout else ""
         m = re.search(r"(http://127\.0\.0\.1:\d+/)", line)
         assert m, line
         url = m.group(1)
-        deadline = time.monotonic() + 30
-        targets: list[dict[str, Any]] = []
-        while time.monotonic() < deadline and not targets:
-            try:
-                with urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=2) as r:
-                    targets = [t for t in json.load(r) if t.get("type") == "page"]
-            except OSError:
-                time.sleep(0.2)
-        assert targets, "Chromium did not open a DevTools page target"
-        cdp = CDP(targets[0]["webSocketDebuggerUrl"], timeout=120)
-        for domain in ("Page", "Network", "Runtime", "Log"):
-            cdp.call(f"{domain}.enable")
-        cdp.call("Page.navigate", url=url)
-        cdp.wait_event("Page.loadEventFired", timeout=60)
-        yield cdp, url
+        with open_chromium(browser, tmp_path, timeout=120) as cdp:
+            for domain in ("Page", "Network", "Runtime", "Log"):
+                cdp.call(f"{domain}.enable")
+            cdp.call("Page.navigate", url=url)
+            cdp.wait_event("Page.loadEventFired", timeout=60)
+            yield cdp, url
     finally:
-        if cdp is not None:
-            cdp.close()
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout=10)
-        errlog.close()
         server.send_signal(signal.SIGINT)
         try:
             server.communicate(timeout=20)
@@ -190,7 +164,7 @@ def _console_errors(events: list[dict[str, Any]]) -> list[dict[str, Any]]:
 
 
 @pytest.mark.slow
-def test_explorer_in_chromium(chromium: str, tmp_path: Path) -> None:  # noqa: F811 - the fixture
+def test_explorer_in_chromium(chromium: str, tmp_path: Path) -> None:
     with explorer_page(chromium, tmp_path) as (cdp, url):
         first = _wait_text(cdp, "coverage-a", None, timeout=120)
         want = explore.compute(explore.run_config(explore.DEFAULTS))
@@ -251,7 +225,7 @@ MAP_SETTING = {"path": "straight", "size": "1.0", "dt": "0.02", "n_particles": "
 
 @pytest.mark.slow
 def test_map_is_computed_in_the_background_while_the_controls_stay_live(
-    chromium: str, tmp_path: Path  # noqa: F811 - the fixture
+    chromium: str, tmp_path: Path
 ) -> None:
     with explorer_page(chromium, tmp_path) as (cdp, _url):
         _wait_text(cdp, "coverage-a", None, timeout=120)

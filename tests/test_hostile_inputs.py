@@ -1,8 +1,8 @@
 """Hostile input to the configuration layer: every trial is a clean one-line refusal, or its documented outcome.
 
 Each trial writes its files into a scratch folder (beside an existing ``o.mcap`` that must survive),
-runs ``pose-uncertainty ARGS`` in a fresh interpreter under an address-space limit
-(:mod:`hostile`), and checks what a user sees: exit code 2, one line on stderr naming the key
+runs ``pose-uncertainty ARGS`` (its ``main``, in this process) under an address-space limit
+(:mod:`hostile`; a sample again in a new process, as a user types it), and checks what a user sees: exit code 2, one line on stderr naming the key
 or the file (every needle), no traceback, and the folder exactly as before. The table holds the
 inputs that were already refused well (bad types, unknown keys, ranges, malformed files) beside
 those that were not: unbounded counts, map parameters that divided by zero, worlds that could
@@ -189,6 +189,18 @@ def test_hostile_input_is_one_clean_line(trial: Trial, tmp_path: Path) -> None:
     _write(tmp_path, trial.files)
     out = run_cli(list(trial.args), tmp_path, env=trial.env)
     out.assert_clean_refusal(*trial.needles)
+
+
+#: the trials run again in a new process, as a user types them: a variable that numpy's BLAS and OpenMP
+#: read when the interpreter starts (and might complain of on stderr), a huge file under a whole
+#: process's address-space limit
+FRESH = ["env-threads", "config-sparse-3gib"]
+
+
+@pytest.mark.parametrize("trial", [t for t in TRIALS if t.id in FRESH], ids=lambda t: t.id)
+def test_hostile_input_is_one_clean_line_from_a_new_process(trial: Trial, tmp_path: Path) -> None:
+    _write(tmp_path, trial.files)
+    run_cli(list(trial.args), tmp_path, env=trial.env, process=True).assert_clean_refusal(*trial.needles)
 
 
 def test_an_unusual_world_runs_with_a_one_line_warning_defining_its_measure(tmp_path: Path) -> None:

@@ -1,12 +1,13 @@
 """Hostile input and faults at the file boundary: what the command line reads and writes, signals,
 disk errors, the cost guard of localization runs and what ``replay --verify`` compares.
 
-Every trial runs the ``pose-uncertainty`` command in a subprocess, in a scratch folder, under an
-address-space limit (:mod:`hostile`), and asserts what a user sees: the exit status, one line on
-stderr naming the file (no traceback), and the folder exactly as it was — nothing left behind (no
-hidden ``.part`` file), nothing replaced (a FIFO, a socket, a device node, a symbolic link). Faults
-that cannot be made for real without privileges (a full disk, a read-only file system) are made
-in-process by patching the system call that would fail.
+Every trial runs the ``pose-uncertainty`` command (its ``main``, in this process, :mod:`hostile`) in a
+scratch folder, under an address-space limit, and asserts what a user sees: the exit status, one line
+on stderr naming the file (no traceback), and the folder exactly as it was — nothing left behind (no
+hidden ``.part`` file), nothing replaced (a FIFO, a socket, a device node, a symbolic link). A sample
+of them runs again as a user types it, in a new process; the signals are sent to a real process.
+Faults that cannot be made for real without privileges (a full disk, a read-only file system) are
+made by patching the system call that would fail.
 
 The table of trials (:data:`READS`, :data:`WRITES`, :data:`GUARDED`) is the record of what the
 tool does with each hostile input; the kill −9 and two-pipelines trials are in ``test_faults.py``.
@@ -161,6 +162,20 @@ def test_only_a_regular_file_or_a_new_path_is_ever_replaced(trial: Trial, tmp_pa
     out.assert_clean_refusal(*trial.needles)
 
 
+#: the trials run again in a new process under its own address-space limit, as a user types them: a
+#: huge input (the limit on a whole process), a device, a file where the folder of OUT should be
+FRESH = ["MCAP magic then 3 GB of zeros", "/dev/zero as input", "a file as OUT's folder"]
+
+
+@pytest.mark.parametrize("trial", [t for t in READS + WRITES if t.id in FRESH], ids=lambda t: t.id)
+def test_a_hostile_input_is_refused_by_the_command_in_a_new_process(
+    trial: Trial, tmp_path: Path, good_log: bytes
+) -> None:
+    _config(tmp_path)
+    trial.setup(tmp_path, good_log)
+    run_cli(trial.args, tmp_path, process=True).assert_clean_refusal(*trial.needles)
+
+
 def test_a_character_device_at_out_is_refused_and_stays_a_device(tmp_path: Path) -> None:
     if os.geteuid() != 0:
         pytest.skip("making a device node needs root")
@@ -274,11 +289,16 @@ def test_a_signal_mid_write_leaves_no_part_file_and_exits_128_plus_its_number(tm
     dest.write_text("old\n", encoding="utf-8")
     proc = subprocess.Popen([sys.executable, "-c", SLOW_WRITER, str(dest)], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)  # fmt: skip
-    assert proc.stdout is not None
-    assert proc.stdout.readline() == "writing\n"
-    assert len(list(tmp_path.glob(".claims.json.*.part"))) == 1
-    proc.send_signal(signum)
-    _, err = proc.communicate(timeout=60)
+    try:
+        assert proc.stdout is not None
+        assert proc.stdout.readline() == "writing\n"
+        assert len(list(tmp_path.glob(".claims.json.*.part"))) == 1
+        proc.send_signal(signum)
+        _, err = proc.communicate(timeout=60)
+    finally:  # a failed check leaves no writer behind (it would outlive the test by two minutes)
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
     assert proc.returncode == 128 + signum, err
     lines = err.strip().splitlines()
     assert len(lines) == 1, err
@@ -313,21 +333,20 @@ def test_sigterm_to_a_long_run_while_it_writes_its_log_leaves_nothing(tmp_path: 
 # --- the pipeline's job command: one line, the traceback only with --debug ---------------------
 
 
-def _job(args: list[str], cwd: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "pose_uncertainty.cli.job", *args], cwd=cwd, capture_output=True,
-                          text=True, timeout=300, check=False)  # fmt: skip
+def _job(args: list[str], cwd: Path) -> Outcome:
+    return run_cli(args, cwd, module="pose_uncertainty.cli.job", timeout=300)
 
 
 def test_a_job_error_is_one_line_and_the_traceback_needs_debug(tmp_path: Path) -> None:
     bad = json.dumps({**GOOD, "n_ellipses": -1})
     res = _job(["simulate-run", bad, "a.mcap", "a.json"], tmp_path)
     lines = res.stderr.strip().splitlines()
-    assert res.returncode == 2, res.stderr
+    assert res.code == 2, res.stderr
     assert len(lines) == 1, res.stderr
     assert "n_ellipses" in lines[0]
     assert "Traceback" not in res.stderr
     res = _job(["--debug", "simulate-run", bad, "a.mcap", "a.json"], tmp_path)
-    assert res.returncode == 2
+    assert res.code == 2
     assert res.stderr.startswith("error: ")
     assert "n_ellipses" in res.stderr.splitlines()[0]
     assert "Traceback (most recent call last)" in res.stderr
@@ -337,7 +356,7 @@ def test_a_job_error_is_one_line_and_the_traceback_needs_debug(tmp_path: Path) -
 def test_a_job_refuses_a_special_file_as_its_log(tmp_path: Path) -> None:
     os.mkfifo(tmp_path / "a.mcap")
     res = _job(["simulate-run", json.dumps(GOOD), "a.mcap", "a.json"], tmp_path)
-    assert res.returncode == 2, res.stderr
+    assert res.code == 2, res.stderr
     assert res.stderr.strip() == (
         "error: a.mcap: is a FIFO (named pipe); refusing to replace it (the output must be a regular file or a new path)"
     )
@@ -440,7 +459,7 @@ def test_another_library_version_says_what_was_not_compared(tmp_path: Path, good
 
 def test_a_study_of_absurd_size_is_refused_in_one_line(tmp_path: Path) -> None:
     res = _job(["run-study", "huge", json.dumps({"study": "accuracy_case", "n": 1e12}), "out.json"], tmp_path)
-    assert res.returncode == 2, res.stderr
+    assert res.code == 2, res.stderr
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1, res.stderr
     assert lines[0].startswith("error: study 'huge' would need about"), lines[0]

@@ -26,9 +26,10 @@ def _layer_of(parts: tuple[str, ...]) -> str | None:
     return head if head in LAYERS else None
 
 
-def _imports(path: Path) -> list[tuple[int, tuple[str, ...]]]:
-    """(line, target module path inside pose_uncertainty) of every import of the package."""
-    rel = path.relative_to(PKG).with_suffix("").parts  # e.g. ("methods", "maps")
+def _imports(path: Path, root: Path = PKG) -> list[tuple[int, tuple[str, ...]]]:
+    """(line, target module path inside pose_uncertainty) of every import of the package (``path``
+    a module below ``root``, the package's folder)."""
+    rel = path.relative_to(root).with_suffix("").parts  # e.g. ("methods", "maps")
     here = rel[:-1]
     out = []
     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
@@ -79,10 +80,9 @@ def test_no_import_of_a_higher_layer(path):
 
 def test_the_checker_sees_a_violation(tmp_path):
     # the check itself must be able to fail: a core module importing present is caught
-    fake = PKG / "core" / "_layer_probe_tmp.py"
+    # (in a folder of its own: the package's folder is read by tests running at the same time, pytest -n)
+    fake = tmp_path / "pose_uncertainty" / "core" / "_layer_probe_tmp.py"
+    fake.parent.mkdir(parents=True)
     fake.write_text("from ..present import report\nfrom pose_uncertainty.records import run\n")
-    try:
-        targets = [t for _, t in _imports(fake)]
-    finally:
-        fake.unlink()
+    targets = [t for _, t in _imports(fake, tmp_path / "pose_uncertainty")]
     assert [_layer_of(t) for t in targets] == ["present", "records"]

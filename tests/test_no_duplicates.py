@@ -219,6 +219,7 @@ def test_src_has_no_repeated_helper():
     assert [f for f in _found_in_src() if f.split(": ", 1)[-1] not in ALLOWED] == []
 
 
+@pytest.mark.slow  # the scan of src/ (about 3 s), shared with test_src_has_no_repeated_helper
 def test_every_allowed_copy_is_still_there():
     # an allow-list entry whose copy was removed must go too
     found = {f.split(": ", 1)[-1] for f in _found_in_src()}

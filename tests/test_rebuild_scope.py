@@ -99,6 +99,7 @@ def _matplotlib_after(workdir: Path, pre: str, *args: str) -> tuple[bool, str]:
     return lines[-1].endswith("True"), proc.stdout + proc.stderr
 
 
+@pytest.mark.slow  # two Snakemake processes, one parsing the workflow and building its DAG
 def test_parsing_and_dry_running_the_workflow_imports_no_matplotlib(tmp_path: Path) -> None:
     work = copy_workflow(tmp_path / "work")
     assert _matplotlib_after(work, "import pose_uncertainty.present.pipeline_figures", "--version")[0]  # sees it

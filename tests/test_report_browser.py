@@ -1,8 +1,8 @@
 """The comparison report in headless Chromium: renders, no console error, no external request.
 
 Chromium (Debian's ``chromium`` package, ``/usr/bin/chromium``) is driven over the
-DevTools protocol with a small WebSocket client written on the standard library:
-the test enables the Network, Runtime and Log domains, opens
+DevTools protocol with a small WebSocket client written on the standard library
+(``tests/browser.py``): the test enables the Network, Runtime and Log domains, opens
 ``reports/comparison.html`` of the quick pipeline run from ``file://``, records
 every request, console message, log entry and uncaught exception, and captures
 a full-page screenshot (kept under the pytest tmp dir and copied to
@@ -18,160 +18,20 @@ import base64
 import contextlib
 import json
 import math
-import os
+import re
 import shutil
-import socket
-import struct
-import subprocess
-import time
-import urllib.request
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
 
 import pytest
+from browser import CDP, open_chromium
 from test_pipeline import REPO, quick_pipeline
-
-CHROMIUM = os.environ.get("POSE_UNCERTAINTY_CHROMIUM", "/usr/bin/chromium")
-FLAGS = [
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--disable-dev-shm-usage",
-    "--hide-scrollbars",
-    "--window-size=1400,1000",
-]
-
-
-class CDP:
-    """A minimal Chrome DevTools Protocol client over one WebSocket (RFC 6455, client side)."""
-
-    def __init__(self, ws_url: str, timeout: float = 30.0) -> None:
-        assert ws_url.startswith("ws://"), ws_url
-        hostport, _, path = ws_url[5:].partition("/")
-        host, _, port = hostport.partition(":")
-        self.sock = socket.create_connection((host, int(port)), timeout=timeout)
-        key = base64.b64encode(os.urandom(16)).decode()
-        self.sock.sendall(
-            (
-                f"GET /{path} HTTP/1.1\r\nHost: {hostport}\r\nUpgrade: websocket\r\n"
-                f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n\r\n"
-            ).encode()
-        )
-        head = b""
-        while b"\r\n\r\n" not in head:
-            chunk = self.sock.recv(4096)
-            if not chunk:
-                raise ConnectionError("DevTools closed the connection during the handshake")
-            head += chunk
-        status = head.split(b"\r\n", 1)[0]
-        assert b" 101 " in status, f"WebSocket handshake failed: {status!r}"
-        self.buf = head.split(b"\r\n\r\n", 1)[1]
-        self.next_id = 0
-        self.events: list[dict[str, Any]] = []
-
-    def _recv_exact(self, n: int) -> bytes:
-        while len(self.buf) < n:
-            chunk = self.sock.recv(1 << 20)
-            if not chunk:
-                raise ConnectionError("DevTools closed the connection")
-            self.buf += chunk
-        out, self.buf = self.buf[:n], self.buf[n:]
-        return out
-
-    def _send_frame(self, payload: bytes) -> None:
-        header = bytearray([0x81])  # FIN + text frame
-        n = len(payload)
-        if n < 126:
-            header.append(0x80 | n)
-        elif n < 1 << 16:
-            header.append(0x80 | 126)
-            header += struct.pack("!H", n)
-        else:
-            header.append(0x80 | 127)
-            header += struct.pack("!Q", n)
-        mask = os.urandom(4)
-        header += mask
-        self.sock.sendall(bytes(header) + bytes(b ^ mask[i % 4] for i, b in enumerate(payload)))
-
-    def _recv_message(self) -> dict[str, Any]:
-        data = b""
-        while True:
-            b0, b1 = self._recv_exact(2)
-            n = b1 & 0x7F
-            if n == 126:
-                n = struct.unpack("!H", self._recv_exact(2))[0]
-            elif n == 127:
-                n = struct.unpack("!Q", self._recv_exact(8))[0]
-            payload = self._recv_exact(n)
-            opcode = b0 & 0x0F
-            if opcode == 0x8:
-                raise ConnectionError("DevTools closed the WebSocket")
-            if opcode in (0x9, 0xA):  # ping/pong: ignore
-                continue
-            data += payload
-            if b0 & 0x80:
-                return json.loads(data.decode("utf-8"))
-
-    def call(self, method: str, **params: Any) -> dict[str, Any]:
-        """Send a command and wait for its result, keeping the events that arrive meanwhile."""
-        self.next_id += 1
-        mid = self.next_id
-        self._send_frame(json.dumps({"id": mid, "method": method, "params": params}).encode())
-        while True:
-            msg = self._recv_message()
-            if msg.get("id") == mid:
-                if "error" in msg:
-                    raise RuntimeError(f"{method}: {msg['error']}")
-                return msg.get("result", {})
-            if "method" in msg:
-                self.events.append(msg)
-
-    def wait_event(self, method: str, timeout: float) -> dict[str, Any]:
-        deadline = time.monotonic() + timeout
-        for ev in self.events:
-            if ev["method"] == method:
-                return ev
-        while time.monotonic() < deadline:
-            msg = self._recv_message()
-            if "method" in msg:
-                self.events.append(msg)
-                if msg["method"] == method:
-                    return msg
-        raise TimeoutError(f"no {method} within {timeout} s")
-
-    def close(self) -> None:
-        self.sock.close()
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
 
 #: Element ids of the studies sections that the quick report must contain.
 STUDY_SECTION_IDS: list[str] = [
     "studies", "accuracy", "accuracy-distance", "expcoords", "fig-studies-expcoords", "growth-laws",
     "regimes", "polar-cartesian", "calibration",
 ]
-
-
-@pytest.fixture(scope="session")
-def chromium() -> str:
-    if not (os.path.isfile(CHROMIUM) and os.access(CHROMIUM, os.X_OK)):
-        pytest.fail(
-            f"Chromium not found at {CHROMIUM}: the report's browser test needs it. "
-            "Install Debian's package: apt-get update && apt-get install -y chromium "
-            "(or set POSE_UNCERTAINTY_CHROMIUM to a Chromium binary).",
-            pytrace=False,
-        )
-    return CHROMIUM
 
 
 @pytest.mark.slow
@@ -181,29 +41,7 @@ def test_report_renders_offline_without_console_errors(
     work = quick_pipeline(tmp_path_factory.getbasetemp())
     report = work / "reports/comparison.html"
     assert report.is_file()
-    port = _free_port()
-    profile = tmp_path / "profile"
-    errlog = open(tmp_path / "chromium.log", "wb")  # noqa: SIM115 - closed in the finally below
-    proc = subprocess.Popen(
-        [chromium, *FLAGS, f"--user-data-dir={profile}", f"--remote-debugging-port={port}", "about:blank"],
-        stdout=subprocess.DEVNULL,
-        stderr=errlog,
-    )
-    cdp = None
-    try:
-        deadline = time.monotonic() + 30
-        targets: list[dict[str, Any]] = []
-        while time.monotonic() < deadline:
-            try:
-                with urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=2) as r:
-                    targets = [t for t in json.load(r) if t.get("type") == "page"]
-                if targets:
-                    break
-            except OSError:
-                pass
-            time.sleep(0.2)
-        assert targets, f"Chromium did not open a DevTools page target:\n{(tmp_path / 'chromium.log').read_text(errors='replace')[-2000:]}"
-        cdp = CDP(targets[0]["webSocketDebuggerUrl"])
+    with open_chromium(chromium, tmp_path) as cdp:
         for domain in ("Page", "Network", "Runtime", "Log"):
             cdp.call(f"{domain}.enable")
         url = report.resolve().as_uri()
@@ -246,16 +84,6 @@ def test_report_renders_offline_without_console_errors(
         )["result"]["value"]
         # drain what is left
         cdp.call("Runtime.evaluate", expression="1")
-    finally:
-        if cdp is not None:
-            cdp.close()
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout=10)
-        errlog.close()
 
     png = base64.b64decode(shot["data"])
     out = tmp_path / "screenshot.png"
@@ -321,23 +149,7 @@ def test_report_reads_first_screen_and_opens_runs(chromium: str, tmp_path: Path,
                                                    tmp_path_factory: pytest.TempPathFactory) -> None:
     work = quick_pipeline(tmp_path_factory.getbasetemp())
     url = (work / "reports/comparison.html").resolve().as_uri()
-    port = _free_port()
-    flags = [f for f in FLAGS if not f.startswith("--window-size")] + ["--window-size=1400,900"]
-    proc = subprocess.Popen([chromium, *flags, f"--user-data-dir={tmp_path / 'profile'}",
-                             f"--remote-debugging-port={port}", "about:blank"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
-    cdp = None
-    try:
-        targets: list[dict[str, Any]] = []
-        deadline = time.monotonic() + 30
-        while not targets and time.monotonic() < deadline:
-            try:
-                with urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=2) as r:
-                    targets = [t for t in json.load(r) if t.get("type") == "page"]
-            except OSError:
-                time.sleep(0.2)
-        assert targets, "Chromium did not open a DevTools page target"
-        cdp = CDP(targets[0]["webSocketDebuggerUrl"], timeout=120)
+    with open_chromium(chromium, tmp_path, window="1400,900", timeout=120) as cdp:
         for domain in ("Page", "Runtime", "Log"):
             cdp.call(f"{domain}.enable")
         cdp.call("Page.navigate", url=url)
@@ -349,15 +161,6 @@ def test_report_reads_first_screen_and_opens_runs(chromium: str, tmp_path: Path,
                           returnByValue=True)["result"]["value"]  # fmt: skip
         after = cdp.call("Runtime.evaluate", expression=_READ_JS, returnByValue=True)["result"]["value"]
         cdp.call("Runtime.evaluate", expression="1")
-    finally:
-        if cdp is not None:
-            cdp.close()
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout=10)
     (REPO / "reports").mkdir(exist_ok=True)
     (REPO / "reports/first-screen.png").write_bytes(base64.b64decode(first["data"]))
     assert seen["abstract"] <= 900, f"the findings end at {seen['abstract']} px, below the first screen"
@@ -411,7 +214,6 @@ def pdf_pages(pdf: bytes) -> list[set[int]]:
     """The pages of a PDF written by Chromium (Skia: plain objects, no object streams), in no particular
     order, each as the set of image objects its resources name (a figure split over two pages draws its
     image on both: the same object from two pages)."""
-    import re
 
     objs = {int(n): body for n, body in re.findall(rb"(\d+) 0 obj\s*(.*?)\s*endobj", pdf, re.DOTALL)}
     assert not any(b"/Type /ObjStm" in b for b in objs.values()), "object streams: this reader cannot follow them"
@@ -446,34 +248,10 @@ def pdf_pages(pdf: bytes) -> list[set[int]]:
 def _page(chromium: str, tmp_path: Path, width: int, height: int) -> Iterator[CDP]:
     """A headless Chromium of that window size, its first page over the DevTools protocol (Page, Runtime
     and Log enabled); closed and the browser ended on exit."""
-    port = _free_port()
-    flags = [f for f in FLAGS if not f.startswith("--window-size")] + [f"--window-size={width},{height}"]
-    proc = subprocess.Popen([chromium, *flags, f"--user-data-dir={tmp_path / 'profile'}", f"--remote-debugging-port={port}",
-                             "about:blank"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
-    cdp = None
-    try:
-        deadline = time.monotonic() + 30
-        targets: list[dict[str, Any]] = []
-        while not targets:
-            assert time.monotonic() < deadline, "Chromium did not open a DevTools page target"
-            try:
-                with urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=2) as r:
-                    targets = [t for t in json.load(r) if t.get("type") == "page"]
-            except OSError:
-                time.sleep(0.2)
-        cdp = CDP(targets[0]["webSocketDebuggerUrl"], timeout=120)
+    with open_chromium(chromium, tmp_path, window=f"{width},{height}", timeout=120) as cdp:
         for domain in ("Page", "Runtime", "Log"):
             cdp.call(f"{domain}.enable")
         yield cdp
-    finally:
-        if cdp is not None:
-            cdp.close()
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout=10)
 
 
 @pytest.mark.slow
