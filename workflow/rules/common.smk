@@ -6,6 +6,7 @@ import sys as _sys
 from pathlib import Path
 
 from pose_uncertainty.experiments import sweep as _sweep
+from pose_uncertainty.pipeline import chunks as _chunks
 from pose_uncertainty.experiments import localization as _loc
 from pose_uncertainty.experiments import study as _study
 from pose_uncertainty.core.provenance import closure_sha256, imports_of
@@ -72,6 +73,37 @@ def script_source(script, data=()):
 RUN_BY_ID = {(s, r.id): r for s, runs in RUNS.items() for r in runs}
 SETS = list(RUNS)
 
+# Config key `runs_per_job` (pose_uncertainty.experiments.pipeline_keys): 1 runs each run as a job of its own
+# (rule simulate_run); above 1 each set's runs are cut, in order, into chunks of at most that many, one
+# job (and one SLURM job) each: the rules simulate_chunk_<set>_<i> of workflow/rules/simulate.smk.
+RUNS_PER_JOB = config["runs_per_job"]
+CHUNKS = {s: _chunks.chunk_runs(RUNS[s], RUNS_PER_JOB) for s in SETS} if RUNS_PER_JOB > 1 else {}
+
+
+def chunk_job_spec(runs):
+    """The JSON argument of the job that executes ``runs`` (pose_uncertainty.pipeline.chunks.chunk_spec)."""
+    return _json.dumps(_chunks.chunk_spec([r.config for r in runs], [r.path for r in runs],
+                                          [run_timing(r) for r in runs]), allow_nan=False)
+
+
+def chunk_resources(runs):
+    """A chunk's cluster resources: the largest memory and the summed time of its runs' estimates."""
+    from pose_uncertainty.experiments import cost as _cost
+
+    costs = [_cost.estimate(r.config) for r in runs]
+    return _cost.resources_of(_cost.Cost(max(c.mem_bytes for c in costs), sum(c.seconds for c in costs), ()))
+
+
+def run_timing(run):
+    return f"data/runs/{run.set}/{run.id}.timings.json"
+
+
+def run_benchmarks(set_name):
+    """The benchmark files of the jobs that compute a set's runs (one per run or one per chunk)."""
+    if RUNS_PER_JOB > 1:
+        return [f"data/benchmarks/simulate_chunk/{set_name}/{i}.tsv" for i in range(len(CHUNKS[set_name]))]
+    return [f"data/benchmarks/simulate_run/{set_name}/{r.id}.tsv" for r in RUNS[set_name]]
+
 
 wildcard_constraints:
     set="[A-Za-z0-9_]+",
@@ -107,7 +139,7 @@ def run_logs(set_name):
 
 
 def run_timings(set_name):
-    return [f"data/runs/{set_name}/{r.id}.timings.json" for r in RUNS[set_name]]
+    return [run_timing(r) for r in RUNS[set_name]]
 
 
 def run_figures(set_name, run):
@@ -178,8 +210,7 @@ def all_benchmarks(wildcards=None):
     """Benchmark files of every job the summary depends on (per-rule times in the report)."""
     out = []
     for s in SETS:
-        for r in RUNS[s]:
-            out.append(f"data/benchmarks/simulate_run/{s}/{r.id}.tsv")
+        out.extend(run_benchmarks(s))
         for kind in set_figures(s):
             out.append(f"data/benchmarks/render_{kind}_figure/{s}.tsv")
         out.append(f"data/benchmarks/render_run_figures/{s}.tsv")
