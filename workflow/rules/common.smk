@@ -94,6 +94,18 @@ def chunk_resources(runs):
     return _cost.resources_of(_cost.Cost(max(c.mem_bytes for c in costs), sum(c.seconds for c in costs), ()))
 
 
+@_functools.cache
+def _run_resources(set_name, run_id):
+    from pose_uncertainty.experiments import cost as _cost
+
+    return _cost.job_resources(RUN_BY_ID[(set_name, run_id)].config)
+
+
+def run_resources(wildcards):
+    """The cluster resources (mem_mb, runtime) of one run, from its cost estimate (computed once per run)."""
+    return _run_resources(wildcards.set, wildcards.run)
+
+
 def run_timing(run):
     return f"data/runs/{run.set}/{run.id}.timings.json"
 

@@ -2,8 +2,6 @@
 # runs_per_job = 1: one job per run (rule simulate_run); above 1: one job per chunk of a set's runs
 # (rules simulate_chunk_<set>_<i>, one process each, the same logs byte for byte). A log is requested
 # by its file either way; in a chunk, its chunk's job makes it.
-from pose_uncertainty.experiments import cost as _cost
-
 
 if RUNS_PER_JOB == 1:
 
@@ -17,8 +15,8 @@ if RUNS_PER_JOB == 1:
             source=SOURCE_JOB,
         resources:
             # what the run estimates it needs (a cluster job's --mem and --time)
-            mem_mb=lambda wc: _cost.job_resources(run_config(wc))["mem_mb"],
-            runtime=lambda wc: _cost.job_resources(run_config(wc))["runtime"],
+            mem_mb=lambda wc: run_resources(wc)["mem_mb"],
+            runtime=lambda wc: run_resources(wc)["runtime"],
         log:
             "logs/simulate_run/{set}/{run}.log",
         benchmark:

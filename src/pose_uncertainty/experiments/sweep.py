@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import copy
 import itertools
+import json
 import math
 import re
 from collections.abc import Callable, Mapping, Sequence
@@ -172,7 +173,7 @@ def validate_config(config: Mapping[str, Any], schema: Mapping[str, Any]) -> dic
         is allowed.
     """
     config = coerce_numbers(config)
-    structure = pipeline_structure(schema)
+    structure = _structure_of(schema)
     problem = first_error(structure, config)
     if problem is not None:
         raise ConfigError(problem)
@@ -184,6 +185,19 @@ def validate_config(config: Mapping[str, Any], schema: Mapping[str, Any]) -> dic
     _fill_defaults(structure, filled)
     expand_all(filled)  # raises ConfigError for bad runs
     return filled
+
+
+#: :func:`pipeline_structure` of each schema seen, by ``id``, with the schema itself (kept alive): one
+#: structure object per schema, so that its validator (checked against the meta-schema once) is reused.
+_STRUCTURES: dict[int, tuple[Mapping[str, Any], dict[str, Any]]] = {}
+
+
+def _structure_of(schema: Mapping[str, Any]) -> dict[str, Any]:
+    hit = _STRUCTURES.get(id(schema))
+    if hit is None or hit[0] is not schema:
+        hit = (schema, pipeline_structure(schema))
+        _STRUCTURES[id(schema)] = hit
+    return hit[1]
 
 
 def pipeline_structure(schema: Mapping[str, Any]) -> dict[str, Any]:
@@ -431,13 +445,21 @@ def expand_all(config: Mapping[str, Any]) -> dict[str, list[Run]]:
     -------
     dict of set name to list of Run, in config order
     """
-    defaults = dict(config.get("defaults", {}) or {})
-    if "seed" in config and "seed" not in defaults:
-        defaults["seed"] = config["seed"]
-    return {
-        name: expand_set(name, spec, defaults)
-        for name, spec in (config.get("experiment_sets", {}) or {}).items()
-    }
+    key = json.dumps([config.get("defaults"), config.get("seed"), config.get("experiment_sets")],
+                     sort_keys=True, default=repr)  # fmt: skip
+    hit = _EXPANDED.get(key)
+    if hit is None:
+        defaults = dict(config.get("defaults", {}) or {})
+        if "seed" in config and "seed" not in defaults:
+            defaults["seed"] = config["seed"]
+        hit = {name: expand_set(name, spec, defaults) for name, spec in (config.get("experiment_sets", {}) or {}).items()}
+        _EXPANDED.clear()  # the last config only: the workflow validates it, then expands it
+        _EXPANDED[key] = hit
+    return {name: list(runs) for name, runs in hit.items()}
+
+
+#: The runs of the last config expanded (:func:`expand_all`), by its JSON text.
+_EXPANDED: dict[str, dict[str, list[Run]]] = {}
 
 
 def n_steps(config: Mapping[str, Any]) -> int:
