@@ -46,6 +46,7 @@ localrules:
     render_localization_set_figure,
     render_study_figure,
     collect_metrics,
+    summarize_sweep,
     collect_localization_metrics,
     collect_studies,
     evaluate_claims,

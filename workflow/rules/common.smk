@@ -62,6 +62,7 @@ SOURCE_JOB = closure_sha256("pose_uncertainty.cli.job")  # the JOB commands: run
 
 # the report's template ships with the package (present/templates); the report rule hashes it with its code
 REPORT_TEMPLATE = "pose_uncertainty/present/templates/comparison.html.j2"
+SWEEP_TEMPLATE = "pose_uncertainty/present/templates/sweep_summary.html.j2"  # included by it
 
 
 @_functools.cache
@@ -90,8 +91,7 @@ def chunk_resources(runs):
     """A chunk's cluster resources: the largest memory and the summed time of its runs' estimates."""
     from pose_uncertainty.experiments import cost as _cost
 
-    costs = [_cost.estimate(r.config) for r in runs]
-    return _cost.resources_of(_cost.Cost(max(c.mem_bytes for c in costs), sum(c.seconds for c in costs), ()))
+    return _cost.chunk_resources([r.config for r in runs])
 
 
 @_functools.cache
@@ -154,6 +154,27 @@ def run_timings(set_name):
     return [run_timing(r) for r in RUNS[set_name]]
 
 
+# Config key report.summary_above: a set of more runs shows summary views from its table (rule
+# summarize_sweep: reports/tables/<set>.sweep.json and two figures) instead of per-run figures.
+SUMMARY_ABOVE = config["report"]["summary_above"]
+
+
+def summarized(set_name):
+    """Whether a set is shown by its summary views (more runs than report.summary_above)."""
+    return len(RUNS[set_name]) > SUMMARY_ABOVE
+
+
+def sweep_outputs(set_name):
+    """The summary of a summarised set and its figures, by kind."""
+    return {"summary": f"reports/tables/{set_name}.sweep.json",
+            "sweep_heatmaps": f"reports/figures/{set_name}/sweep_heatmaps.png",
+            "sweep_dependence": f"reports/figures/{set_name}/sweep_dependence.png"}
+
+
+def sweep_summaries(wildcards=None):
+    return [sweep_outputs(s)["summary"] for s in SETS if summarized(s)]
+
+
 def run_figures(set_name, run):
     """Per-run figures of one run, by kind."""
     base = f"reports/figures/{set_name}/runs/{run.id}"
@@ -176,6 +197,8 @@ def figures_of_set(wildcards_or_name):
     """The figure outputs of a set: its set-level figures and the folder of its runs' figures
     (render_run_figures: reports/figures/<set>/runs/<run>/<kind>.png)."""
     name = getattr(wildcards_or_name, "set", wildcards_or_name)
+    if summarized(name):
+        return [*set_figures(name).values(), *list(sweep_outputs(name).values())[1:]]
     return [*set_figures(name).values(), f"reports/figures/{name}/runs"]
 
 
@@ -225,7 +248,7 @@ def all_benchmarks(wildcards=None):
         out.extend(run_benchmarks(s))
         for kind in set_figures(s):
             out.append(f"data/benchmarks/render_{kind}_figure/{s}.tsv")
-        out.append(f"data/benchmarks/render_run_figures/{s}.tsv")
+        out.append(f"data/benchmarks/{'summarize_sweep' if summarized(s) else 'render_run_figures'}/{s}.tsv")
         out.append(f"data/benchmarks/collect_metrics/{s}.tsv")
     out.append("data/benchmarks/evaluate_claims/all.tsv")
     out.extend(f"data/benchmarks/run_study/{name}.tsv" for name in STUDIES)
@@ -239,6 +262,9 @@ def report_manifest():
     sets = []
     for s in SETS:
         spec = config["experiment_sets"][s]
+        # a summarised set: its summary and figures, the number of its runs, and no run listed
+        # (its table, a CSV beside the report, has them all)
+        big = summarized(s)
         sets.append(
             {
                 "name": s,
@@ -247,7 +273,9 @@ def report_manifest():
                 "description": spec["description"],
                 "table": f"reports/tables/{s}.csv",
                 "figures": set_figures(s),
-                "runs": [
+                "n_runs": len(RUNS[s]),
+                **({"sweep": sweep_outputs(s)} if big else {}),
+                "runs": [] if big else [
                     {
                         "id": r.id,
                         "log": r.path,

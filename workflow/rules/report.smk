@@ -44,6 +44,7 @@ rule build_report:
         claims=rules.evaluate_claims.output[0],
         pipeline=rules.summarize_pipeline.output[0],
         figures=all_figures,
+        sweeps=sweep_summaries,
         studies=studies_json,
         studies_figures=lambda w: list(studies_figures().values()),
         loc_tables=localization_tables,
@@ -58,7 +59,7 @@ rule build_report:
         title=config["report"]["title"],
         studies_figures=studies_figures(),
         loc_sets=LOC_SETS,
-        source=script_source("build_report", data=(REPORT_TEMPLATE,)),
+        source=script_source("build_report", data=(REPORT_TEMPLATE, SWEEP_TEMPLATE)),
     # the last job, alone: it encodes the figures on the machine's cores (OMP_NUM_THREADS = its
     # threads; Snakemake scales them down to --cores; a cluster run has no --cores: a local rule)
     threads: min(8, os.cpu_count() or 1)

@@ -7,9 +7,10 @@ most that many runs (:func:`chunk_runs`); one job executes a chunk in one proces
 (:func:`pose_uncertainty.pipeline.jobs.simulate_chunk`), each run exactly as a job of its own
 would, so its log is byte-identical.
 
-The job's command carries the chunk as one JSON argument (:func:`chunk_spec`): the first
-run's configuration in full and, for every other run, only the leaves of its configuration
-that differ (:func:`config_delta`); :func:`run_configs` rebuilds every configuration from it.
+The job's command carries the chunk as one JSON argument (:func:`chunk_spec`): one configuration
+in full per shape of configuration (its leaves) and, for every run, only the leaves of its
+configuration that differ from its shape's (:func:`config_delta`); :func:`run_configs` rebuilds
+every configuration from it.
 A sweep's runs differ in a few values, so a chunk of 100 runs stays far below the operating
 system's limit on one argument (128 KiB on Linux).
 
@@ -76,34 +77,44 @@ def config_delta(base: Mapping[str, Any], config: Mapping[str, Any]) -> list[lis
 
 def chunk_spec(configs: Sequence[Mapping[str, Any]], logs: Sequence[str], timings: Sequence[str],
                kind: str = "run") -> dict[str, Any]:  # fmt: skip
-    """The JSON argument of a chunk job: its runs' configurations (the first in full, the others as
-    :func:`config_delta`) and their output files.
+    """The JSON argument of a chunk job: its runs' configurations and their output files.
+
+    Each run is given as :func:`config_delta` from a *base*: the first run of the chunk with the same
+    leaves (a straight line and an arc have different trajectory keys, so a chunk over several path
+    shapes has one base per shape).
 
     Parameters
     ----------
     configs : sequence of mappings — the runs' full configurations, in the chunk's order
     logs, timings : sequences of str — each run's log (``.mcap``) and timings (``.json``) file
     kind : str — ``"run"`` (dead reckoning) or ``"localization"``
+
+    Returns
+    -------
+    dict — ``{"kind", "bases": [config, ...], "runs": [{"log", "timings", "base": index, "delta"}, ...]}``
     """
     if not configs or not len(configs) == len(logs) == len(timings):
         raise ValueError(f"a chunk needs one log and one timings file per run, got {len(configs)} runs, "
                          f"{len(logs)} logs and {len(timings)} timings files")  # fmt: skip
-    base = configs[0]
+    bases: list[dict[str, Any]] = []
     runs: list[dict[str, Any]] = []
     for config, log, tim in zip(configs, logs, timings, strict=True):
-        delta = config_delta(base, config)
-        runs.append({"log": log, "timings": tim, **({"config": dict(config)} if delta is None else {"delta": delta})})
-    return {"kind": kind, "base": dict(base), "runs": runs}
+        for b, base in enumerate(bases):
+            delta = config_delta(base, config)
+            if delta is not None:
+                break
+        else:
+            b, delta = len(bases), []
+            bases.append(dict(config))
+        runs.append({"log": log, "timings": tim, "base": b, "delta": delta})
+    return {"kind": kind, "bases": bases, "runs": runs}
 
 
 def run_configs(spec: Mapping[str, Any]) -> list[dict[str, Any]]:
     """Every run's full configuration from a :func:`chunk_spec` (its inverse, in order)."""
     out: list[dict[str, Any]] = []
     for run in spec["runs"]:
-        if "config" in run:
-            out.append(copy.deepcopy(dict(run["config"])))
-            continue
-        config = copy.deepcopy(dict(spec["base"]))
+        config = copy.deepcopy(dict(spec["bases"][run["base"]]))
         for *path, value in run["delta"]:
             node = config
             for key in path[:-1]:
