@@ -5,7 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pose_uncertainty.analysis.sensitivity import grid_array, partial_dependence, sobol_indices, surface
+from pose_uncertainty.analysis.sensitivity import (
+    grid_array,
+    partial_dependence,
+    sobol_indices,
+    surface,
+)
 
 
 def _ishigami_exact(a: float, b: float) -> tuple[np.ndarray, np.ndarray]:
@@ -75,4 +80,5 @@ def test_grid_array_lays_out_shuffled_runs_and_refuses_a_design_that_is_not_full
 
 def test_a_constant_measure_has_no_indices() -> None:
     first, total = sobol_indices(np.ones((2, 3)))
-    assert np.isnan(first).all() and np.isnan(total).all()
+    assert np.isnan(first).all()
+    assert np.isnan(total).all()

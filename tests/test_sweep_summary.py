@@ -41,7 +41,8 @@ def test_a_large_set_is_summarised_from_its_table_alone(built: Path) -> None:
     rows = read_table(built / f"reports/tables/{SET}.csv")
     summary = json.loads((built / f"reports/tables/{SET}.sweep.json").read_text(encoding="utf-8"))
     assert summary == json.loads(json.dumps(sweep_summary(rows, SET)))  # the CSV holds all it needs
-    assert summary["n_runs"] == n and summary["full_factorial"]
+    assert summary["n_runs"] == n
+    assert summary["full_factorial"]
     assert [a["name"] for a in summary["axes"]] == ["trajectory", "k_r", "k_l", "n_ellipses"]
     assert [len(a["levels"]) for a in summary["axes"]] == [4, 5, 5, 2]
     assert summary["measures"], "no measure summarised"
@@ -64,7 +65,8 @@ def test_a_large_set_is_summarised_from_its_table_alone(built: Path) -> None:
         assert m["total"][3] == pytest.approx(0.0, abs=1e-12), m["name"]
     # k_r and k_l scale the wheels' variances: Method A's spread depends on them
     sigma = next(m for m in summary["measures"] if m["name"] == "A_sigma_across")
-    assert sigma["total"][1] > 0.01 and sigma["total"][2] > 0.01, sigma
+    assert sigma["total"][1] > 0.01, sigma
+    assert sigma["total"][2] > 0.01, sigma
 
     # the logs are not read: without them the summary is made again, the same
     shutil.rmtree(built / "data/runs")
@@ -79,8 +81,10 @@ def test_a_large_set_is_summarised_from_its_table_alone(built: Path) -> None:
 def test_the_report_shows_the_summary_and_links_the_table_instead_of_every_run(built: Path) -> None:
     html = (built / "reports/comparison.html").read_text(encoding="utf-8")
     rows = read_table(built / f"reports/tables/{SET}.csv")
-    assert f'href="tables/{SET}.csv"' in html and (built / f"reports/tables/{SET}.csv").is_file()
-    assert f'id="fig-{SET}-sweep_heatmaps"' in html and f'id="fig-{SET}-sweep_dependence"' in html
+    assert f'href="tables/{SET}.csv"' in html
+    assert (built / f"reports/tables/{SET}.csv").is_file()
+    assert f'id="fig-{SET}-sweep_heatmaps"' in html
+    assert f'id="fig-{SET}-sweep_dependence"' in html
     assert not (built / f"reports/figures/{SET}/runs").exists()  # no per-run figures drawn
     # 20 of the 200 runs named (the preview), none with its own figure section
     named = [r["run"] for r in rows if f"<td>{r['run']}</td>" in html]
@@ -92,5 +96,7 @@ def test_the_report_shows_the_summary_and_links_the_table_instead_of_every_run(b
 def test_the_summary_counts_the_chunk_jobs_and_the_summary_job(tmp_path: Path) -> None:
     work = copy_workflow(tmp_path / "w")
     jobs = _planned_jobs(snakemake(work, "--configfile", "config/sweep200.yaml", "--dry-run"))
-    assert jobs.get("simulate_chunk_SWEEP_quick_0") == 1 and jobs.get("simulate_chunk_SWEEP_quick_1") == 1, jobs
-    assert jobs.get("summarize_sweep") == 1 and "render_run_figures" not in jobs, jobs
+    assert jobs.get("simulate_chunk_SWEEP_quick_0") == 1, jobs
+    assert jobs.get("simulate_chunk_SWEEP_quick_1") == 1, jobs
+    assert jobs.get("summarize_sweep") == 1, jobs
+    assert "render_run_figures" not in jobs, jobs

@@ -135,9 +135,9 @@ def _json_pairs(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
 def _load_yaml(text: str) -> Any:
     """``text`` read by the fast loader; on any error, by the pure-Python one (whose error is raised)."""
     try:
-        return yaml.load(text, Loader=_FastUniqueKeyLoader)  # noqa: S506 - safe loaders: no arbitrary objects
+        return yaml.load(text, Loader=_FastUniqueKeyLoader)
     except Exception:  # noqa: BLE001 - the error the user sees is the reference loader's
-        return yaml.load(text, Loader=UniqueKeyLoader)  # noqa: S506
+        return yaml.load(text, Loader=UniqueKeyLoader)
 
 
 def parse_mapping(text: str, name: str, json_syntax: bool = False, what: str = "config",

@@ -47,12 +47,11 @@ configuration.
 
 from __future__ import annotations
 
-import json
-
 import copy
 import dataclasses
 import functools
 import hashlib
+import json
 import math
 import warnings
 from collections.abc import Callable, Mapping

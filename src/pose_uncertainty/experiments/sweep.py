@@ -187,17 +187,15 @@ def validate_config(config: Mapping[str, Any], schema: Mapping[str, Any]) -> dic
     return filled
 
 
-#: :func:`pipeline_structure` of each schema seen, by ``id``, with the schema itself (kept alive): one
-#: structure object per schema, so that its validator (checked against the meta-schema once) is reused.
-_STRUCTURES: dict[int, tuple[Mapping[str, Any], dict[str, Any]]] = {}
+#: The last schema validated against and its :func:`pipeline_structure`: the same structure object for
+#: the same schema, so that its validator (checked against the meta-schema once) is reused.
+_LAST_STRUCTURE: list[Any] = [None, None]
 
 
 def _structure_of(schema: Mapping[str, Any]) -> dict[str, Any]:
-    hit = _STRUCTURES.get(id(schema))
-    if hit is None or hit[0] is not schema:
-        hit = (schema, pipeline_structure(schema))
-        _STRUCTURES[id(schema)] = hit
-    return hit[1]
+    if _LAST_STRUCTURE[0] is not schema:
+        _LAST_STRUCTURE[:] = [schema, pipeline_structure(schema)]
+    return _LAST_STRUCTURE[1]  # type: ignore[no-any-return]
 
 
 def pipeline_structure(schema: Mapping[str, Any]) -> dict[str, Any]:

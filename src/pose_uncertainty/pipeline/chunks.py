@@ -99,14 +99,12 @@ def chunk_spec(configs: Sequence[Mapping[str, Any]], logs: Sequence[str], timing
     bases: list[dict[str, Any]] = []
     runs: list[dict[str, Any]] = []
     for config, log, tim in zip(configs, logs, timings, strict=True):
-        for b, base in enumerate(bases):
-            delta = config_delta(base, config)
-            if delta is not None:
-                break
-        else:
-            b, delta = len(bases), []
+        found = next(((b, d) for b, d in ((b, config_delta(base, config)) for b, base in enumerate(bases)) if d is not None),
+                     None)  # fmt: skip
+        if found is None:
+            found = (len(bases), [])
             bases.append(dict(config))
-        runs.append({"log": log, "timings": tim, "base": b, "delta": delta})
+        runs.append({"log": log, "timings": tim, "base": found[0], "delta": found[1]})
     return {"kind": kind, "bases": bases, "runs": runs}
 
 

@@ -25,6 +25,7 @@ import json
 import math
 import os
 from collections.abc import Mapping, Sequence
+from os.path import commonpath
 from pathlib import Path
 from typing import Any
 
@@ -35,7 +36,7 @@ from ..analysis.sensitivity import grid_array, partial_dependence, sobol_indices
 from ..core.atomic import atomic_write_text
 from ..core.table_io import read_table
 
-__all__ = ["sweep_axes", "summarize_sweep", "sweep_summary"]
+__all__ = ["summarize_sweep", "sweep_axes", "sweep_summary"]
 
 #: Columns of a run's identity and derived counts: neither an axis nor a measure.
 _IDENTITY = ("set", "run", "seed", "n_steps")
@@ -113,19 +114,19 @@ def _axis_name(cols: Sequence[str]) -> str:
     keys = [c.removeprefix("param.") for c in cols]
     if len(keys) == 1:
         return keys[0]
-    prefix = os.path.commonprefix([k.split(".") for k in keys])
+    prefix = commonpath([k.split(".") for k in keys])
     return ".".join(prefix) if prefix else ", ".join(keys)
 
 
-def _measures(rows: Sequence[Mapping[str, Any]]) -> list[str]:
+def _measure_columns(rows: Sequence[Mapping[str, Any]]) -> list[str]:
     out = []
     for c in rows[0] if rows else {}:
         if c in _IDENTITY or c.startswith(("param.", "provenance.", "time_")):
             continue
         vals = [r.get(c) for r in rows]
-        if all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in vals):
-            if max(vals) > min(vals):
-                out.append(c)
+        numbers = all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in vals)
+        if numbers and max(vals) > min(vals):
+            out.append(c)
     return out
 
 
@@ -160,7 +161,7 @@ def sweep_summary(rows: Sequence[Mapping[str, Any]], set_name: str = "") -> dict
     n = len(rows)
     full = bool(axes) and math.prod(shape) == n and np.unique(np.ravel_multi_index(tuple(codes.T), shape)).size == n
     out_measures = []
-    for name in _measures(rows):
+    for name in _measure_columns(rows):
         y = np.array([float(r[name]) for r in rows])
         if full:
             grid = grid_array(y, codes, shape)
@@ -196,8 +197,5 @@ def sweep_summary(rows: Sequence[Mapping[str, Any]], set_name: str = "") -> dict
 
 def summarize_sweep(set_name: str, table: str | os.PathLike[str], out: str | os.PathLike[str]) -> Path:
     """Write :func:`sweep_summary` of a set's table (its CSV alone) as JSON to ``out`` (atomically)."""
-    summary = sweep_summary(read_table(table), set_name)
-    p = Path(out)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(p, json.dumps(summary, indent=1, allow_nan=False) + "\n")
-    return p
+    Path(out).parent.mkdir(parents=True, exist_ok=True)  # the tables' folder: made by the set's table
+    return atomic_write_text(out, json.dumps(sweep_summary(read_table(table), set_name), indent=1, allow_nan=False) + "\n")

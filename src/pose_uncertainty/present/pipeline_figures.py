@@ -425,7 +425,7 @@ def _panels(n: int, width: float = 3.2, height: float = 2.6) -> tuple[Figure, in
     return figures.new_figure((width * cols, height * rows), dpi=figures.WIDE_DPI), rows, cols
 
 
-def _short(text: str, n: int = 18) -> str:
+def _clipped(text: str, n: int = 18) -> str:
     return text if len(text) <= n else text[: n - 1] + "…"
 
 
@@ -446,10 +446,10 @@ def sweep_heatmaps_figure(summary: Mapping[str, Any], title: str = "") -> Figure
         fig.colorbar(im, ax=ax, fraction=0.046, pad=0.02).ax.tick_params(labelsize=5)
         for setter, a, n_lev in ((ax.set_yticks, axes[i], z.shape[0]), (ax.set_xticks, axes[j], z.shape[1])):
             step = max(1, math.ceil(n_lev / 8))
-            setter(range(0, n_lev, step), [_short(t) for t in a["levels"][::step]], fontsize=5)
+            setter(range(0, n_lev, step), [_clipped(t) for t in a["levels"][::step]], fontsize=5)
         ax.tick_params(axis="x", labelrotation=45)
-        ax.set_ylabel(_short(axes[i]["name"], 24), fontsize=6)
-        ax.set_xlabel(_short(axes[j]["name"], 24), fontsize=6)
+        ax.set_ylabel(_clipped(axes[i]["name"], 24), fontsize=6)
+        ax.set_xlabel(_clipped(axes[j]["name"], 24), fontsize=6)
         unit = f" [{m['unit']}]" if m["unit"] and m["unit"] != "1" else ""
         ax.set_title(f"{m['name']}{unit}", fontsize=7)
     fig.suptitle(title or f"response surfaces of the {summary['n_runs']} runs (mean over the other axes)", fontsize=9)
@@ -473,9 +473,9 @@ def sweep_dependence_figure(summary: Mapping[str, Any], title: str = "") -> Figu
                 ax.plot(range(d.size), d / mean, lw=0.8, marker=".", ms=3, label=m["name"])
         n_lev = len(axis["levels"])
         step = max(1, math.ceil(n_lev / 8))
-        ax.set_xticks(range(0, n_lev, step), [_short(t) for t in axis["levels"][::step]], fontsize=5, rotation=45)
+        ax.set_xticks(range(0, n_lev, step), [_clipped(t) for t in axis["levels"][::step]], fontsize=5, rotation=45)
         ax.tick_params(axis="y", labelsize=6)
-        ax.set_title(_short(axis["name"], 30), fontsize=7)
+        ax.set_title(_clipped(axis["name"], 30), fontsize=7)
         ax.set_ylabel("mean / overall mean", fontsize=6)
         ax.grid(True, lw=0.3, alpha=0.5)
     if axes:
