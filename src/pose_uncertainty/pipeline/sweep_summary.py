@@ -25,7 +25,6 @@ import json
 import math
 import os
 from collections.abc import Mapping, Sequence
-from os.path import commonpath
 from pathlib import Path
 from typing import Any
 
@@ -114,7 +113,11 @@ def _axis_name(cols: Sequence[str]) -> str:
     keys = [c.removeprefix("param.") for c in cols]
     if len(keys) == 1:
         return keys[0]
-    prefix = commonpath([k.split(".") for k in keys])
+    prefix = []
+    for level in zip(*(k.split(".") for k in keys), strict=False):  # the dotted parts all keys share
+        if len(set(level)) > 1:
+            break
+        prefix.append(level[0])
     return ".".join(prefix) if prefix else ", ".join(keys)
 
 
