@@ -84,8 +84,8 @@ def _check_size(p: Path, what: str, size: int, limit: int) -> None:
                              f"(allowed: at most {limit:,} bytes)")  # fmt: skip
 
 
-class _UniqueKeys:
-    """Refuse a mapping that holds a key twice (mixed into a safe loader)."""
+class _UniqueKeys(yaml.constructor.SafeConstructor):
+    """Refuse a mapping that holds a key twice (mixed into a safe loader, before its parser)."""
 
     def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
         """The mapping of ``node``; :class:`DuplicateKeyError` on a repeated key."""
