@@ -127,8 +127,10 @@ def _measure_columns(rows: Sequence[Mapping[str, Any]]) -> list[str]:
         if c in _IDENTITY or c.startswith(("param.", "provenance.", "time_")):
             continue
         vals = [r.get(c) for r in rows]
-        numbers = all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in vals)
-        if numbers and max(vals) > min(vals):
+        if not all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in vals):
+            continue
+        numbers = [float(v) for v in vals if v is not None]
+        if max(numbers) > min(numbers):
             out.append(c)
     return out
 
