@@ -17,8 +17,10 @@ Per layout:
 * ``peak_rss_mb`` — the largest resident set of any one of those processes;
 * ``no_op_s`` — the same command again, with nothing to do;
 * ``jobs`` — the simulation jobs (what a cluster would be sent);
-* ``per_run_overhead_ms`` — the simulation jobs' summed wall clock (Snakemake's ``benchmark:``
-  files) minus the runs' own computing time (each run's ``total_s`` in its timings file), per run;
+* ``per_run_overhead_ms`` — the simulation jobs' summed CPU time (Snakemake's ``benchmark:``
+  files) minus the runs' own computing time (each run's ``total_s`` in its timings file), per run:
+  what a run costs beyond its own work (interpreter, imports, log writing); ``per_run_overhead_wall_ms``
+  the same from the jobs' wall clocks (which a loaded machine inflates);
 * ``report_mb`` — ``reports/comparison.html``;
 * ``wall_s_per_run``, ``cpu_s_per_run`` — the two layouts ran different numbers of runs, so they
   are compared per run.
@@ -98,14 +100,16 @@ def _snakemake(work: Path, cores: int, *args: str) -> tuple[float, float, float]
     return wall, cpu, after.ru_maxrss / 1024  # ru_maxrss in KiB on Linux
 
 
-def _job_wall_s(work: Path) -> tuple[int, float]:
-    """The simulation jobs and the sum of their wall clocks (Snakemake's benchmark files)."""
+def _job_times(work: Path) -> tuple[int, float, float]:
+    """The simulation jobs, the sum of their wall clocks and of their CPU times [s] (Snakemake's benchmark files)."""
     files = [*(work / "data/benchmarks").glob("simulate_chunk/*/*.tsv"), *(work / "data/benchmarks").glob("simulate_run/*/*.tsv")]
-    total = 0.0
+    wall = cpu = 0.0
     for f in files:
         with f.open(encoding="utf-8") as fh:
-            total += sum(float(row["s"]) for row in csv.DictReader(fh, delimiter="\t"))
-    return len(files), total
+            for row in csv.DictReader(fh, delimiter="\t"):
+                wall += float(row["s"])
+                cpu += float(row.get("cpu_time") or "nan")
+    return len(files), wall, cpu
 
 
 def _runs_total_s(work: Path) -> tuple[int, float]:
@@ -121,9 +125,10 @@ def measure(work: Path, cores: int, dag_only: bool = False) -> dict[str, Any]:
         return out
     out["wall_s"], out["cpu_s"], out["peak_rss_mb"] = _snakemake(work, cores)
     out["no_op_s"] = _snakemake(work, cores)[0]
-    jobs, job_s = _job_wall_s(work)
+    jobs, job_s, job_cpu_s = _job_times(work)
     n, runs_s = _runs_total_s(work)
-    out.update(runs=n, jobs=jobs, per_run_overhead_ms=1e3 * (job_s - runs_s) / n,
+    out.update(runs=n, jobs=jobs, per_run_overhead_ms=1e3 * (job_cpu_s - runs_s) / n,
+               per_run_overhead_wall_ms=1e3 * (job_s - runs_s) / n,
                report_mb=(work / "reports/comparison.html").stat().st_size / 1e6,
                wall_s_per_run=out["wall_s"] / n, cpu_s_per_run=out["cpu_s"] / n)  # fmt: skip
     return out
@@ -137,13 +142,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cores", type=int, default=2)
     ap.add_argument("--full", action="store_true", help="the whole 10⁴-run sweep (batched)")
     ap.add_argument("--dag-only", action="store_true", help="only the dry runs (DAG build)")
+    ap.add_argument("--keep", default=None, help="build under this folder (default: the system's temporary folder)")
     args = ap.parse_args(argv)
     config = yaml.safe_load((REPO / "config/sweep10k.yaml").read_text(encoding="utf-8"))
     n_full = math.prod(len(next(iter(a.values()))) for a in config["experiment_sets"][SET]["sweep"])
     batched = config if args.full else cut_sweep(config, args.runs)
     single = {**cut_sweep(config, min(args.baseline_runs, args.runs if not args.full else n_full)), "runs_per_job": 1}
     results: dict[str, Any] = {}
-    with tempfile.TemporaryDirectory(prefix="bench-sweep-") as tmp:
+    with tempfile.TemporaryDirectory(prefix="bench-sweep-", dir=args.keep) as tmp:
         for name, cfg in (("one_run_per_job", single), ("batched", batched)):
             print(f"{name}: building in {tmp}/{name} ...", flush=True)
             results[name] = measure(_workflow(Path(tmp), name, cfg), args.cores, args.dag_only)
