@@ -43,8 +43,9 @@ def test_a_large_set_is_summarised_from_its_table_alone(built: Path) -> None:
     assert summary == json.loads(json.dumps(sweep_summary(rows, SET)))  # the CSV holds all it needs
     assert summary["n_runs"] == n
     assert summary["full_factorial"]
-    assert [a["name"] for a in summary["axes"]] == ["trajectory", "k_r", "k_l", "n_ellipses"]
-    assert [len(a["levels"]) for a in summary["axes"]] == [4, 5, 5, 2]
+    # the axes in the table's column order, each with its levels
+    axis = {a["name"]: i for i, a in enumerate(summary["axes"])}
+    assert {a["name"]: len(a["levels"]) for a in summary["axes"]} == {"trajectory": 4, "k_r": 5, "k_l": 5, "n_ellipses": 2}
     assert summary["measures"], "no measure summarised"
 
     # second route: group the CSV's rows by each axis's columns in plain Python
@@ -52,21 +53,21 @@ def test_a_large_set_is_summarised_from_its_table_alone(built: Path) -> None:
         y = [float(r[m["name"]]) for r in rows]
         mean = sum(y) / n
         var = sum((v - mean) ** 2 for v in y) / n
-        for a, axis in enumerate(summary["axes"]):
+        for a, ax in enumerate(summary["axes"]):
             groups: dict[tuple, list[float]] = defaultdict(list)
             for r, v in zip(rows, y, strict=True):
-                groups[tuple(json.dumps(r.get(c)) for c in axis["columns"])].append(v)
+                groups[tuple(json.dumps(r.get(c)) for c in ax["columns"])].append(v)
             means = [sum(g) / len(g) for g in groups.values()]
             first = sum(len(g) * (mu - mean) ** 2 for g, mu in zip(groups.values(), means, strict=True)) / n / var
-            assert m["first"][a] == pytest.approx(first, abs=1e-9), (m["name"], axis["name"])
+            assert m["first"][a] == pytest.approx(first, abs=1e-9), (m["name"], ax["name"])
             assert sorted(m["dependence"][a]) == pytest.approx(sorted(means), rel=1e-12)
             assert m["first"][a] <= m["total"][a] + 1e-12
         # the figures' axis: no measure depends on it
-        assert m["total"][3] == pytest.approx(0.0, abs=1e-12), m["name"]
+        assert m["total"][axis["n_ellipses"]] == pytest.approx(0.0, abs=1e-12), m["name"]
     # k_r and k_l scale the wheels' variances: Method A's spread depends on them
     sigma = next(m for m in summary["measures"] if m["name"] == "A_sigma_across")
-    assert sigma["total"][1] > 0.01, sigma
-    assert sigma["total"][2] > 0.01, sigma
+    assert sigma["total"][axis["k_r"]] > 0.01, sigma
+    assert sigma["total"][axis["k_l"]] > 0.01, sigma
 
     # the logs are not read: without them the summary is made again, the same
     shutil.rmtree(built / "data/runs")
