@@ -16,7 +16,7 @@ A set with more runs than the config key ``report.summary_above`` is summarised 
   over the two axes of largest index.
 
 The output is one JSON document (``reports/tables/<set>.sweep.json``); the figures and the report
-format it (:func:`pose_uncertainty.present.pipeline_figures.sweep_figures`).
+format it (:func:`pose_uncertainty.present.pipeline_figures.render_sweep_figures`).
 """
 
 from __future__ import annotations
