@@ -14,7 +14,7 @@ LOCKED := workflow/run-locked.sh
 # set, as in many containers); ms when the files are up to date.
 COMPILE := $(BIN)/python -m compileall -q src
 
-.PHONY: report test quick bench bench-report bench-regenerate lint venv lock clean slurm-up slurm-down docs
+.PHONY: report test quick bench bench-report bench-regenerate bench-sweep lint venv lock clean slurm-up slurm-down docs
 
 venv: $(STAMP)
 
@@ -55,6 +55,11 @@ bench-report: $(STAMP)
 # a full regeneration in a fresh clone: times and sizes -> benchmarks/results/regenerate.json
 bench-regenerate: $(STAMP)
 	$(BIN)/python -m benchmarks.regenerate
+
+# a large sweep batched (runs_per_job) against one run per job: DAG build, wall and CPU time, per-run
+# overhead, peak memory, report size -> benchmarks/results/sweep.json (ARGS="--runs 500", "--full --dag-only")
+bench-sweep: $(STAMP)
+	$(BIN)/python -m benchmarks.sweep $(ARGS)
 
 lock:
 	uv pip compile requirements.in --python-version 3.11 --python-platform x86_64-unknown-linux-gnu --generate-hashes -o environment.lock

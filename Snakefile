@@ -47,6 +47,7 @@ localrules:
     render_localization_set_figure,
     render_study_figure,
     collect_metrics,
+    summarize_sweep,
     collect_localization_metrics,
     collect_robots,
     collect_studies,

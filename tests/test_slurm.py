@@ -5,9 +5,10 @@ starts it in CI; ``make slurm-up`` as root on a developer's machine). The test r
 ``config/quick.yaml`` with ``workflow/profiles/slurm-test`` in a copy of the workflow, cancels
 one running simulation with ``scancel`` on the way, and checks that
 
-* the cancelled job is retried (the profile's ``retries``) and the pipeline completes;
-* that job asked the scheduler for what its run's cost estimate says
-  (``pose_uncertainty.experiments.cost.job_resources``: ``--mem`` and ``--time``);
+* the runs are submitted in chunks (config key ``runs_per_job``): one cluster job per chunk;
+* the cancelled chunk job is retried (the profile's ``retries``) and the pipeline completes;
+* that job asked the scheduler for what its runs' cost estimates say
+  (``pose_uncertainty.experiments.cost.chunk_resources``: ``--mem`` and ``--time``);
 * every run log made through SLURM is byte-identical to the same run made locally
   (the quick pipeline of tests/test_pipeline.py, shared by the session);
 * the report builds from them.
@@ -35,6 +36,7 @@ from test_pipeline import REPO, copy_workflow, quick_pipeline
 
 from pose_uncertainty.core.schema import load_schema
 from pose_uncertainty.experiments import cost, sweep
+from pose_uncertainty.pipeline import chunks
 
 VENV_BIN = Path(sys.executable).parent
 BINARIES = ("sinfo", "squeue", "sbatch", "scancel", "srun")
@@ -118,8 +120,12 @@ def slurm_cluster() -> object:
     subprocess.run([str(REPO / ".ci/slurm-down.sh")], capture_output=True, timeout=120, check=False)
 
 
+#: The quick config through SLURM runs in chunks (config key runs_per_job): each chunk is one cluster job.
+RUNS_PER_JOB = 3
+
+
 class Canceller(threading.Thread):
-    """Watch squeue; scancel the first simulate_run job seen RUNNING (until one ends CANCELLED)."""
+    """Watch squeue; scancel the first simulate_chunk job seen RUNNING (until one ends CANCELLED)."""
 
     def __init__(self, stop: threading.Event) -> None:
         super().__init__(daemon=True)
@@ -137,7 +143,7 @@ class Canceller(threading.Thread):
     def run(self) -> None:
         while not self.stop.is_set() and self.cancelled is None:
             for jid, state, comment, mem, limit in self._squeue():
-                if state != "RUNNING" or not comment.startswith("rule_simulate_run") or jid in self.tried:
+                if state != "RUNNING" or not comment.startswith("rule_simulate_chunk_") or jid in self.tried:
                     continue
                 self.tried.append(jid)
                 subprocess.run(["scancel", jid], capture_output=True, timeout=20, check=False)
@@ -179,7 +185,7 @@ def test_quick_pipeline_through_slurm(slurm_cluster: object, tmp_path_factory: p
     t0 = time.perf_counter()
     proc = subprocess.Popen(
         [str(VENV_BIN / "snakemake"), "--profile", "workflow/profiles/slurm-test",
-         "--configfile", "config/quick.yaml"],
+         "--configfile", "config/quick.yaml", "--config", f"runs_per_job={RUNS_PER_JOB}"],
         cwd=work, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
         start_new_session=True,
     )  # fmt: skip
@@ -199,7 +205,7 @@ def test_quick_pipeline_through_slurm(slurm_cluster: object, tmp_path_factory: p
 
     # a running simulation was cancelled, reported failed, retried, and the pipeline completed
     cancelled = canceller.cancelled
-    assert cancelled is not None, f"no simulate_run job could be cancelled while running (tried {canceller.tried})"
+    assert cancelled is not None, f"no simulate_chunk job could be cancelled while running (tried {canceller.tried})"
     assert f"SLURM-job '{cancelled['id']}' failed, SLURM status is: 'CANCELLED'" in out, out[-6000:]
     job = re.search(rf"jobid: (\d+)\n(?:.*\n){{0,6}}?\s*external_jobid: {cancelled['id']}\n", out)
     assert job, out[-6000:]
@@ -209,14 +215,20 @@ def test_quick_pipeline_through_slurm(slurm_cluster: object, tmp_path_factory: p
     resubmitted = re.search(rf"Job {jid} has been submitted with SLURM jobid (\d+)", after)
     assert resubmitted, after[-6000:]
     assert resubmitted.group(1) != cancelled["id"]
-    assert f"Finished jobid: {jid} (Rule: simulate_run)" in after
+    rule = cancelled["comment"].removeprefix("rule_")  # a chunk's rule has no wildcards
+    assert f"Finished jobid: {jid} (Rule: {rule})" in after
 
-    # it asked for what its run's cost estimate says
+    # a chunk job per RUNS_PER_JOB runs of a set, not a job per run
     config = sweep.validate_config(yaml.safe_load((work / "config/quick.yaml").read_text()), load_schema(
         work / "workflow/schemas/config.schema.yaml"))  # fmt: skip
-    runs = [r for rs in sweep.expand_all(config).values() for r in rs]
-    run = max((r for r in runs if cancelled["comment"].endswith(f"{r.set}_{r.id}")), key=lambda r: len(r.id))
-    want = cost.job_resources(run.config)
+    sets = sweep.expand_all(config)
+    runs = [r for rs in sets.values() for r in rs]
+    submitted = set(re.findall(r"\(Rule: (simulate_\w+)\)", out))
+    assert submitted == {f"simulate_chunk_{s}_{i}" for s, rs in sets.items() for i in range(-(-len(rs) // RUNS_PER_JOB))}
+    # it asked for what its runs' cost estimates say (the largest memory, the summed time)
+    chunk_of = {f"simulate_chunk_{s}_{i}": part for s, rs in sets.items()
+                for i, part in enumerate(chunks.chunk_runs(rs, RUNS_PER_JOB))}  # fmt: skip
+    want = cost.chunk_resources([r.config for r in chunk_of[rule]])
     assert _megabytes(cancelled["mem"]) == want["mem_mb"]
     assert _minutes(cancelled["limit"]) == want["runtime"]
 

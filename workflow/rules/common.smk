@@ -6,6 +6,7 @@ import sys as _sys
 from pathlib import Path
 
 from pose_uncertainty.experiments import sweep as _sweep
+from pose_uncertainty.pipeline import chunks as _chunks
 from pose_uncertainty.experiments import localization as _loc
 from pose_uncertainty.experiments import study as _study
 from pose_uncertainty.core.provenance import closure_sha256, imports_of
@@ -61,6 +62,8 @@ SOURCE_JOB = closure_sha256("pose_uncertainty.cli.job")  # the JOB commands: run
 
 # the report's template ships with the package (present/templates); the report rule hashes it with its code
 REPORT_TEMPLATE = "pose_uncertainty/present/templates/comparison.html.j2"
+SWEEP_TEMPLATE = "pose_uncertainty/present/templates/sweep_summary.html.j2"  # included by it
+SKALKA_TEMPLATE = "pose_uncertainty/present/templates/skalka.html.j2"  # included by it
 
 
 @_functools.cache
@@ -71,6 +74,48 @@ def script_source(script, data=()):
 
 RUN_BY_ID = {(s, r.id): r for s, runs in RUNS.items() for r in runs}
 SETS = list(RUNS)
+
+# Config key `runs_per_job` (pose_uncertainty.experiments.pipeline_keys): 1 runs each run as a job of its own
+# (rule simulate_run); above 1 each set's runs are cut, in order, into chunks of at most that many, one
+# job (and one SLURM job) each: the rules simulate_chunk_<set>_<i> of workflow/rules/simulate.smk.
+RUNS_PER_JOB = config["runs_per_job"]
+CHUNKS = {s: _chunks.chunk_runs(RUNS[s], RUNS_PER_JOB) for s in SETS} if RUNS_PER_JOB > 1 else {}
+
+
+def chunk_job_spec(runs):
+    """The JSON argument of the job that executes ``runs`` (pose_uncertainty.pipeline.chunks.chunk_spec)."""
+    return _json.dumps(_chunks.chunk_spec([r.config for r in runs], [r.path for r in runs],
+                                          [run_timing(r) for r in runs]), allow_nan=False)
+
+
+def chunk_resources(runs):
+    """A chunk's cluster resources: the largest memory and the summed time of its runs' estimates."""
+    from pose_uncertainty.experiments import cost as _cost
+
+    return _cost.chunk_resources([r.config for r in runs])
+
+
+@_functools.cache
+def _run_resources(set_name, run_id):
+    from pose_uncertainty.experiments import cost as _cost
+
+    return _cost.job_resources(RUN_BY_ID[(set_name, run_id)].config)
+
+
+def run_resources(wildcards):
+    """The cluster resources (mem_mb, runtime) of one run, from its cost estimate (computed once per run)."""
+    return _run_resources(wildcards.set, wildcards.run)
+
+
+def run_timing(run):
+    return f"data/runs/{run.set}/{run.id}.timings.json"
+
+
+def run_benchmarks(set_name):
+    """The benchmark files of the jobs that compute a set's runs (one per run or one per chunk)."""
+    if RUNS_PER_JOB > 1:
+        return [f"data/benchmarks/simulate_chunk/{set_name}/{i}.tsv" for i in range(len(CHUNKS[set_name]))]
+    return [f"data/benchmarks/simulate_run/{set_name}/{r.id}.tsv" for r in RUNS[set_name]]
 
 
 wildcard_constraints:
@@ -107,7 +152,28 @@ def run_logs(set_name):
 
 
 def run_timings(set_name):
-    return [f"data/runs/{set_name}/{r.id}.timings.json" for r in RUNS[set_name]]
+    return [run_timing(r) for r in RUNS[set_name]]
+
+
+# Config key report.summary_above: a set of more runs shows summary views from its table (rule
+# summarize_sweep: reports/tables/<set>.sweep.json and two figures) instead of per-run figures.
+SUMMARY_ABOVE = config["report"]["summary_above"]
+
+
+def summarized(set_name):
+    """Whether a set is shown by its summary views (more runs than report.summary_above)."""
+    return len(RUNS[set_name]) > SUMMARY_ABOVE
+
+
+def sweep_outputs(set_name):
+    """The summary of a summarised set and its figures, by kind."""
+    return {"summary": f"reports/tables/{set_name}.sweep.json",
+            "sweep_heatmaps": f"reports/figures/{set_name}/sweep_heatmaps.png",
+            "sweep_dependence": f"reports/figures/{set_name}/sweep_dependence.png"}
+
+
+def sweep_summaries(wildcards=None):
+    return [sweep_outputs(s)["summary"] for s in SETS if summarized(s)]
 
 
 def run_figures(set_name, run):
@@ -132,6 +198,8 @@ def figures_of_set(wildcards_or_name):
     """The figure outputs of a set: its set-level figures and the folder of its runs' figures
     (render_run_figures: reports/figures/<set>/runs/<run>/<kind>.png)."""
     name = getattr(wildcards_or_name, "set", wildcards_or_name)
+    if summarized(name):
+        return [*set_figures(name).values(), *list(sweep_outputs(name).values())[1:]]
     return [*set_figures(name).values(), f"reports/figures/{name}/runs"]
 
 
@@ -178,11 +246,10 @@ def all_benchmarks(wildcards=None):
     """Benchmark files of every job the summary depends on (per-rule times in the report)."""
     out = []
     for s in SETS:
-        for r in RUNS[s]:
-            out.append(f"data/benchmarks/simulate_run/{s}/{r.id}.tsv")
+        out.extend(run_benchmarks(s))
         for kind in set_figures(s):
             out.append(f"data/benchmarks/render_{kind}_figure/{s}.tsv")
-        out.append(f"data/benchmarks/render_run_figures/{s}.tsv")
+        out.append(f"data/benchmarks/{'summarize_sweep' if summarized(s) else 'render_run_figures'}/{s}.tsv")
         out.append(f"data/benchmarks/collect_metrics/{s}.tsv")
     out.append("data/benchmarks/evaluate_claims/all.tsv")
     out.extend(f"data/benchmarks/run_study/{name}.tsv" for name in STUDIES)
@@ -197,6 +264,9 @@ def report_manifest():
     sets = []
     for s in SETS:
         spec = config["experiment_sets"][s]
+        # a summarised set: its summary and figures, the number of its runs, and no run listed
+        # (its table, a CSV beside the report, has them all)
+        big = summarized(s)
         sets.append(
             {
                 "name": s,
@@ -205,7 +275,9 @@ def report_manifest():
                 "description": spec["description"],
                 "table": f"reports/tables/{s}.csv",
                 "figures": set_figures(s),
-                "runs": [
+                "n_runs": len(RUNS[s]),
+                **({"sweep": sweep_outputs(s)} if big else {}),
+                "runs": [] if big else [
                     {
                         "id": r.id,
                         "log": r.path,

@@ -93,3 +93,34 @@ rule render_drives_figure:
         "data/benchmarks/render_drives_figure/{set}.tsv"
     script:
         "../scripts/render_set_figure.py"
+
+
+# A set of more runs than report.summary_above: summary views from its table alone (axes, sensitivity
+# indices, partial dependence, response surfaces) instead of per-run figures.
+rule summarize_sweep:
+    input:
+        table="reports/tables/{set}.csv",
+    output:
+        summary="reports/tables/{set}.sweep.json",
+        heatmaps=report(
+            "reports/figures/{set}/sweep_heatmaps.png",
+            caption="../report/sweep.rst",
+            category="{set}",
+            subcategory="set figures",
+            labels={"figure": "response surfaces"},
+        ),
+        dependence=report(
+            "reports/figures/{set}/sweep_dependence.png",
+            caption="../report/sweep.rst",
+            category="{set}",
+            subcategory="set figures",
+            labels={"figure": "partial dependence"},
+        ),
+    params:
+        source=script_source("summarize_sweep"),
+    log:
+        "logs/summarize_sweep/{set}.log",
+    benchmark:
+        "data/benchmarks/summarize_sweep/{set}.tsv"
+    script:
+        "../scripts/summarize_sweep.py"

@@ -48,6 +48,7 @@ rule build_report:
         claims=rules.evaluate_claims.output[0],
         pipeline=rules.summarize_pipeline.output[0],
         figures=all_figures,
+        sweeps=sweep_summaries,
         studies=studies_json,
         studies_figures=lambda w: list(studies_figures().values()),
         loc_tables=localization_tables,
@@ -65,7 +66,7 @@ rule build_report:
         studies_figures=studies_figures(),
         loc_sets=LOC_SETS,
         robots=robot_manifest(),
-        source=script_source("build_report", data=(REPORT_TEMPLATE, ROBOTS_TEMPLATE)),
+        source=script_source("build_report", data=(REPORT_TEMPLATE, ROBOTS_TEMPLATE, SWEEP_TEMPLATE, SKALKA_TEMPLATE)),
     # the last job, alone: it encodes the figures on the machine's cores (OMP_NUM_THREADS = its
     # threads; Snakemake scales them down to --cores; a cluster run has no --cores: a local rule)
     threads: min(8, os.cpu_count() or 1)

@@ -1,22 +1,49 @@
 # One run → one MCAP log (byte-reproducible) + its wall-clock timings (pose_uncertainty.cli.job).
-from pose_uncertainty.experiments import cost as _cost
+# runs_per_job = 1: one job per run (rule simulate_run); above 1: one job per chunk of a set's runs
+# (rules simulate_chunk_<set>_<i>, one process each, the same logs byte for byte). A log is requested
+# by its file either way; in a chunk, its chunk's job makes it.
+
+if RUNS_PER_JOB == 1:
+
+    rule simulate_run:
+        output:
+            log="data/runs/{set}/{run}.mcap",
+            timings="data/runs/{set}/{run}.timings.json",
+        params:
+            config=as_json(run_config),
+            # the code that computes a run: a change to it reruns every simulation (the logs record it)
+            source=SOURCE_JOB,
+        resources:
+            # what the run estimates it needs (a cluster job's --mem and --time)
+            mem_mb=lambda wc: run_resources(wc)["mem_mb"],
+            runtime=lambda wc: run_resources(wc)["runtime"],
+        log:
+            "logs/simulate_run/{set}/{run}.log",
+        benchmark:
+            "data/benchmarks/simulate_run/{set}/{run}.tsv"
+        shell:
+            "{JOB} simulate-run {params.config:q} {output.log:q} {output.timings:q} 2> {log:q}"
 
 
-rule simulate_run:
-    output:
-        log="data/runs/{set}/{run}.mcap",
-        timings="data/runs/{set}/{run}.timings.json",
-    params:
-        config=as_json(run_config),
-        # the code that computes a run: a change to it reruns every simulation (the logs record it)
-        source=SOURCE_JOB,
-    resources:
-        # what the run estimates it needs (a cluster job's --mem and --time)
-        mem_mb=lambda wc: _cost.job_resources(run_config(wc))["mem_mb"],
-        runtime=lambda wc: _cost.job_resources(run_config(wc))["runtime"],
-    log:
-        "logs/simulate_run/{set}/{run}.log",
-    benchmark:
-        "data/benchmarks/simulate_run/{set}/{run}.tsv"
-    shell:
-        "{JOB} simulate-run {params.config:q} {output.log:q} {output.timings:q} 2> {log:q}"
+# One rule per chunk (its outputs are its runs' files, which no wildcard can spell). Its params are its
+# runs' configurations: a changed run changes its chunk's params alone, so only that chunk reruns.
+for _set, _set_chunks in CHUNKS.items():
+    for _i, _runs in enumerate(_set_chunks):
+
+        rule:
+            name:
+                f"simulate_chunk_{_set}_{_i}"
+            output:
+                logs=[r.path for r in _runs],
+                timings=[run_timing(r) for r in _runs],
+            params:
+                spec=chunk_job_spec(_runs),
+                source=SOURCE_JOB,
+            resources:
+                **chunk_resources(_runs),
+            log:
+                f"logs/simulate_chunk/{_set}/{_i}.log",
+            benchmark:
+                f"data/benchmarks/simulate_chunk/{_set}/{_i}.tsv"
+            shell:
+                "{JOB} simulate-chunk {params.spec:q} 2> {log:q}"

@@ -12,6 +12,9 @@ Commands
     :func:`pose_uncertainty.pipeline.jobs.simulate_run`.
 ``simulate-localization CONFIG_JSON LOG.mcap TIMINGS.json``
     :func:`pose_uncertainty.pipeline.jobs.simulate_localization`.
+``simulate-chunk CHUNK_JSON``
+    :func:`pose_uncertainty.pipeline.jobs.simulate_chunk`: the runs of one chunk
+    (:func:`pose_uncertainty.pipeline.chunks.chunk_spec`) in this one process.
 ``run-study NAME STUDY_JSON OUT.json``
     :func:`pose_uncertainty.pipeline.jobs.run_study`.
 
@@ -41,6 +44,8 @@ def _parser() -> argparse.ArgumentParser:
         p.add_argument("config", type=json_object, help="the run configuration as a JSON object")
         p.add_argument("log", help="output log, *.mcap")
         p.add_argument("timings", help="output timings, *.json")
+    p = sub.add_parser("simulate-chunk", help="execute the runs of one chunk in this process, each as its own job would")
+    p.add_argument("spec", type=json_object, help="the chunk as a JSON object (pose_uncertainty.pipeline.chunks.chunk_spec)")
     p = sub.add_parser("run-study", help="run one study and write its results")
     p.add_argument("name", help="the study's name")
     p.add_argument("spec", type=json_object, help='its configuration as a JSON object ({"study": kind, ...})')
@@ -62,6 +67,8 @@ def _dispatch(args: argparse.Namespace) -> int:
 
     if args.kind == "simulate-run":
         jobs.simulate_run(args.config, args.log, args.timings)
+    elif args.kind == "simulate-chunk":
+        jobs.simulate_chunk(args.spec)
     elif args.kind == "simulate-localization":
         jobs.simulate_localization(args.config, args.log, args.timings)
     else:

@@ -214,17 +214,31 @@ def source_sha256(*layers: str) -> str:
 
 
 def _python_files(root: Path, package: str) -> dict[str, Path]:
-    """Every module of ``package`` under ``root`` by dotted name (a package by its own name)."""
-    out: dict[str, Path] = {}
-    for folder, dirs, files in os.walk(root / package):
+    """Every module of ``package`` under ``root`` by dotted name (a package by its own name).
+
+    Cached on the folders' modification times (a file added, removed or renamed changes its
+    folder's): the workflow asks for it once per rule while it parses, a walk of ~250 files each.
+    """
+    stamp = []
+    for folder, dirs, _ in os.walk(os.path.join(root, package)):
         dirs[:] = sorted(d for d in dirs if d != "__pycache__")
-        prefix = Path(folder).relative_to(root).parts
+        stamp.append((folder, os.stat(folder).st_mtime_ns))
+    return dict(_python_files_at(str(root), package, tuple(stamp)))
+
+
+@functools.lru_cache(maxsize=8)
+def _python_files_at(root: str, package: str, stamp: tuple[tuple[str, int], ...]) -> tuple[tuple[str, Path], ...]:
+    del stamp  # the cache key only
+    out: dict[str, Path] = {}
+    for folder, dirs, files in os.walk(os.path.join(root, package)):
+        dirs[:] = sorted(d for d in dirs if d != "__pycache__")
+        prefix = tuple(os.path.relpath(folder, root).split(os.sep))
         for f in files:
             if f.endswith(".py"):
                 stem = f[:-3]
                 name = ".".join(prefix if stem == "__init__" else (*prefix, stem))
                 out[name] = Path(folder, f)
-    return out
+    return tuple(out.items())
 
 
 _FROM_HEAD = re.compile(r"from[ \t]+[\w.]+[ \t]+")

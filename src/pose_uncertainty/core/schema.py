@@ -19,9 +19,14 @@ __all__ = ["first_error", "format_schema_error", "load_schema"]
 
 
 def load_schema(path: str | Path) -> dict[str, Any]:
-    """Load a JSON Schema written as YAML (or JSON)."""
+    """Load a JSON Schema written as YAML (or JSON).
+
+    Read with libyaml's parser where PyYAML has it (the pipeline schema: 0.05 s instead of 0.5 s,
+    at every start of the workflow); the values are those of the pure-Python safe loader.
+    """
+    loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
     with open(path, encoding="utf-8") as fh:
-        return yaml.safe_load(fh)
+        return yaml.load(fh, Loader=loader)
 
 
 def _dotted(path: Sequence[Any], root: str) -> str:

@@ -25,6 +25,7 @@ the travel of every segment is exact.
 
 from __future__ import annotations
 
+import functools
 import inspect
 import math
 from collections.abc import Callable, Mapping, Sequence
@@ -490,6 +491,15 @@ _SEGMENTS: dict[str, Callable[..., list[Segment]]] = {
 }
 
 
+@functools.cache
+def _signature(fn: Callable[..., Any]) -> inspect.Signature:
+    return inspect.signature(fn)
+
+
+def _parameters(fn: Callable[..., Any]) -> frozenset[str]:
+    return frozenset(_signature(fn).parameters)
+
+
 def n_steps(name: str, **params: Any) -> int:
     """Number of steps N of ``build(name, **params)``, without building it (nothing of size N).
 
@@ -497,7 +507,7 @@ def n_steps(name: str, **params: Any) -> int:
     configuration can be checked and costed before anything is allocated.
     """
     check_choice("trajectory", name, tuple(BUILDERS))
-    geometry = set(inspect.signature(_SEGMENTS[name]).parameters)
+    geometry = _parameters(_SEGMENTS[name])
     unknown = sorted(set(params) - geometry - set(DRIVE_KEYS))
     if unknown:
         raise ValueError(
@@ -506,7 +516,7 @@ def n_steps(name: str, **params: Any) -> int:
         )
     segments = _SEGMENTS[name](**{k: v for k, v in params.items() if k in geometry})
     drive = {k: v for k, v in params.items() if k in DRIVE_KEYS and k != "name"}
-    defaults = inspect.signature(from_segments).parameters
+    defaults = _signature(from_segments).parameters
     kw = {k: drive.get(k, defaults[k].default) for k in DRIVE_KEYS if k != "name"}
     plan, _, _ = _plan(segments, **kw)
     return sum(n for _, _, n in plan)

@@ -7,6 +7,7 @@ the parameter, the bad value and what is allowed.
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Mapping
 from typing import Any
@@ -62,6 +63,8 @@ def _all_finite(arr: NDArray[np.float64]) -> bool:
     A finite sum proves every element finite (a NaN or an infinity makes any sum NaN
     or infinite); only a sum that overflows needs the elementwise test.
     """
+    if arr.ndim == 0:  # a scalar (a configuration's numbers): no reduction
+        return math.isfinite(float(arr))
     if arr.size >= _LARGE:
         with np.errstate(over="ignore", invalid="ignore"):
             if np.isfinite(arr.sum()):
@@ -88,7 +91,7 @@ def check_finite(name: str, value: ArrayLike) -> NDArray[np.float64]:
 def check_positive(name: str, value: ArrayLike) -> NDArray[np.float64]:
     """Return ``value`` as float64, requiring every element finite and > 0."""
     arr = check_finite(name, value)
-    if not np.all(arr > 0):
+    if not (float(arr) > 0 if arr.ndim == 0 else np.all(arr > 0)):
         raise ValueError(f"{name} must be > 0 (allowed: (0, inf)), got {_show(arr[arr <= 0])}")
     return arr
 

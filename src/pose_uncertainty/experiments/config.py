@@ -29,7 +29,9 @@ is allocated.
 
 from __future__ import annotations
 
+import copy
 import inspect
+import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -337,7 +339,28 @@ def _map_params(where: str, model: str, params: dict[str, Any], n_steps: int) ->
 
 
 def _trajectory_params(data: Any) -> tuple[dict[str, Any], int]:
-    """Validate the trajectory mapping, fill in every default of its builder; also return N."""
+    """Validate the trajectory mapping, fill in every default of its builder; also return N.
+
+    A sweep's runs share a few trajectories: each distinct mapping is checked and counted once
+    (kept by its JSON text), and every call gets its own copy.
+    """
+    try:
+        key = json.dumps(data, sort_keys=True, allow_nan=False)
+    except (TypeError, ValueError):  # not plain JSON: checked (and refused) below, never kept
+        return _trajectory_params_of(data)
+    hit = _TRAJECTORIES.get(key)
+    if hit is None:
+        if len(_TRAJECTORIES) >= 4096:
+            _TRAJECTORIES.clear()
+        hit = _TRAJECTORIES[key] = _trajectory_params_of(data)
+    return copy.deepcopy(hit[0]), hit[1]
+
+
+#: :func:`_trajectory_params` of each trajectory mapping seen, by its JSON text.
+_TRAJECTORIES: dict[str, tuple[dict[str, Any], int]] = {}
+
+
+def _trajectory_params_of(data: Any) -> tuple[dict[str, Any], int]:
     if not isinstance(data, Mapping):
         raise _fail("trajectory", "a mapping with a 'name' key", data)
     if "name" not in data:

@@ -8,6 +8,7 @@ unknown keys, ``"unknown config key(s) '<dotted.key>' (allowed: ...)"``.
 
 from __future__ import annotations
 
+import functools
 import inspect
 import math
 import re
@@ -73,6 +74,17 @@ def name(key: str, value: Any) -> str:
     return value
 
 
+@functools.cache
+def _keyword_defaults(fn: Callable[..., Any]) -> tuple[tuple[str, Any], ...]:
+    """The keyword defaults of ``fn`` and of ``from_segments`` (``fn``'s first), read once per builder."""
+    defaults: dict[str, Any] = {}
+    for f in (fn, trajectories.from_segments):
+        for p in inspect.signature(f).parameters.values():
+            if p.default is not inspect.Parameter.empty and p.name != "name":
+                defaults.setdefault(p.name, p.default)
+    return tuple(defaults.items())
+
+
 def builder_keywords(
     where: str, fn: Callable[..., Any], data: Mapping[str, Any]
 ) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -82,11 +94,7 @@ def builder_keywords(
     Returns ``(defaults, params)``; raises ValueError naming the unknown ``<where>.<key>`` and
     the keys allowed for the builder ``data['name']``.
     """
-    defaults: dict[str, Any] = {}
-    for f in (fn, trajectories.from_segments):
-        for p in inspect.signature(f).parameters.values():
-            if p.default is not inspect.Parameter.empty and p.name != "name":
-                defaults.setdefault(p.name, p.default)
+    defaults = dict(_keyword_defaults(fn))
     params = {k: v for k, v in data.items() if k != "name"}
     unknown = sorted(set(params) - set(defaults))
     if unknown:

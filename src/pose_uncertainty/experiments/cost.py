@@ -52,11 +52,12 @@ report``; SLURM jobs inherit the submitting environment).
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import re
 import sys
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -528,6 +529,30 @@ def job_resources(config: RunConfig | Mapping[str, Any]) -> dict[str, int]:
     ``runtime`` [min] (3 × the estimated time + 5 min, at least 10 min)
     """
     return resources_of(estimate(config))
+
+
+#: The keys of a run configuration an estimate does not read (:func:`estimate`: the trajectory, Monte Carlo,
+#: maps, drive and ellipses decide the cost; the error constants, the seed and the name do not).
+_NOT_COSTED = ("name", "seed", "k_r", "k_l", "cov0", "pr")
+
+
+def chunk_resources(configs: Sequence[Mapping[str, Any]]) -> dict[str, int]:
+    """Resources of a pipeline job that simulates several runs one after the other (a chunk).
+
+    ``mem_mb`` and ``runtime`` as :func:`job_resources` of one run whose memory is the largest of
+    the runs' estimates and whose time is the sum of theirs. Runs that differ only in keys the
+    estimate does not read (:data:`_NOT_COSTED`: a sweep over the error constants) are estimated once.
+    """
+    if not configs:
+        raise ValueError("a chunk needs at least one run configuration, got none")
+    memo: dict[str, Cost] = {}
+    costs = []
+    for config in configs:
+        key = json.dumps({k: v for k, v in config.items() if k not in _NOT_COSTED}, sort_keys=True, default=repr)
+        if key not in memo:
+            memo[key] = estimate(config)
+        costs.append(memo[key])
+    return resources_of(Cost(max(c.mem_bytes for c in costs), math.fsum(c.seconds for c in costs), ()))
 
 
 def resources_of(cost: Cost) -> dict[str, int]:

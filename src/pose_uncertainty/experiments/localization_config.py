@@ -51,6 +51,7 @@ import copy
 import dataclasses
 import functools
 import hashlib
+import json
 import math
 import warnings
 from collections.abc import Callable, Mapping
@@ -452,7 +453,7 @@ def _world(data: Any) -> dict[str, Any]:
             img["path"] = str(base / img["path"]) if sha is None else img["path"]
         data["image"] = img
     try:
-        world_from_dict(data)  # validated against the world schema (one line naming key, value, range)
+        _validated_world(data)  # validated against the world schema (one line naming key, value, range)
     except ValueError as exc:
         raise ValueError(f"config key 'world': {exc}") from None
     if "image" in data:
@@ -506,6 +507,27 @@ def _check_world(w: World, tr: trajectories.Trajectory, sensors: Mapping[str, An
         if occ > 0:
             warnings.warn(f"config key 'trajectory': {100 * occ:.3g} % of the path's poses lie in occupied cells "
                           "(walls) of the world", ConfigWarning, stacklevel=3)  # fmt: skip
+
+
+#: The worlds checked while configurations are read, by their JSON text (a sweep's runs share one world:
+#: building it once, not once per run, is most of the time the workflow takes to read a localization set).
+#: Used to check a configuration only; a run builds its own (:meth:`LocalizationConfig.build_world`).
+_CHECKED_WORLDS: dict[str, World] = {}
+
+
+def _validated_world(data: Mapping[str, Any], build: bool = False) -> World:
+    """:func:`world_from_dict` of a world section (``build``: :func:`build_world` of a normalised one), each
+    distinct section built once; a world with an image file is built every time (the file may change)."""
+    make = build_world if build else world_from_dict
+    if "image" in data:
+        return make(data)
+    key = json.dumps([build, data], sort_keys=True, default=repr)
+    hit = _CHECKED_WORLDS.get(key)
+    if hit is None:
+        if len(_CHECKED_WORLDS) >= 64:
+            _CHECKED_WORLDS.clear()
+        hit = _CHECKED_WORLDS[key] = make(data)
+    return hit
 
 
 def build_world(spec: Mapping[str, Any]) -> World:
@@ -699,7 +721,7 @@ class LocalizationConfig:
                                  "sensors and filters)")  # fmt: skip
         world = _world(data["world"])
         try:
-            built = build_world(world)
+            built = _validated_world(world, build=True)
         except ValueError as exc:
             msg = str(exc)
             raise ValueError(msg if msg.startswith("config key") else f"config key 'world': {msg}") from None

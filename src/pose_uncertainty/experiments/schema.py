@@ -30,6 +30,7 @@ from .config_checks import builder_keywords
 from .config_keys import Key, keys_schema
 from .localization_config import LOCALIZATION_KEYS
 from .localization_config import code_defaults as localization_code_defaults
+from .pipeline_keys import PIPELINE_KEYS, REPORT_KEYS
 from .robot_config import ROBOT_KEYS, ROBOTS_KEYS
 from .robot_config import code_defaults as robot_code_defaults
 
@@ -38,8 +39,9 @@ __all__ = ["HEADER", "config_schema", "localization_run_schema", "render", "robo
 
 HEADER = (
     "# GENERATED in part: $defs.run, $defs.localization_run, the sweep axes of $defs.set and\n"
-    "# $defs.localization_set, and properties.robots come from the key tables of\n"
-    "# pose_uncertainty.experiments.config, .drive_config, .localization and .robot_config\n"
+    "# $defs.localization_set, properties.robots, runs_per_job and report.summary_above come from the\n"
+    "# key tables of pose_uncertainty.experiments.config, .drive_config, .localization, .robot_config\n"
+    "# and .pipeline_keys\n"
     "# (python -m pose_uncertainty.experiments.schema workflow/schemas/config.schema.yaml, or make schema).\n"
     "# Edit the key tables, not those parts.\n"
 )
@@ -135,6 +137,12 @@ def robots_schema() -> dict[str, Any]:
 def config_schema(current: Mapping[str, Any]) -> dict[str, Any]:
     """The pipeline schema ``current`` with its run keys regenerated from the key tables."""
     out = copy.deepcopy(dict(current))
+    for key in PIPELINE_KEYS:
+        out["properties"][key.name] = key.schema()
+    report = out["properties"]["report"]
+    for key in REPORT_KEYS:
+        report["properties"][key.name] = key.schema()
+        report["default"][key.name] = key.default
     out["$defs"]["run"] = run_schema()
     out["$defs"]["set"]["properties"]["sweep"]["items"] = sweep_axis_schema()
     out["$defs"]["localization_run"] = localization_run_schema()

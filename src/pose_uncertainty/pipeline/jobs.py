@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
@@ -21,8 +22,9 @@ from ..experiments.run import execute
 from ..experiments.study import run_study
 from ..records.localization import write_localization
 from ..records.run import write_run
+from .chunks import run_configs
 
-__all__ = ["run_study", "simulate_localization", "simulate_run"]
+__all__ = ["run_study", "simulate_chunk", "simulate_localization", "simulate_run"]
 
 
 def _write_timings(timings: Mapping[str, float], out: str | os.PathLike[str] | None) -> None:
@@ -78,3 +80,30 @@ def simulate_localization(config: Mapping[str, Any], out: str | os.PathLike[str]
     """
     return _simulate("localization", config, out, timings_out)
 
+
+def simulate_chunk(spec: Mapping[str, Any]) -> list[Path]:
+    """Execute the runs of one chunk in this process, each as :func:`simulate_run` (or
+    :func:`simulate_localization`) would in a job of its own, and write their logs and timings.
+
+    Parameters
+    ----------
+    spec : mapping — :func:`pose_uncertainty.pipeline.chunks.chunk_spec`: ``kind`` (``"run"`` or
+        ``"localization"``), the runs' configurations and their output files
+
+    Returns
+    -------
+    list of Path — the logs written, in the chunk's order
+
+    Raises
+    ------
+    ValueError — an unknown kind; the first run whose configuration is refused (no later run is executed)
+    """
+    kind = spec.get("kind")
+    if kind not in _KINDS:
+        raise ValueError(f"chunk kind must be one of {sorted(_KINDS)}, got {kind!r}")
+    runs = spec["runs"]
+    out = []
+    for i, (config, run) in enumerate(zip(run_configs(spec), runs, strict=True)):
+        print(f"chunk: run {i + 1} of {len(runs)}: {run['log']}", file=sys.stderr, flush=True)
+        out.append(_simulate(kind, config, run["log"], run["timings"]))
+    return out

@@ -13,6 +13,8 @@
   (:data:`STUDY_FIGURES`).
 * :func:`drives_figure` — σ along and across the path per drive, one panel per path, from the
   logged measures of runs with a drive.
+* :func:`sweep_heatmaps_figure`, :func:`sweep_dependence_figure` — a large sweep's response
+  surfaces and partial dependence, from its summary alone (:mod:`pose_uncertainty.pipeline.sweep_summary`).
 
 Every figure is saved by :func:`pose_uncertainty.present.figures.save_figure` (deterministic bytes).
 """
@@ -48,6 +50,9 @@ __all__ = [
     "render_run_figures",
     "render_set_figure",
     "render_study_figure",
+    "render_sweep_figures",
+    "sweep_dependence_figure",
+    "sweep_heatmaps_figure",
     "umbmark_figure",
 ]
 
@@ -415,3 +420,85 @@ def render_study_figure(study_log: str | os.PathLike[str], out: str | os.PathLik
     fig = STUDY_FIGURES[kind][1](doc["results"])
     Path(out).parent.mkdir(parents=True, exist_ok=True)
     return figures.save_figure(fig, out)
+
+
+# --- the summary views of a large sweep (pose_uncertainty.pipeline.sweep_summary) ---------------------
+
+
+def _panels(n: int, width: float = 3.2, height: float = 2.6) -> tuple[Figure, int, int]:
+    cols = min(4, max(1, n))
+    rows = max(1, math.ceil(n / cols))
+    return figures.new_figure((width * cols, height * rows), dpi=figures.WIDE_DPI), rows, cols
+
+
+def _clipped(text: str, n: int = 18) -> str:
+    return text if len(text) <= n else text[: n - 1] + "…"
+
+
+def sweep_heatmaps_figure(summary: Mapping[str, Any], title: str = "") -> Figure:
+    """Each measure's response surface over the two axes it depends on most (the summary's ``surface``).
+
+    One panel per measure: the mean of the measure over every other axis at each pair of levels
+    (colour, relative to the panel's own range), both axes by level.
+    """
+    axes = summary["axes"]
+    ms = [m for m in summary["measures"] if "surface" in m]
+    fig, rows, cols = _panels(len(ms), 3.6, 3.0)
+    for k, m in enumerate(ms):
+        ax = fig.add_subplot(rows, cols, k + 1)
+        i, j = m["surface"]["axes"]
+        z = np.array([[np.nan if v is None else v for v in row] for row in m["surface"]["z"]], dtype=float)
+        im = ax.imshow(z, origin="lower", aspect="auto", cmap="viridis", interpolation="nearest")
+        fig.colorbar(im, ax=ax, fraction=0.046, pad=0.02).ax.tick_params(labelsize=5)
+        for setter, a, n_lev in ((ax.set_yticks, axes[i], z.shape[0]), (ax.set_xticks, axes[j], z.shape[1])):
+            step = max(1, math.ceil(n_lev / 8))
+            setter(range(0, n_lev, step), [_clipped(t) for t in a["levels"][::step]], fontsize=5)
+        ax.tick_params(axis="x", labelrotation=45)
+        ax.set_ylabel(_clipped(axes[i]["name"], 24), fontsize=6)
+        ax.set_xlabel(_clipped(axes[j]["name"], 24), fontsize=6)
+        unit = f" [{m['unit']}]" if m["unit"] and m["unit"] != "1" else ""
+        ax.set_title(f"{m['name']}{unit}", fontsize=7)
+    fig.suptitle(title or f"response surfaces of the {summary['n_runs']} runs (mean over the other axes)", fontsize=9)
+    return fig
+
+
+def sweep_dependence_figure(summary: Mapping[str, Any], title: str = "") -> Figure:
+    """Partial dependence: per axis, each measure's mean at each level over its mean over the sweep.
+
+    One panel per axis, one line per measure (relative to its mean over all runs, so that the
+    measures share one scale), the levels in the summary's order.
+    """
+    axes = summary["axes"]
+    fig, rows, cols = _panels(len(axes), 3.6, 3.0)
+    for a, axis in enumerate(axes):
+        ax = fig.add_subplot(rows, cols, a + 1)
+        for m in summary["measures"]:
+            d = np.array([np.nan if v is None else v for v in m["dependence"][a]], dtype=float)
+            mean = float(np.nanmean(d))
+            if mean != 0.0 and np.isfinite(mean):
+                ax.plot(range(d.size), d / mean, lw=0.8, marker=".", ms=3, label=m["name"])
+        n_lev = len(axis["levels"])
+        step = max(1, math.ceil(n_lev / 8))
+        ax.set_xticks(range(0, n_lev, step), [_clipped(t) for t in axis["levels"][::step]], fontsize=5, rotation=45)
+        ax.tick_params(axis="y", labelsize=6)
+        ax.set_title(_clipped(axis["name"], 30), fontsize=7)
+        ax.set_ylabel("mean / overall mean", fontsize=6)
+        ax.grid(True, lw=0.3, alpha=0.5)
+    if axes:
+        fig.axes[0].legend(fontsize=4, loc="best", ncol=2)
+    fig.suptitle(title or "partial dependence of each measure on each axis", fontsize=9)
+    return fig
+
+
+#: The figures of a summarised sweep, by kind.
+SWEEP_FIGURES = {"sweep_heatmaps": sweep_heatmaps_figure, "sweep_dependence": sweep_dependence_figure}
+
+
+def render_sweep_figures(summary_path: str | os.PathLike[str], outs: Mapping[str, str | os.PathLike[str]],
+                         title: str = "") -> list[Path]:  # fmt: skip
+    """Draw the figures of a sweep's summary (:data:`SWEEP_FIGURES`, by kind) from its JSON alone."""
+    import json
+
+    summary = json.loads(Path(summary_path).read_text(encoding="utf-8"))
+    draw = {k: functools.partial(f, summary, title) for k, f in SWEEP_FIGURES.items()}
+    return [figures.save_figure_of_kind(kind, draw, out) for kind, out in outs.items()]

@@ -519,6 +519,37 @@ def skalka_sections(studies: Mapping[str, Any] | None) -> dict[str, list[dict[st
         return {}
     kinds = (studies.get("summary") or {}).get("skalka") or {}
     return {kind: [{"name": n, "r": studies["studies"][n]} for n in names] for kind, names in kinds.items()}
+# --- large sweeps: their summary views instead of per-run figures (pipeline.sweep_summary) -----------
+
+#: The rows of a summarised set's table the report prints (the whole table is the CSV beside the report).
+SWEEP_PREVIEW_ROWS = 20
+
+
+def sweep_views(sets: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The sets with each summarised set's summary attached (formatting only: every number is the summary's).
+
+    A manifest set with a ``sweep`` entry (``{"summary": JSON path, "sweep_heatmaps": PNG,
+    "sweep_dependence": PNG}``, :func:`pose_uncertainty.pipeline.sweep_summary.summarize_sweep`) gets
+    ``sweep_summary`` (the JSON document), ``sweep_index_rows`` (one row per measure: its name, unit and
+    per axis the first-order and total index), ``csv`` (the table's path relative to the report,
+    ``tables/<set>.csv``) and ``preview`` (the first :data:`SWEEP_PREVIEW_ROWS` rows of its table).
+    """
+    out = []
+    for s in sets:
+        sweep = s.get("sweep")
+        if not sweep:
+            out.append(s)
+            continue
+        summary = _read_json(sweep["summary"])
+        rows = [{"name": m["name"], "unit": m["unit"],
+                 "indices": list(zip(m["first"], m["total"], strict=True))} for m in summary["measures"]]  # fmt: skip
+        preview = read_table(s["table"])[:SWEEP_PREVIEW_ROWS] if Path(s["table"]).is_file() else []
+        table = Path(s["table"])
+        csv = "/".join(table.parts[1:]) if table.parts and table.parts[0] == "reports" else str(table)
+        shown = [{"id": r.get("run"), "m": r} for r in preview]
+        out.append({**s, "sweep_summary": summary, "sweep_index_rows": rows, "csv": csv, "preview": shown,
+                    "summary_columns": _columns_with_data(shown, SUMMARY_COLUMNS)})  # fmt: skip
+    return out
 
 
 def build_report(
@@ -565,7 +596,7 @@ def build_report(
     pipeline = _read_json(pipeline_path)
     studies = _read_json(studies_path) or {"studies": None, "summary": {}}
     prov = pipeline["provenance"]
-    sets = _sets(manifest, tables)
+    sets = sweep_views(_sets(manifest, tables))
     env = _environment()
     encoded = _encode_all(_pngs(manifest, localization or {}, dict(studies_figures or {}), robots or []))
     env.filters["datauri"] = lambda path: _data_uri(path, encoded)

@@ -1,0 +1,110 @@
+"""Batched jobs (config key ``runs_per_job``): a chunk of runs in one process, the same logs.
+
+Two routes to every log: a job per run (``runs_per_job: 1``) and a job per chunk, both made by
+Snakemake in this test run from the same config; the logs must be equal byte for byte. A changed
+run reruns only its chunk; a run's log can still be asked for by its file.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+import yaml
+from test_pipeline import SCHEMA, _config, _planned_jobs, copy_workflow, snakemake
+
+from pose_uncertainty.experiments import sweep
+from pose_uncertainty.pipeline import chunks
+
+#: A set of six small runs (two chunks of three): two with Monte Carlo, so that a chunk's process
+#: reuses its random-number machinery between runs, where state could leak from one run to the next.
+TINY = {
+    "seed": 11,
+    "studies": {"enabled": False},
+    "localization": {"enabled": False},
+    "experiment_sets": {
+        "S": {
+            "base": {"trajectory": {"name": "straight", "length": 1.0, "dt": 0.1, "track": 0.2, "speed": 0.5},
+                     "monte_carlo": {"n_particles": 0}},
+            "sweep": [{"labels": ["a", "b", "c", "d", "e", "f"],
+                       "k_r": [5.0e-4, 1.0e-4, 9.0e-4, 5.0e-4, 2.0e-4, 3.0e-4],
+                       "monte_carlo.n_particles": [0, 200, 0, 0, 300, 0]}],
+        }
+    },
+}  # fmt: skip
+
+
+def test_chunk_spec_rebuilds_every_run_configuration_of_the_quick_config() -> None:
+    runs = [r for rs in sweep.expand_all(sweep.validate_config(_config("quick.yaml"), SCHEMA)).values() for r in rs]
+    for size in (1, 3, 7, len(runs)):
+        parts = chunks.chunk_runs(runs, size)
+        assert [r for p in parts for r in p] == runs  # every run once, in order
+        assert all(1 <= len(p) <= size for p in parts)
+        for part in parts:
+            spec = json.loads(json.dumps(chunks.chunk_spec([r.config for r in part], [r.path for r in part],
+                                                           [f"{r.path}.t" for r in part])))  # fmt: skip
+            assert chunks.run_configs(spec) == [r.config for r in part]
+            # the JSON keeps each value's type (1 and 1.0 are different logs)
+            assert json.dumps(chunks.run_configs(spec)) == json.dumps([r.config for r in part])
+
+
+def test_config_delta_lists_the_differing_leaves_and_gives_up_on_different_shapes() -> None:
+    base = {"k_r": 5e-4, "trajectory": {"name": "straight", "length": 1.0}, "maps": []}
+    other = copy.deepcopy(base)
+    other["trajectory"]["length"] = 2.0
+    assert chunks.config_delta(base, other) == [["trajectory", "length", 2.0]]
+    assert chunks.config_delta(base, base) == []
+    assert chunks.config_delta(base, {**base, "k_l": 1e-4}) is None
+    assert chunks.config_delta(base, {**base, "k_r": 1}) == [["k_r", 1]]  # an int where a float was
+
+
+@pytest.mark.parametrize("bad", [0, -1, 10_001, 2.0, True, "3"])
+def test_runs_per_job_out_of_range_is_refused_naming_the_value(bad: object) -> None:
+    with pytest.raises(ValueError, match=r"runs_per_job must be an integer in \[1, 10000\], got"):
+        chunks.chunk_runs([1, 2], bad)  # type: ignore[arg-type]
+
+
+def _workflow(base: Path, name: str, cfg: dict) -> Path:
+    work = copy_workflow(base / name)
+    (work / "config/tiny.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False), encoding="utf-8")
+    return work
+
+
+def _logs(work: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(work)): p.read_bytes() for p in sorted((work / "data/runs").rglob("*.mcap"))}
+
+
+@pytest.mark.slow
+def test_chunked_logs_equal_one_run_per_job_and_a_change_reruns_only_its_chunk(tmp_path: Path) -> None:
+    single = _workflow(tmp_path, "single", TINY)
+    batched = _workflow(tmp_path, "batched", TINY)
+    table = "reports/tables/S.csv"
+    for work, size in ((single, 1), (batched, 3)):
+        proc = snakemake(work, table, "--configfile", "config/tiny.yaml", "--config", f"runs_per_job={size}")
+        assert proc.returncode == 0, proc.stderr[-3000:]
+    logs = _logs(single)
+    assert len(logs) == 6
+    assert _logs(batched) == logs  # the same bytes through either layout
+    assert sorted(p.name for p in (batched / "data/benchmarks/simulate_chunk/S").iterdir()) == ["0.tsv", "1.tsv"]
+
+    # nothing to do when nothing changed; one run changed: its chunk alone, then its table
+    args = ("--dry-run", "--configfile", "config/tiny.yaml", "--config", "runs_per_job=3")  # targets first
+    assert _planned_jobs(snakemake(batched, table, *args)) == {}
+    changed = copy.deepcopy(TINY)
+    changed["experiment_sets"]["S"]["sweep"][0]["k_r"][4] = 2.5e-4  # run e, in the second chunk
+    (batched / "config/tiny.yaml").write_text(yaml.safe_dump(changed, sort_keys=False), encoding="utf-8")
+    jobs = _planned_jobs(snakemake(batched, table, *args))
+    assert jobs == {"simulate_chunk_S_1": 1, "collect_metrics": 1, "total": 2}, jobs
+
+    # one log asked for by its file: its chunk's job makes it (and one job per run makes one run)
+    shutil.rmtree(batched / "data")
+    assert _planned_jobs(snakemake(batched, "data/runs/S/b.mcap", *args)) == {"simulate_chunk_S_0": 1, "total": 1}
+    single_args = ("--configfile", "config/tiny.yaml", "--dry-run")
+    proc = snakemake(single, "data/runs/S/z.mcap", *single_args)
+    assert proc.returncode != 0  # not a run of the set
+    shutil.rmtree(single / "data")
+    jobs = _planned_jobs(snakemake(single, "data/runs/S/b.mcap", *single_args))
+    assert jobs == {"simulate_run": 1, "total": 1}, jobs
