@@ -202,3 +202,19 @@ def run_cli(args: list[str], cwd: Path, *, module: str = "pose_uncertainty.cli",
         stack.enter_context(_limits(memory - (MEMORY_LIMIT - IN_PROCESS_HEADROOM), timeout))
         code = _call_main(module, args)
     return Outcome(code, out.getvalue(), err.getvalue(), before, snapshot(cwd))
+
+
+#: A Python that restores SIGINT's default disposition, then ``exec``s the rest of its arguments.
+_DEFAULT_SIGINT = "import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_DFL); os.execv(sys.argv[1], sys.argv[1:])"
+
+
+def interruptible(argv: list[str]) -> list[str]:
+    """``argv`` as a command that the test interrupts with SIGINT as Ctrl-C at a terminal does.
+
+    A command started in the background by a non-interactive shell (``make test &``, a CI runner)
+    inherits SIGINT *ignored*, and Python then installs no ``KeyboardInterrupt`` handler: the
+    child would sleep through the test's SIGINT. A small wrapper restores the default disposition
+    and ``exec``s the command, whose interpreter then installs its handler, as in a terminal (no
+    ``preexec_fn``, which is unsafe in a threaded test process).
+    """
+    return [sys.executable, "-c", _DEFAULT_SIGINT, *argv]

@@ -123,6 +123,10 @@ def test_yaml_examples_are_accepted_by_the_config_readers() -> None:
 
             jsonschema.validate(data["robots"], schema["properties"]["robots"])
             kinds += [f"robot {name}" for name in robots_config(data)]
+        elif set(data) <= {"runs_per_job", "report"}:  # the pipeline's own keys
+            for key, value in data.items():
+                jsonschema.validate(value, {"$defs": schema["$defs"], **schema["properties"][key]})
+            kinds.append("pipeline")
         elif set(data) == {"drive"}:
             RunConfig.from_dict({"name": "doc", "trajectory": {"name": "arc", "radius": 1.0}, **data})
             kinds.append("drive")

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hostile import interruptible
 
 from pose_uncertainty.analysis.accuracy import coverage_ellipse, pr_label
 from pose_uncertainty.cli import main
@@ -203,7 +204,7 @@ def _listening(pid: int) -> list[tuple[str, int]]:
 def test_server_binds_loopback_by_default() -> None:
     pytest.importorskip("bokeh")
     env = {**os.environ, "PYTHONPATH": f"{SRC}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
-    proc = subprocess.Popen([sys.executable, "-m", "pose_uncertainty.cli", "explore"], stdout=subprocess.PIPE,
+    proc = subprocess.Popen(interruptible([sys.executable, "-m", "pose_uncertainty.cli", "explore"]), stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=env)  # fmt: skip
     try:
         line = proc.stdout.readline() if proc.stdout else ""

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 import pytest
 from browser import CDP, open_chromium
+from hostile import interruptible
 
 from pose_uncertainty.cli import main
 from pose_uncertainty.present import explore
@@ -70,7 +71,7 @@ def explorer_page(
     """
     env = {**os.environ, "PYTHONPATH": f"{SRC}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
     server = subprocess.Popen(
-        [sys.executable, "-m", "pose_uncertainty.cli", "explore"],
+        interruptible([sys.executable, "-m", "pose_uncertainty.cli", "explore"]),
         stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=env,
     )  # fmt: skip
     if server_cpu is not None:

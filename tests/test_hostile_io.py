@@ -32,7 +32,7 @@ from typing import Self
 import pytest
 import yaml
 from default_runs import CONFIGS
-from hostile import Outcome, run_cli, snapshot
+from hostile import Outcome, interruptible, run_cli, snapshot
 
 from pose_uncertainty.cli import main
 from pose_uncertainty.core import atomic
@@ -287,7 +287,7 @@ sys.exit(one_line_errors(write))
 def test_a_signal_mid_write_leaves_no_part_file_and_exits_128_plus_its_number(tmp_path: Path, signum: int) -> None:
     dest = tmp_path / "claims.json"
     dest.write_text("old\n", encoding="utf-8")
-    proc = subprocess.Popen([sys.executable, "-c", SLOW_WRITER, str(dest)], stdout=subprocess.PIPE,
+    proc = subprocess.Popen(interruptible([sys.executable, "-c", SLOW_WRITER, str(dest)]), stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)  # fmt: skip
     try:
         assert proc.stdout is not None

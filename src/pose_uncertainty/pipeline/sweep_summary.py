@@ -92,7 +92,7 @@ def sweep_axes(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
     for cols in groups.values():
         if len(cols) == 1:
             codes, levels = varying[cols[0]]
-            texts = [_text(v) for v in levels]
+            texts = [_level_text(v) for v in levels]
         else:
             tuples = [tuple(_key(r.get(c)) for c in cols) for r in rows]
             codes, levels = _codes(["|".join(t) for t in tuples])
@@ -101,12 +101,12 @@ def sweep_axes(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
     return axes
 
 
-def _text(value: Any) -> str:
+def _level_text(value: Any) -> str:
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
 def _tuple_text(cols: Sequence[str], row: Mapping[str, Any]) -> str:
-    return ", ".join(f"{c.rsplit('.', 1)[-1]} {_text(row[c])}" for c in cols if row.get(c) not in (None, ""))
+    return ", ".join(f"{c.rsplit('.', 1)[-1]} {_level_text(row[c])}" for c in cols if row.get(c) not in (None, ""))
 
 
 def _axis_name(cols: Sequence[str]) -> str:
