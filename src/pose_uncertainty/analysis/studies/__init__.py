@@ -25,7 +25,9 @@
   and compass in the three filters, :mod:`.absolute_sensing`), :func:`guaranteed_bounds_study` (interval
   boxes and zonotopes, :mod:`.guaranteed_bounds`), :func:`representations_study` (grid, graph of
   places, particles, Kalman filter and intervals on the same runs, :mod:`.representations`) and
-  :func:`active_localization_study` (motions chosen by expected entropy, :mod:`.active_localization`);
+  :func:`active_localization_study` (motions chosen by expected entropy, :mod:`.active_localization`) and
+  :func:`dynamic_environment_study` (people not on the map, the beam model's components and the distance
+  filter, :mod:`.dynamic_environment`);
 * :func:`calibration_demo` — ``k`` fitted back from Monte Carlo end poses
   with both models (:mod:`.recalibration`).
 * :func:`accuracy_case` — coverage and distances of the three Gaussian methods
@@ -49,6 +51,7 @@ from .. import umbmark as um
 from .absolute_sensing import absolute_sensing_study
 from .active_localization import active_localization_study
 from .arcs import constant_speed_trajectory, exact_constant_arc
+from .dynamic_environment import dynamic_environment_study
 from .gaussian_methods import (
     accuracy_case,
     accuracy_vs_distance_study,
@@ -86,6 +89,7 @@ __all__ = [
     "calibration_demo",
     "constant_speed_trajectory",
     "coverage_vs_distance",
+    "dynamic_environment_study",
     "error_sources_vs_monte_carlo",
     "exact_constant_arc",
     "expcoords_regions",
@@ -127,4 +131,5 @@ STUDIES: dict[str, Any] = {
     "guaranteed_bounds": guaranteed_bounds_study,
     "representations": representations_study,
     "active_localization": active_localization_study,
+    "dynamic_environment": dynamic_environment_study,
 }
