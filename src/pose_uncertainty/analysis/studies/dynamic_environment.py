@@ -174,12 +174,13 @@ def dynamic_environment_study(
             po, ho = pose_errors(run.odometry[-1], run.true_poses[-1])
             odo_ok.append(bool(po <= pos_tol and ho <= head_tol))
             known = Start(pose=tuple(run.true_poses[0]))  # type: ignore[arg-type]
+            pf_seed = int(g_pf.integers(2**63))  # one stream for every model: paired runs
             for m, (sensor, thr) in models.items():
-                gens = g_pf.spawn(1)[0]
                 for f in DYNAMIC_FILTERS:
                     try:
                         res: FilterResult | None = (
-                            particle.run_particle(run, w, sensor, gens, pf_cfg, known, distance_threshold=thr)
+                            particle.run_particle(run, w, sensor, np.random.default_rng(pf_seed), pf_cfg, known,
+                                                  distance_threshold=thr)
                             if f == "particle" else
                             histogram.run_histogram(run, w, sensor, hf_cfg, known, distance_threshold=thr))  # fmt: skip
                     except ValueError:  # every pose has zero likelihood: the filter lost the robot
