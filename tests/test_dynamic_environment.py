@@ -7,7 +7,9 @@
   numbers exactly; in the room without people no beam is blocked, and the default threshold drops beams among
   people;
 * the histogram filter's correction with cells whose likelihood exceeds that of every cell with mass (which
-  the distance filter produces) equals the brute-force Bayes rule.
+  the distance filter produces) equals the brute-force Bayes rule;
+* the scan-matching study: along a corridor whose ends are out of range the matches' spread is the search
+  window's uniform spread (closed form).
 """
 
 from __future__ import annotations
@@ -88,3 +90,20 @@ def test_hf_correct_ignores_likelier_cells_without_mass():
     want = np.concatenate([np.zeros_like(belief[:1]), want])
     np.testing.assert_allclose(post, want / want.sum(), rtol=1e-12)
     assert logev == pytest.approx(math.log(want.sum()) - 800.0, rel=1e-12)
+
+
+@pytest.mark.slow
+def test_scan_matching_study_corridor_spread_is_the_windows():
+    from pose_uncertainty.analysis.studies.scan_matching import scan_matching_study
+
+    r = scan_matching_study(tour=[["line", 1.0]], corridor_drive=1.0, repeat=1, n_particles=60, n_beams=12)
+    c = r["corridor"]["ekf_matching"]
+    # along the corridor every candidate of the window scores alike: a uniform spread over 21 offsets of
+    # 0.05 m, σ = 0.05·√((21² − 1)/12 + 1/12) ≈ 0.30 m (the second route: the closed form)
+    assert c["match_sigma_x"] == pytest.approx(0.05 * math.sqrt((21**2 - 1) / 12 + 1 / 12), rel=0.05)
+    assert c["match_sigma_y"] < 0.1  # across: the walls fix it
+    assert r["room"]["ekf_matching"]["match_sigma_x"] < 0.8 * c["match_sigma_x"]  # the room's end walls fix x better
+    for place in ("room", "corridor"):
+        for m in ("ekf_matching", "particle"):
+            v = r[place][m]
+            assert 0.0 <= v["failure_low"] <= v["failure_rate"] <= v["failure_high"] <= 1.0

@@ -4,7 +4,7 @@
   lies within one map cell of it (the map's walls are cells); with beam noise too;
 * the vectorised best score equals a loop that projects each candidate's endpoints itself and
   interpolates the field by hand;
-* the likelihood field equals −d²/(2σ²) with d measured by brute force to every occupied cell;
+* the likelihood field equals −min(d, 3σ)²/(2σ²) with d measured by brute force to every occupied cell;
 * in a long corridor whose ends are out of range the match is ambiguous along it: its covariance along
   the corridor is the window's (uniform scores), across it the cell size's;
 * the EKF update with the pose measurement equals the linear Kalman update with H = I.
@@ -39,7 +39,7 @@ def test_likelihood_field_is_the_brute_force_distance():
     rng = np.random.default_rng(2)
     for i, j in zip(rng.integers(0, g.shape[0], 20), rng.integers(0, g.shape[1], 20), strict=True):
         d = np.min(np.hypot(*(occ - np.array([i, j]) * g.resolution).T))
-        assert f[i, j] == pytest.approx(-0.5 * (d / 0.1) ** 2, rel=1e-12, abs=1e-12)
+        assert f[i, j] == pytest.approx(-0.5 * min(d / 0.1, 3.0) ** 2, rel=1e-12, abs=1e-12)
 
 
 def test_a_noiseless_scan_recovers_a_known_offset():
@@ -76,7 +76,7 @@ def test_the_score_equals_a_loop_over_candidates():
                 x, y, t = truth + np.array([dx, dy, dt])
                 s = 0.0
                 for r, a in zip(z, LASER.angles, strict=True):
-                    if r >= LASER.max_range:  # no endpoint: nothing was hit
+                    if r >= LASER.max_range - 3 * LASER.sigma_hit:  # no endpoint: nothing was hit
                         continue
                     u = (x + r * np.cos(t + a) - g.origin[0]) / g.resolution - 0.5  # fractional cell-centre index
                     v = (y + r * np.sin(t + a) - g.origin[1]) / g.resolution - 0.5

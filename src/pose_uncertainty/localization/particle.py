@@ -443,6 +443,7 @@ def run_particle(
         if ahead and not split and k < run.n_steps:  # the next step's draws during all of this one
             finish = _draw_ahead(gens, n, cfg.workers)
         model = _measurement_model(run, world, sensor, k, cfg)
+        ll: Array | None
         if distance_threshold is not None and model is not None and isinstance(sensor, BeamSensor):
             P, _, _ = _predict_and_weigh(P, None, run, k, kcfg, gens, draws)  # the filter needs the prediction
             ll, kept = _filtered_beams(P, w, run.beam_z[k], world, sensor, distance_threshold)  # type: ignore[index]

@@ -2,15 +2,15 @@
 
 Correlative matching (Olson 2009) on a likelihood field of the occupancy grid:
 
-* the field (:func:`likelihood_field`): at every cell, ``−d²/(2σ²)`` with ``d`` the distance from the
-  cell's centre to the nearest occupied cell (an exact Euclidean distance transform), so a scan endpoint
-  on a wall scores 0 and one ``d`` metres off scores as a Gaussian of σ would;
+* the field (:func:`likelihood_field`): at every cell, ``−min(d, 3σ)²/(2σ²)`` with ``d`` the distance from
+  the cell's centre to the nearest occupied cell (an exact Euclidean distance transform), so a scan endpoint
+  on a wall scores 0 and one ``d`` metres off scores as a Gaussian of σ would, up to a cap;
 * the search (:func:`correlative_match`): every candidate pose of a window about the prior —
   ``(x̄ + i·δ, ȳ + j·δ, θ̄ + k·δ_θ)`` — projects the scan's endpoints (readings below the maximum range) and
-  sums the field at them (interpolated bilinearly between cell centres): one vectorised gather over
+  sums the field at them (readings within 3σ_hit of the maximum range are no endpoints: the beam saw nothing) (interpolated bilinearly between cell centres): one vectorised gather over
   candidates × beams, no loop over candidates;
-* the measurement: the best candidate ``ẑ`` and, treating ``exp(score)`` as the likelihood of each
-  candidate, its covariance ``R = Σ_c p_c (x_c − x̄_p)(x_c − x̄_p)ᵀ + diag(δ², δ², δ_θ²)/12`` (the
+* the measurement: treating ``exp(score)`` as the likelihood of each candidate, their weighted mean and
+  covariance ``R = Σ_c p_c (x_c − x̄_p)(x_c − x̄_p)ᵀ + diag(δ², δ², δ_θ²)/12`` (the
   candidates' spread plus the window's cell size): wide along a corridor where many candidates score alike,
   which is how an ambiguous scan shows;
 * the update (:func:`ekf_update_pose`): the EKF's update with the direct pose measurement ``z = x + N(0, R)``
@@ -35,13 +35,17 @@ __all__ = ["ScanMatch", "correlative_match", "ekf_update_pose", "likelihood_fiel
 Array = NDArray[np.float64]
 
 
-def likelihood_field(grid: OccupancyGrid, sigma: float) -> Array:
-    """``−d²/(2σ²)`` at every cell, ``d`` [m] the distance from its centre to the nearest occupied cell's, shape (nx, ny).
+def likelihood_field(grid: OccupancyGrid, sigma: float, cap: float = 3.0) -> Array:
+    """``−min(d, cap·σ)²/(2σ²)`` at every cell, ``d`` [m] the distance from its centre to the nearest occupied cell's.
+
+    The cap keeps a reading that hit no wall of the map (a random reading, a person) from outweighing the
+    others: it costs at most ``cap²/2``, as the likelihood-field model's random component bounds it.
 
     Parameters
     ----------
     grid : OccupancyGrid — the map (with at least one occupied cell)
     sigma : float [m], > 0 — σ of an endpoint about the wall
+    cap : float, > 0 — the largest distance counted, in σ
 
     Returns
     -------
@@ -53,7 +57,7 @@ def likelihood_field(grid: OccupancyGrid, sigma: float) -> Array:
     from scipy import ndimage  # imported where used (0.2 s)
 
     d = ndimage.distance_transform_edt(~grid.occupied) * grid.resolution
-    return np.asarray(-0.5 * (d / s) ** 2, dtype=np.float64)
+    return np.asarray(-0.5 * np.minimum(d / s, float(check_positive("cap", cap))) ** 2, dtype=np.float64)
 
 
 def _bilinear(f: Array, grid: OccupancyGrid, ex: Array, ey: Array) -> Array:
@@ -78,12 +82,15 @@ class ScanMatch:
     Attributes
     ----------
     pose : ndarray, shape (3,) — the best candidate [m, m, rad]
-    cov : ndarray, shape (3, 3) — the measurement covariance ``R`` (module docs)
+    mean : ndarray, shape (3,) — the candidates' mean weighted by ``exp(score)``: the measurement (where several
+        candidates tie, as along a corridor, it lies between them, not at the first of them)
+    cov : ndarray, shape (3, 3) — the measurement covariance ``R`` about ``mean`` (module docs)
     score : float — the best candidate's summed field
     n_endpoints : int — the readings below the maximum range that were matched
     """
 
     pose: Array
+    mean: Array
     cov: Array
     score: float
     n_endpoints: int
@@ -115,7 +122,7 @@ def correlative_match(field: ArrayLike, grid: OccupancyGrid, z: ArrayLike, senso
     d_xy, d_th = (float(check_positive(n, v)) for n, v in zip(("step xy", "step theta"), step, strict=True))
     if zz.shape != (sensor.n_beams,):
         raise ValueError(f"z must have shape ({sensor.n_beams},) (one range per beam), got {zz.shape}")
-    hit = zz < sensor.max_range - 1e-9
+    hit = zz < sensor.max_range - 3.0 * sensor.sigma_hit  # a reading at the range's end saw no wall
     if not hit.any():
         raise ValueError("the scan has no reading below the maximum range (allowed: at least one endpoint), got none")
     off_xy = np.arange(-round(w_xy / d_xy), round(w_xy / d_xy) + 1) * d_xy
@@ -134,7 +141,8 @@ def correlative_match(field: ArrayLike, grid: OccupancyGrid, z: ArrayLike, senso
     mean = p @ d
     c = d - mean
     cov = (c * p[:, None]).T @ c + np.diag([d_xy**2, d_xy**2, d_th**2]) / 12.0
-    return ScanMatch(pose=cand[best], cov=0.5 * (cov + cov.T), score=float(score[best]), n_endpoints=int(hit.sum()))
+    return ScanMatch(pose=cand[best], mean=cand[best] + mean, cov=0.5 * (cov + cov.T), score=float(score[best]),
+                     n_endpoints=int(hit.sum()))  # fmt: skip
 
 
 def ekf_update_pose(mean: ArrayLike, cov: ArrayLike, z: ArrayLike, R: ArrayLike) -> tuple[Array, Array]:

@@ -27,7 +27,8 @@
   places, particles, Kalman filter and intervals on the same runs, :mod:`.representations`) and
   :func:`active_localization_study` (motions chosen by expected entropy, :mod:`.active_localization`) and
   :func:`dynamic_environment_study` (people not on the map, the beam model's components and the distance
-  filter, :mod:`.dynamic_environment`);
+  filter, :mod:`.dynamic_environment`); :func:`scan_matching_study` (scan-to-map matching in the EKF against
+  the beam-model particle filter, in a room and an ambiguous corridor, :mod:`.scan_matching`);
 * :func:`calibration_demo` — ``k`` fitted back from Monte Carlo end poses
   with both models (:mod:`.recalibration`).
 * :func:`accuracy_case` — coverage and distances of the three Gaussian methods
@@ -78,6 +79,7 @@ from .probability_maps import map_vs_sampler
 from .recalibration import calibration_demo
 from .relative_sensing import relative_sensing_study
 from .representations import representations_study
+from .scan_matching import scan_matching_study
 from .summary import summarize
 
 __all__ = [
@@ -105,6 +107,7 @@ __all__ = [
     "regime_growth",
     "relative_sensing_study",
     "representations_study",
+    "scan_matching_study",
     "summarize",
 ]
 
@@ -132,4 +135,5 @@ STUDIES: dict[str, Any] = {
     "representations": representations_study,
     "active_localization": active_localization_study,
     "dynamic_environment": dynamic_environment_study,
+    "scan_matching": scan_matching_study,
 }
