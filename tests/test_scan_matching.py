@@ -4,7 +4,8 @@
   lies within one map cell of it (the map's walls are cells); with beam noise too;
 * the vectorised best score equals a loop that projects each candidate's endpoints itself and
   interpolates the field by hand;
-* the likelihood field equals −min(d, 3σ)²/(2σ²) with d measured by brute force to every occupied cell;
+* the likelihood field equals −min(d, 3σ)²/(2σ²) with d, the distance to the nearest wall face, measured by
+  brute force to every cell centre of the other kind (less half a cell);
 * in a long corridor whose ends are out of range the match is ambiguous along it: its covariance along
   the corridor is the window's (uniform scores), across it the cell size's;
 * the EKF update with the pose measurement equals the linear Kalman update with H = I.
@@ -35,10 +36,14 @@ LASER = BeamSensor(n_beams=36, max_range=8.0, sigma_hit=0.02)
 def test_likelihood_field_is_the_brute_force_distance():
     g = ROOM.grid
     f = likelihood_field(g, 0.1)
-    occ = np.argwhere(g.occupied) * g.resolution
+    h = g.resolution
+    occ, free = np.argwhere(g.occupied) * h, np.argwhere(~g.occupied) * h
     rng = np.random.default_rng(2)
-    for i, j in zip(rng.integers(0, g.shape[0], 20), rng.integers(0, g.shape[1], 20), strict=True):
-        d = np.min(np.hypot(*(occ - np.array([i, j]) * g.resolution).T))
+    cells = [*zip(rng.integers(0, g.shape[0], 20), rng.integers(0, g.shape[1], 20), strict=True),
+             *map(tuple, np.argwhere(g.occupied)[:5])]  # fmt: skip
+    for i, j in cells:  # the nearest centre of the other kind, by brute force, less half a cell
+        other = free if g.occupied[i, j] else occ
+        d = max(np.min(np.hypot(*(other - np.array([i, j]) * h).T)) - h / 2, 0.0)
         assert f[i, j] == pytest.approx(-0.5 * min(d / 0.1, 3.0) ** 2, rel=1e-12, abs=1e-12)
 
 
@@ -78,8 +83,13 @@ def test_the_score_equals_a_loop_over_candidates():
                 for r, a in zip(z, LASER.angles, strict=True):
                     if r >= LASER.max_range - 3 * LASER.sigma_hit:  # no endpoint: nothing was hit
                         continue
-                    u = (x + r * np.cos(t + a) - g.origin[0]) / g.resolution - 0.5  # fractional cell-centre index
-                    v = (y + r * np.sin(t + a) - g.origin[1]) / g.resolution - 0.5
+                    ex, ey = x + r * np.cos(t + a), y + r * np.sin(t + a)
+                    x0, x1, y0, y1 = g.extent()
+                    if not (x0 <= ex <= x1 and y0 <= ey <= y1):  # off the map: the farthest cell's value
+                        s += field.min()
+                        continue
+                    u = (ex - g.origin[0]) / g.resolution - 0.5  # fractional cell-centre index
+                    v = (ey - g.origin[1]) / g.resolution - 0.5
                     nx, ny = g.shape  # clamped at the map's edge, as the matcher does
                     u, v = min(max(u, 0.0), nx - 1.0), min(max(v, 0.0), ny - 1.0)
                     i, j = min(int(u), nx - 2), min(int(v), ny - 2)

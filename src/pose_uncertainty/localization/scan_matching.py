@@ -3,7 +3,7 @@
 Correlative matching (Olson 2009) on a likelihood field of the occupancy grid:
 
 * the field (:func:`likelihood_field`): at every cell, ``−min(d, 3σ)²/(2σ²)`` with ``d`` the distance from
-  the cell's centre to the nearest occupied cell (an exact Euclidean distance transform), so a scan endpoint
+  the cell's centre to the nearest wall face (exact Euclidean distance transforms), so a scan endpoint
   on a wall scores 0 and one ``d`` metres off scores as a Gaussian of σ would, up to a cap;
 * the search (:func:`correlative_match`): every candidate pose of a window about the prior —
   ``(x̄ + i·δ, ȳ + j·δ, θ̄ + k·δ_θ)`` — projects the scan's endpoints (readings below the maximum range) and
@@ -36,7 +36,10 @@ Array = NDArray[np.float64]
 
 
 def likelihood_field(grid: OccupancyGrid, sigma: float, cap: float = 3.0) -> Array:
-    """``−min(d, cap·σ)²/(2σ²)`` at every cell, ``d`` [m] the distance from its centre to the nearest occupied cell's.
+    """``−min(d, cap·σ)²/(2σ²)`` at every cell, ``d`` [m] the distance from its centre to the nearest wall face.
+
+    ``d`` is the distance to the nearest cell centre of the other kind (occupied for a free cell, free for an
+    occupied one) less half a cell: the face lies halfway between them.
 
     The cap keeps a reading that hit no wall of the map (a random reading, a person) from outweighing the
     others: it costs at most ``cap²/2``, as the likelihood-field model's random component bounds it.
@@ -56,23 +59,30 @@ def likelihood_field(grid: OccupancyGrid, sigma: float, cap: float = 3.0) -> Arr
         raise ValueError("the grid must have an occupied cell to match against (allowed: a map with walls), got none")
     from scipy import ndimage  # imported where used (0.2 s)
 
-    d = ndimage.distance_transform_edt(~grid.occupied) * grid.resolution
+    occ, h = grid.occupied, grid.resolution
+    # distance to the walls' faces: half a cell less than to the nearest cell centre across them, on either side
+    # (a ray-cast range ends at a face; measured to the centres the field would pull endpoints into the walls)
+    across = np.where(occ, ndimage.distance_transform_edt(occ), ndimage.distance_transform_edt(~occ))
+    d = np.maximum(across * h - h / 2, 0.0)
     return np.asarray(-0.5 * np.minimum(d / s, float(check_positive("cap", cap))) ** 2, dtype=np.float64)
 
 
 def _bilinear(f: Array, grid: OccupancyGrid, ex: Array, ey: Array) -> Array:
-    """The field interpolated bilinearly between the cell centres at the endpoints (clamped at the map's edge).
+    """The field interpolated bilinearly between the cell centres at the endpoints; off the map, its lowest value.
 
     Continuous in the endpoint, so candidates a round-off apart score alike (a field read per cell jumps at the
-    cells' walls, where the ray-cast ranges of the map end).
+    cells' walls, where the ray-cast ranges of the map end). An endpoint off the map saw no wall of it: it scores
+    as the farthest cell (clamped to the edge instead, it would score as the map's outer wall).
     """
     nx, ny = grid.shape
     u = np.clip((ex - grid.origin[0]) / grid.resolution - 0.5, 0.0, nx - 1.0)
     v = np.clip((ey - grid.origin[1]) / grid.resolution - 0.5, 0.0, ny - 1.0)
     i, j = np.minimum(np.floor(u).astype(np.intp), nx - 2), np.minimum(np.floor(v).astype(np.intp), ny - 2)
     a, b = u - i, v - j
-    return np.asarray((1 - a) * (1 - b) * f[i, j] + a * (1 - b) * f[i + 1, j] + (1 - a) * b * f[i, j + 1]
-                      + a * b * f[i + 1, j + 1], dtype=np.float64)  # fmt: skip
+    x0, x1, y0, y1 = grid.extent()
+    off = (ex < x0) | (ex > x1) | (ey < y0) | (ey > y1)
+    val = (1 - a) * (1 - b) * f[i, j] + a * (1 - b) * f[i + 1, j] + (1 - a) * b * f[i, j + 1] + a * b * f[i + 1, j + 1]
+    return np.asarray(np.where(off, f.min(), val), dtype=np.float64)
 
 
 @dataclass(frozen=True)
