@@ -205,7 +205,7 @@ def test_claim28_active():
 
 def test_without_studies_the_claims_are_not_measured_naming_the_kind():
     claims = {c.number: c for c in evaluate_claims({})}
-    for n in range(13, 30):
+    for n in [*range(13, 30), *range(35, 38)]:
         assert claims[n].verdict == "not measured"
         assert "needs a study of kind" in claims[n].reason
 
@@ -228,3 +228,70 @@ def test_write_claims_reads_the_studies_document(tmp_path: Path):
     assert verdicts[23] == "confirmed"
     assert verdicts[13] == "not measured"
     assert all(math.isfinite(v) for c in doc["claims"] if c["number"] == 23 for v in c["numbers"].values())
+
+
+# --- 35–37: people not on the map (dynamic_environment) -----------------------------------
+
+
+def _dyn_model(success: float, rms: float, lost: float = 0.0, used: float = 1.0) -> dict:
+    return {"success_rate": success, "success_low": max(0.0, success - 0.2), "success_high": min(1.0, success + 0.2),
+            "rms_position_error": rms, "median_final_error": rms, "lost_rate": lost, "beams_used": used}
+
+
+def _dyn_row(n: int, hit: tuple, mix: tuple, filt: tuple) -> dict:
+    f = {"hit_only": _dyn_model(*hit), "mixture": _dyn_model(*mix), "distance_filter": _dyn_model(*filt)}
+    return {"n_obstacles": n, "blocked_share": 0.02 * n, "odometry_success": 0.0, "obstacle_area_share": 0.01 * n,
+            "particle": copy.deepcopy(f), "histogram": copy.deepcopy(f)}
+
+
+def _dyn(few: dict, many: dict) -> dict:
+    # rows out of order: the claims sort them by the number of people
+    return _doc(d=("dynamic_environment", {"densities": [0, 10], "rows": [many, few], "repeat": 5, "n_steps": 100,
+                                          "n_beams": 12, "room_area": 80.0}))
+
+
+def test_claim35_short_components():
+    ok, bad = (1.0, 0.05), (0.0, math.nan, 1.0)
+    assert _verdict(_dyn(_dyn_row(0, ok, ok, ok), _dyn_row(10, bad, ok, ok)), 35) == "confirmed"
+    # the model without the components fails without people too: qualified
+    assert _verdict(_dyn(_dyn_row(0, bad, ok, ok), _dyn_row(10, bad, ok, ok)), 35) == "qualified"
+    one = _dyn_row(10, bad, ok, ok)
+    one["histogram"]["mixture"] = _dyn_model(0.5, 0.3)
+    assert _verdict(_dyn(_dyn_row(0, ok, ok, ok), one), 35) == "qualified"
+    assert _verdict(_dyn(_dyn_row(0, ok, ok, ok), _dyn_row(10, ok, ok, ok)), 35) == "refuted"  # both work
+    c = evaluate_claim({}, 35, _dyn(_dyn_row(0, ok, ok, ok), _dyn_row(10, bad, ok, ok)))
+    assert c.numbers["particle.mixture_success"] == 1.0
+    assert c.numbers["histogram.hit_only_success"] == 0.0
+
+
+def test_claim36_robustness_fails_in_crowds():
+    ok = (1.0, 0.05)
+    assert _verdict(_dyn(_dyn_row(0, ok, ok, ok), _dyn_row(10, ok, (0.5, 0.06), ok)), 36) == "confirmed"  # −50 points
+    assert _verdict(_dyn(_dyn_row(0, ok, ok, ok), _dyn_row(10, ok, (1.0, 0.11), ok)), 36) == "confirmed"  # RMS ×2.2
+    assert _verdict(_dyn(_dyn_row(0, ok, ok, ok), _dyn_row(10, ok, (0.9, 0.09), ok)), 36) == "refuted"
+    mixed = _dyn_row(10, ok, ok, ok)
+    mixed["particle"]["mixture"] = _dyn_model(0.2, 1.0)
+    assert _verdict(_dyn(_dyn_row(0, ok, ok, ok), mixed), 36) == "qualified"
+    c = evaluate_claim({}, 36, _dyn(_dyn_row(0, ok, ok, ok), _dyn_row(10, ok, (0.5, 0.1), ok)))
+    assert c.numbers["particle.success_drop"] == pytest.approx(0.5)
+    assert c.numbers["histogram.rms_ratio"] == pytest.approx(2.0)
+
+
+def test_claim37_distance_filter():
+    ok = (1.0, 0.05)
+    assert _verdict(_dyn(_dyn_row(0, ok, ok, ok), _dyn_row(10, ok, (0.6, 0.2), (0.9, 0.1, 0.0, 0.8))), 37) == "confirmed"
+    # within 10 % of the mixture's RMS error counts as no worse; beyond it, worse
+    assert _verdict(_dyn(_dyn_row(0, ok, ok, ok), _dyn_row(10, ok, (1.0, 0.1), (1.0, 0.109))), 37) == "confirmed"
+    assert _verdict(_dyn(_dyn_row(0, ok, ok, ok), _dyn_row(10, ok, (1.0, 0.1), (1.0, 0.111))), 37) == "refuted"
+    mixed = _dyn_row(10, ok, (0.6, 0.2), (0.9, 0.1))
+    mixed["histogram"]["distance_filter"] = _dyn_model(0.4, 0.3)
+    assert _verdict(_dyn(_dyn_row(0, ok, ok, ok), mixed), 37) == "qualified"
+
+
+def test_claims35_37_need_two_numbers_of_people():
+    one = _doc(d=("dynamic_environment", {"densities": [5], "rows": [_dyn_row(5, (1, 0.1), (1, 0.1), (1, 0.1))]}))
+    for n in (35, 36, 37):
+        c = evaluate_claim({}, n, one)
+        assert c.verdict == "not measured"
+        assert "two numbers of people" in c.reason
+        assert evaluate_claim({}, n, {}).verdict == "not measured"

@@ -4,7 +4,9 @@ Covariance propagation → the (extended) Kalman filter (:mod:`.ekf`); probabili
 the histogram filter (:mod:`.histogram`); Monte Carlo → the particle filter (:mod:`.particle`,
 resampling schemes in :mod:`.resampling`). They run on the same simulated data
 (:mod:`.simulate`) in a world of landmarks and walls (:mod:`.world`) seen by a range–bearing
-sensor or a laser's beam model (:mod:`.sensors`), and are measured against the true
+sensor or a laser's beam model (:mod:`.sensors`; unmapped obstacles and the distance filter in
+:mod:`.dynamic`, scan-to-map matching as a pose measurement in :mod:`.scan_matching`), and are measured
+against the true
 path (:mod:`.measures`). Every filter run returns a :class:`.result.FilterResult`
 (per step: estimate, covariance, region coverage, compute time, diagnostics) and can
 stream its full state (particles, grid) to an ``on_step`` callback.

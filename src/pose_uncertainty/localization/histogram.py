@@ -31,6 +31,7 @@ from ..core.grids import Grid
 from ..core.kinematics import wrap_angle
 from ..core.validation import check_choice, check_positive, check_positive_int
 from ..methods.maps import GridTransition, ProbabilityMap, grid_transition, predict_on_grid
+from .dynamic import distance_filter
 from .evaluation import region_flags_of_mass
 from .motion import Motion
 from .result import (
@@ -284,7 +285,7 @@ def hf_correct(belief: Array, loglik: Array) -> tuple[Array, float]:
         # underflowing exp takes a slow path, and a sharp likelihood underflows on most cells)
         arg = loglik[b] - top
         ratio = np.zeros_like(arg)
-        live = arg > _EXP_ZERO
+        live = (arg > _EXP_ZERO) & (arg <= 0.0)  # above the top only cells without mass (their product is 0)
         ratio[live] = np.exp(arg[live])
         np.multiply(ratio, belief[b], out=post[b])
     s = float(post.sum())
@@ -330,12 +331,21 @@ def _transition(cache: dict[tuple[float, ...], GridTransition], run: SimulatedRu
 def _loglik_grid(run: SimulatedRun, world: World, sensor: RangeBearingSensor | BeamSensor, k: int,
                  grid: Grid, belief: Array, cfg: HistogramFilterConfig,
                  table: Array | None, terms: tuple[Array, Array] | None = None,
-                 ) -> tuple[Array | None, int, int]:  # fmt: skip
+                 distance_threshold: float | None = None) -> tuple[Array | None, int, int]:  # fmt: skip
     """Log-likelihood grid of step ``k``'s measurements (None: no measurement), count, wrong associations."""
     if isinstance(sensor, BeamSensor):
         if not run.beam_valid[k] or run.beam_z is None or table is None:
             return None, 0, 0
-        return _beam_log_likelihood_grid(run.beam_z[k], table, sensor, terms), sensor.n_beams, 0
+        z = run.beam_z[k]
+        if distance_threshold is None:
+            return _beam_log_likelihood_grid(z, table, sensor, terms), sensor.n_beams, 0
+        # the distance filter under the predicted belief: its cells holding more than 10⁻⁹ of the largest mass
+        live = belief > 1e-9 * belief.max()
+        keep = distance_filter(z, table[live], belief[live] / belief[live].sum(), sensor, distance_threshold)
+        if not keep.any():
+            return None, 0, 0
+        sub = None if terms is None else (terms[0][..., keep], terms[1][..., keep])
+        return _beam_log_likelihood_grid(z[keep], table[..., keep], sensor, sub), int(keep.sum()), 0
     if cfg.association == "ml":  # every cell associates for itself
         valid = run.landmark_valid[k]
         if not valid.any():
@@ -356,11 +366,14 @@ def run_histogram(
     *,
     keep: Sequence[int] = (),
     on_step: StepCallback | None = None,
+    distance_threshold: float | None = None,
 ) -> FilterResult:
     """Histogram-filter localization along a simulated run.
 
-    Diagnostics per step: ``lost_mass`` (left the grid in the prediction),
-    ``masked_mass`` (fell into occupied cells), ``log_evidence``, ``n_measurements``,
+    ``distance_threshold``: with the beam model, the distance filter of Skalka 2011 §5.1
+    (:func:`~pose_uncertainty.localization.dynamic.distance_filter`) under the predicted belief (None: every
+    beam is used). Diagnostics per step: ``lost_mass`` (left the grid in the prediction),
+    ``masked_mass`` (fell into occupied cells), ``log_evidence``, ``n_measurements`` (the beams used),
     ``wrong_associations``. Snapshots: ``belief_xy`` (nx, ny); ``on_step`` state:
     ``belief`` (nx, ny, nθ) and ``grid`` (the Grid).
     """
@@ -386,7 +399,7 @@ def run_histogram(
                 after = float(belief.sum())
                 masked, total = total - after, after
             belief /= total
-        ll, m, wrong = _loglik_grid(run, world, sensor, k, grid, belief, cfg, table, terms)
+        ll, m, wrong = _loglik_grid(run, world, sensor, k, grid, belief, cfg, table, terms, distance_threshold)
         if ll is not None:
             belief, logev = hf_correct(belief, ll)
         rec.toc(k)

@@ -36,6 +36,7 @@ from numpy.typing import NDArray
 from ..core.kinematics import wrap_angle
 from ..core.validation import check_choice, check_positive, check_positive_int
 from ..methods import mc_kernel
+from .dynamic import distance_filter
 from .evaluation import region_flags_of_mass, weighted_mean_cov
 from .motion import Motion, sample_motion, wheel_draws
 from .resampling import (
@@ -63,7 +64,9 @@ from .sensors import (
     LandmarkLikelihood,
     RangeBearingSensor,
     beam_log_likelihood,
+    beam_probability,
     chunks,
+    expected_ranges,
     landmark_log_likelihood_ml,
     run_ahead,
     run_blocks,
@@ -330,6 +333,17 @@ def _predict_and_weigh(
     return out, ll, wrong
 
 
+def _filtered_beams(P: Array, w: Array, z: Array, world: World, sensor: BeamSensor,
+                    threshold: float) -> tuple[Array, int]:  # fmt: skip
+    """The beam model's log-likelihood of the beams the distance filter keeps under ``(P, w)``, and their number."""
+    assert world.grid is not None
+    zs = expected_ranges(world.grid, P, sensor)
+    keep = distance_filter(z, zs, w, sensor, threshold)
+    with np.errstate(divide="ignore"):
+        ll = np.log(beam_probability(z[keep], zs[:, keep], sensor)).sum(axis=-1)
+    return np.asarray(ll, dtype=np.float64), int(keep.sum())
+
+
 def _thread_plan(cfg: ParticleFilterConfig, sensor: RangeBearingSensor | BeamSensor) -> tuple[bool, bool]:
     """How a run uses ``cfg.workers`` > 1 threads: (draw the wheel normals ahead, split the blocks).
 
@@ -399,11 +413,15 @@ def run_particle(
     *,
     keep: Sequence[int] = (),
     on_step: StepCallback | None = None,
+    distance_threshold: float | None = None,
 ) -> FilterResult:
     """Monte Carlo localization along a simulated run, with the landmark sensor or the beam model.
 
-    Diagnostics per step: ``ess`` (after the correction), ``resampled`` (0/1),
-    ``injected``, ``log_evidence``, ``n_measurements``, ``wrong_associations``.
+    ``distance_threshold``: with the beam model, the distance filter of Skalka 2011 §5.1
+    (:func:`~pose_uncertainty.localization.dynamic.distance_filter`) — each scan's beams whose probability of
+    being a short reading under the predicted particles reaches the threshold are left out of the correction
+    (None: every beam is used). Diagnostics per step: ``ess`` (after the correction), ``resampled`` (0/1),
+    ``injected``, ``log_evidence``, ``n_measurements`` (the beams kept), ``wrong_associations``.
     Snapshots / ``on_step`` state: ``particles`` (n, 3) and ``weights`` (n,).
     """
     cfg = config or ParticleFilterConfig()
@@ -425,7 +443,13 @@ def run_particle(
         if ahead and not split and k < run.n_steps:  # the next step's draws during all of this one
             finish = _draw_ahead(gens, n, cfg.workers)
         model = _measurement_model(run, world, sensor, k, cfg)
-        P, ll, wrong_each = _predict_and_weigh(P, model, run, k, kcfg, gens, draws)
+        ll: Array | None
+        if distance_threshold is not None and model is not None and isinstance(sensor, BeamSensor):
+            P, _, _ = _predict_and_weigh(P, None, run, k, kcfg, gens, draws)  # the filter needs the prediction
+            ll, kept = _filtered_beams(P, w, run.beam_z[k], world, sensor, distance_threshold)  # type: ignore[index]
+            wrong_each, model = None, ((model[0], kept) if kept else None)
+        else:
+            P, ll, wrong_each = _predict_and_weigh(P, model, run, k, kcfg, gens, draws)
         if ahead and split and k < run.n_steps:  # during the correction and the resampling
             finish = _draw_ahead(gens, n, cfg.workers)
         ess, res, inj, logev, m, wrong = _ess(w), False, 0, 0.0, 0, 0.0

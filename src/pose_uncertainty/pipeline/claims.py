@@ -57,7 +57,8 @@ class Claim:
 
     Attributes
     ----------
-    number : int — the claim's number (its row of the report's claims table; 13–29: Skalka 2011's techniques; 30–34: your robot)
+    number : int — the claim's number (its row of the report's claims table;
+        13–29 and 35–37: Skalka 2011's techniques; 30–34: your robot)
     claim : str — the claim as the theses make it
     source : str — what the source showed
     measured : str — what we measured, with numbers and units
@@ -1258,8 +1259,109 @@ def robot_umbmark_recorded(rows: Rows, c: Claim) -> None:
     _judge_parts(c, parts)
 
 
+# --- Skalka 2011 §5.1, people not on the map (claims 35–37): the dynamic_environment study ------------
+
+_DYN_FILTERS = ("particle", "histogram")
+
+
+def _crowds(studies: Studies) -> tuple[str, Mapping[str, Any], Mapping[str, Any]]:
+    """``(name, row of the fewest people, row of the most people)`` of the first dynamic_environment study."""
+    name, r = _first_study(studies, "dynamic_environment")
+    rows = sorted(r["rows"], key=lambda row: row["n_obstacles"])
+    if len(rows) < 2:
+        raise _Missing(f"needs two numbers of people in study {name}, which has {len(rows)}")
+    return name, rows[0], rows[-1]
+
+
+def _dyn_text(row: Mapping[str, Any], f: str, m: str) -> str:
+    v = row[f][m]
+    return (f"{f} {m.replace('_', ' ')} with {row['n_obstacles']} people: {_g(100 * v['success_rate'])} % "
+            f"({_g(100 * v['success_low'])}–{_g(100 * v['success_high'])} %), lost {_g(100 * v['lost_rate'])} %, "
+            f"RMS {_g(v['rms_position_error'])} m")
+
+
+@study_claim(35, text=("(Skalka 2011) The beam model's short-reading and random components keep localization working "
+                       "among unmapped people, where a model without them fails."),
+             source=("Skalka 2011 §5.1.1: probabilistic localization copes with small changes of the environment as "
+                     "it copes with occasional measurement errors."))
+def short_components_robust(studies: Studies, c: Claim) -> None:
+    """The mixture's and the hit-only model's success with the most people, in both filters (dynamic_environment).
+
+    Confirmed when, in both filters, the mixture succeeds in at least 80 % of the runs with the most people and the
+    hit-only model less often; qualified instead when the hit-only model already fails more often in the room without
+    people (then it is not the people that break it).
+    """
+    name, few, many = _crowds(studies)
+    parts, texts, empty_fails = [], [], []
+    for f in _DYN_FILTERS:
+        mix, hit = many[f]["mixture"]["success_rate"], many[f]["hit_only"]["success_rate"]
+        parts.append(mix >= 0.8 and hit < mix)
+        empty_fails.append(few[f]["hit_only"]["success_rate"] < few[f]["mixture"]["success_rate"])
+        c.numbers.update({f"{f}.mixture_success": mix, f"{f}.hit_only_success": hit,
+                          f"{f}.hit_only_success_fewest": few[f]["hit_only"]["success_rate"]})  # fmt: skip
+        texts += [_dyn_text(many, f, "mixture"), _dyn_text(many, f, "hit_only"), _dyn_text(few, f, "hit_only")]
+    c.measured = f"{name}: " + "; ".join(texts) + "."
+    c.verdict = _verdict_of_parts(parts)
+    c.reason = {"confirmed": "With the most people both filters keep working with the mixture and fail more often without it.",
+                "qualified": "Only one filter keeps working with the mixture where the model without it fails more often.",
+                "refuted": "In neither filter does the mixture succeed in 80 % of the runs while the model without it fails more often."}[c.verdict]  # fmt: skip
+    if c.verdict == "confirmed" and any(empty_fails):
+        c.verdict = "qualified"
+        c.reason += (f" But the model without the components fails with {few['n_obstacles']} people too: it is too sharp "
+                     "for the filters' own approximation (particles, cells), not only for the people.")
+
+
+@study_claim(36, text=("(Skalka 2011) Relying on robustness alone fails when the room is crowded with unmapped "
+                       "people: the robot takes them for walls."),
+             source=("Skalka 2011 §5.1.1: a robot surrounded by spectators fits them to the walls of its map and "
+                     "places itself by some wall."))
+def robustness_fails_in_crowds(studies: Studies, c: Claim) -> None:
+    """The mixture's success and RMS error with the most people against the fewest, in both filters.
+
+    A filter fails in the crowd when its success rate drops by at least 20 points or its RMS position error at least
+    doubles; confirmed when both filters do, refuted when neither does.
+    """
+    name, few, many = _crowds(studies)
+    parts, texts = [], []
+    for f in _DYN_FILTERS:
+        a, b = few[f]["mixture"], many[f]["mixture"]
+        drop = a["success_rate"] - b["success_rate"]
+        ratio = b["rms_position_error"] / a["rms_position_error"] if a["rms_position_error"] > 0 else math.nan
+        fails = drop >= 0.2 or (math.isfinite(ratio) and ratio >= 2.0) or math.isnan(b["rms_position_error"])
+        parts.append((fails, f"{f}: {'fails' if fails else 'holds'} (success −{_g(100 * drop)} points, RMS ×{_g(ratio)});"))
+        c.numbers.update({f"{f}.success_drop": drop, f"{f}.rms_ratio": ratio})
+        texts += [_dyn_text(few, f, "mixture"), _dyn_text(many, f, "mixture")]
+    c.measured = (f"{name}: " + "; ".join(texts) + f"; the people block {_g(100 * many['blocked_share'])} % of the "
+                  "beams.")
+    _judge_parts(c, parts, f" With up to {many['n_obstacles']} people.")
+
+
+@study_claim(37, text=("(Skalka 2011) A distance filter, which leaves out the readings the map cannot explain, keeps "
+                       "localization working among unmapped people."),
+             source="Skalka 2011 §5.1.2 (after Fox, Burgard, Thrun & Cremers): filtering the sensor's measurements.")
+def distance_filter_helps(studies: Studies, c: Claim) -> None:
+    """The mixture with and without the distance filter with the most people, in both filters.
+
+    A filter gains when the distance filter succeeds at least as often and its RMS position error is at most 10 %
+    larger (a few runs' RMS errors differ by that much from run to run).
+    """
+    name, _, many = _crowds(studies)
+    parts, texts = [], []
+    for f in _DYN_FILTERS:
+        d, m = many[f]["distance_filter"], many[f]["mixture"]
+        gains = d["success_rate"] >= m["success_rate"] and not d["rms_position_error"] > 1.1 * m["rms_position_error"]
+        parts.append((gains, f"{f}: {'yes' if gains else 'no'};"))
+        c.numbers.update({f"{f}.filter_success": d["success_rate"], f"{f}.mixture_success": m["success_rate"],
+                          f"{f}.filter_rms": d["rms_position_error"], f"{f}.mixture_rms": m["rms_position_error"],
+                          f"{f}.beams_used": d["beams_used"]})  # fmt: skip
+        texts += [_dyn_text(many, f, "distance_filter") + f", {_g(100 * d['beams_used'])} % of the beams used",
+                  _dyn_text(many, f, "mixture")]
+    c.measured = f"{name}: " + "; ".join(texts) + "."
+    _judge_parts(c, parts, " (as often successful as the mixture alone, its RMS error at most 10 % larger)")
+
+
 def evaluate_claim(rows: Rows, number: int, studies: Studies | None = None) -> Claim:
-    """Evaluate claim ``number`` from the per-set tables (or, for claims 13–29, the studies' logs).
+    """Evaluate claim ``number`` from the per-set tables (or, for claims 13–29 and 35–37, the studies' logs).
 
     Parameters
     ----------

@@ -25,7 +25,10 @@
   and compass in the three filters, :mod:`.absolute_sensing`), :func:`guaranteed_bounds_study` (interval
   boxes and zonotopes, :mod:`.guaranteed_bounds`), :func:`representations_study` (grid, graph of
   places, particles, Kalman filter and intervals on the same runs, :mod:`.representations`) and
-  :func:`active_localization_study` (motions chosen by expected entropy, :mod:`.active_localization`);
+  :func:`active_localization_study` (motions chosen by expected entropy, :mod:`.active_localization`) and
+  :func:`dynamic_environment_study` (people not on the map, the beam model's components and the distance
+  filter, :mod:`.dynamic_environment`); :func:`scan_matching_study` (scan-to-map matching in the EKF against
+  the beam-model particle filter, in a room and an ambiguous corridor, :mod:`.scan_matching`);
 * :func:`calibration_demo` — ``k`` fitted back from Monte Carlo end poses
   with both models (:mod:`.recalibration`).
 * :func:`accuracy_case` — coverage and distances of the three Gaussian methods
@@ -49,6 +52,7 @@ from .. import umbmark as um
 from .absolute_sensing import absolute_sensing_study
 from .active_localization import active_localization_study
 from .arcs import constant_speed_trajectory, exact_constant_arc
+from .dynamic_environment import dynamic_environment_study
 from .gaussian_methods import (
     accuracy_case,
     accuracy_vs_distance_study,
@@ -75,6 +79,7 @@ from .probability_maps import map_vs_sampler
 from .recalibration import calibration_demo
 from .relative_sensing import relative_sensing_study
 from .representations import representations_study
+from .scan_matching import scan_matching_study
 from .summary import summarize
 
 __all__ = [
@@ -86,6 +91,7 @@ __all__ = [
     "calibration_demo",
     "constant_speed_trajectory",
     "coverage_vs_distance",
+    "dynamic_environment_study",
     "error_sources_vs_monte_carlo",
     "exact_constant_arc",
     "expcoords_regions",
@@ -101,6 +107,7 @@ __all__ = [
     "regime_growth",
     "relative_sensing_study",
     "representations_study",
+    "scan_matching_study",
     "summarize",
 ]
 
@@ -127,4 +134,6 @@ STUDIES: dict[str, Any] = {
     "guaranteed_bounds": guaranteed_bounds_study,
     "representations": representations_study,
     "active_localization": active_localization_study,
+    "dynamic_environment": dynamic_environment_study,
+    "scan_matching": scan_matching_study,
 }

@@ -11,6 +11,7 @@ import numpy as np
 #: The study kinds of Skalka 2011's localization techniques (their report sections and claims find them by kind).
 SKALKA_KINDS: tuple[str, ...] = (
     "relative_sensing", "absolute_sensing", "guaranteed_bounds", "representations", "active_localization",
+    "dynamic_environment", "scan_matching",
 )
 
 
