@@ -64,6 +64,7 @@ from ..core.kinematics import integrate, wrap_angle
 __all__ = [
     "DIFFERENTIAL_MODEL",
     "MOTION_CLASSES",
+    "OMNI_MODEL",
     "Nav2Fit",
     "amcl_update_indices",
     "fit_log_alphas",
@@ -79,6 +80,8 @@ __all__ = [
 
 #: nav2's plugin name of the differential motion model (``robot_model_type``).
 DIFFERENTIAL_MODEL = "nav2_amcl::DifferentialMotionModel"
+#: nav2's plugin name of the omni motion model (:mod:`.nav2_omni`).
+OMNI_MODEL = "nav2_amcl::OmniMotionModel"
 
 #: Kinds of update increments, for the coverage report.
 MOTION_CLASSES: tuple[str, ...] = ("translation", "rotation", "mixed")

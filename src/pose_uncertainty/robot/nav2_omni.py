@@ -58,27 +58,31 @@ fitted alphas hold for the update thresholds they were fitted at.
 from __future__ import annotations
 
 import math
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..core.atomic import atomic_write_text
 from ..core.drives import DrivePath, MultiDof, Omni3
 from ..core.kinematics import integrate_twist, wrap_angle
 from ..core.validation import check_choice
 from ..methods import drive_noise as dn
-from .nav2 import Nav2Fit, fit_log_alphas, motion_kinds, region_coverage, update_pairs
+from .exports import nav2_amcl_yaml
+from .nav2 import OMNI_MODEL, Nav2Fit, fit_log_alphas, motion_kinds, region_coverage, update_pairs
 
 __all__ = [
     "OMNI_MODEL",
     "fit_nav2_omni_alphas",
+    "ml_omni_alphas",
     "nav2_omni_deltas",
     "nav2_omni_logpdf",
     "omni_wheel_draws",
     "sample_nav2_omni",
+    "write_nav2_omni_yaml",
 ]
 
-#: nav2's plugin name of the omni motion model (``robot_model_type``).
-OMNI_MODEL = "nav2_amcl::OmniMotionModel"
 _LOG_2PI = math.log(2 * math.pi)
 
 
@@ -166,6 +170,15 @@ def _moment_start(draws: NDArray, parts: dict[str, NDArray]) -> NDArray[np.float
     return np.log(np.maximum(alphas, 1e-9 * max(float(alphas.max()), 1e-12)))
 
 
+def ml_omni_alphas(draws: NDArray, parts: dict[str, NDArray]) -> tuple[float, ...]:
+    """Maximum-likelihood alpha1…alpha5 of the omni model for end poses ``draws`` (M, n, 3) of the increments ``parts``.
+
+    Nelder–Mead over ``log α`` (:func:`.nav2.fit_log_alphas`) from the non-negative
+    least-squares fit of the three variances to the draws' own.
+    """
+    return fit_log_alphas(lambda a: nav2_omni_logpdf(draws, parts, a), _moment_start(draws, parts))
+
+
 def fit_nav2_omni_alphas(
     path: DrivePath,
     model: dn.DriveErrorModel,
@@ -200,8 +213,29 @@ def fit_nav2_omni_alphas(
     delta[:, 2] = wrap_angle(delta[:, 2])
     parts = nav2_omni_deltas(delta, odom[pairs[:, 0], 2])
     draws = omni_wheel_draws(path, model, pairs, n_samples, rng)
-    alphas = fit_log_alphas(lambda a: nav2_omni_logpdf(draws, parts, a), _moment_start(draws, parts))
+    alphas = ml_omni_alphas(draws, parts)
     own = sample_nav2_omni(parts, alphas, n_samples, rng)
     kinds = motion_kinds(parts["trans"], np.abs(parts["rot"]), update_min_d)
     coverage = region_coverage(draws, own, lambda x: nav2_omni_logpdf(x, parts, alphas), kinds)
     return Nav2Fit(alphas, update_min_d, update_min_a, int(pairs.shape[0]), n_samples, coverage, OMNI_MODEL)
+
+
+def write_nav2_omni_yaml(
+    path: DrivePath,
+    model: dn.DriveErrorModel,
+    dest: str | Path,
+    *,
+    seed: int = 0,
+    update_min_d: float = 0.25,
+    update_min_a: float = 0.2,
+) -> dict[str, Any]:
+    """Fit nav2's omni alphas (:func:`fit_nav2_omni_alphas`) and write ``nav2_amcl.yaml`` to ``dest`` (atomically).
+
+    The omnidirectional drive's counterpart of the ``nav2_amcl.yaml`` that ``robot calibrate``
+    writes for a differential drive: ``robot_model_type: "nav2_amcl::OmniMotionModel"`` and
+    ``alpha1``…``alpha5`` for AMCL's ``update_min_d`` [m] and ``update_min_a`` [rad].
+    Randomness from ``numpy.random.default_rng(seed)``. Returns :meth:`.nav2.Nav2Fit.as_dict`.
+    """
+    fit = fit_nav2_omni_alphas(path, model, np.random.default_rng(seed), update_min_d, update_min_a).as_dict()
+    atomic_write_text(Path(dest), nav2_amcl_yaml(fit))
+    return fit
