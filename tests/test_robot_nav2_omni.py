@@ -144,11 +144,14 @@ def test_fitted_alphas_reproduce_the_wheel_models_spread(fitted) -> None:
     region of the transcribed sampler's 4000 draws from that pose — the omni model is
     Gaussian in (x, y, θ), so the region is the Mahalanobis ellipsoid of their mean and
     covariance. The draws are independent: the binomial standard error of a 95 % coverage
-    of M·n draws is √(0.95·0.05/(M n)) ≈ 0.0015; the band is 4 of them plus 0.03 for the
+    of M·n draws is √(0.95·0.05/(M n)) ≈ 0.0015; the band is 4 of them plus 0.025 for the
     model's structure (nav2 gives every direction of travel the same spread and draws the
     strafe and the rotation independently, where an omni drive's wheels spread a forward
-    and a sideways move differently and turn the body as they push it). Also the
-    library's own overall coverage figure lies in the band (its own binomial error added).
+    and a sideways move differently and turn the body as they push it: single increments
+    are covered from 0.88 sideways to 0.99 forward, the drive's mix 0.93). The band is
+    narrow enough that alphas off by a factor of 2 either way fall out of it (0.76, 0.986).
+    Also the library's own overall coverage figure lies in the band (its own binomial
+    error added).
     """
     fit, drive, model = fitted
     path, n = omni_path(drive), 300
@@ -167,7 +170,7 @@ def test_fitted_alphas_reproduce_the_wheel_models_spread(fitted) -> None:
         d[:, 2] = _wrap(d[:, 2])
         inside.append(np.einsum("ia,ab,ib->i", d, np.linalg.inv(C), d) <= chi2.ppf(0.95, 3))
     cover = float(np.mean(inside))
-    band = 4 * math.sqrt(0.95 * 0.05 / (len(pairs) * n)) + 0.03
+    band = 4 * math.sqrt(0.95 * 0.05 / (len(pairs) * n)) + 0.025
     assert abs(cover - 0.95) <= band, cover
     lib = fit.coverage["overall"]
     assert abs(lib - 0.95) <= band + 4 * math.sqrt(0.95 * 0.05 / fit.coverage["n_draws"]), lib
