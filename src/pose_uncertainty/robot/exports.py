@@ -106,11 +106,11 @@ def nav2_amcl_yaml(nav2: dict[str, Any]) -> str:
     if model not in _NAV2_SOURCES:
         raise ValueError(f"robot_model_type must be one of {sorted(_NAV2_SOURCES)}, got {model!r}")
     n_alphas = 5 if model == OMNI_MODEL else 4
+    fitted_to, made_by = (("calibrated wheel model", "robot calibration") if model == DIFFERENTIAL_MODEL
+                          else ("drive's wheel-noise model", "robot.nav2_omni"))  # fmt: skip
     return "\n".join([
-        "# nav2 AMCL motion model fitted by maximum likelihood to the "
-        + ("calibrated wheel model" if model == DIFFERENTIAL_MODEL else "drive's wheel-noise model"),
-        f"# (pose-uncertainty {'robot calibration' if model == DIFFERENTIAL_MODEL else 'robot.nav2_omni'}; "
-        f"nav2_amcl {_NAV2_SOURCES[model]}'s sampler).",
+        f"# nav2 AMCL motion model fitted by maximum likelihood to the {fitted_to}",
+        f"# (pose-uncertainty {made_by}; nav2_amcl {_NAV2_SOURCES[model]}'s sampler).",
         f"# Holds for: {nav2['holds_for']}.",
         (f"# Coverage of the wheel model's Monte Carlo draws by the fitted model's 95 % region: "
         f"{cov['overall']:.3f} overall ({nav2['n_increments']} increments x {nav2['n_samples']} draws)."),
