@@ -12,6 +12,7 @@ installed (the ``rosbags`` library). One module per step:
 * :mod:`.noise_fit` — the wheel error constants ``k_r, k_l`` (Method A) and held-out checks;
 * :mod:`.laps` — UMBmark squares found in a recording and fed to :mod:`..analysis.umbmark`;
 * :mod:`.nav2` — nav2 AMCL's differential motion model and its alphas fitted to the wheel model;
+* :mod:`.nav2_omni` — nav2 AMCL's omni motion model and its alphas fitted to an omni drive's wheel model;
 * :mod:`.horizon` — distance and time until the 95 % position error reaches a threshold;
 * :mod:`.exports` — ``ros2_control.yaml``, ``nav2_amcl.yaml``, ``robot_localization.yaml``;
 * :mod:`.simulated` — a simulated robot's parameters (known truth) and its commanded drive;

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from ..methods import covariance as cv
+from .nav2 import DIFFERENTIAL_MODEL, OMNI_MODEL
 
 __all__ = ["nav2_amcl_yaml", "pose_covariance_at", "robot_localization_yaml", "ros2_control_yaml", "twist_variances"]
 
@@ -84,19 +85,39 @@ def ros2_control_yaml(q: dict[str, Any], nominal: tuple[float, float, float], sp
     ])  # fmt: skip
 
 
+#: nav2's source file of each motion model the export writes, by ``robot_model_type``.
+_NAV2_SOURCES = {
+    DIFFERENTIAL_MODEL: "differential_motion_model.cpp",
+    OMNI_MODEL: "omni_motion_model.cpp",
+}
+
+
 def nav2_amcl_yaml(nav2: dict[str, Any]) -> str:
-    """``nav2_amcl.yaml``: the differential motion model's alphas and the thresholds they hold for."""
-    cov = nav2["coverage"]
+    """``nav2_amcl.yaml``: a fitted motion model's alphas and the thresholds they hold for.
+
+    Parameters
+    ----------
+    nav2 : dict — :meth:`.nav2.Nav2Fit.as_dict`: ``robot_model_type``
+        ``"nav2_amcl::DifferentialMotionModel"`` with ``alpha1``…``alpha4``
+        (:func:`.nav2.fit_nav2_alphas`) or ``"nav2_amcl::OmniMotionModel"`` with
+        ``alpha1``…``alpha5`` (:func:`.nav2_omni.fit_nav2_omni_alphas`)
+    """
+    cov, model = nav2["coverage"], nav2["robot_model_type"]
+    if model not in _NAV2_SOURCES:
+        raise ValueError(f"robot_model_type must be one of {sorted(_NAV2_SOURCES)}, got {model!r}")
+    n_alphas = 5 if model == OMNI_MODEL else 4
+    fitted_to, made_by = (("calibrated wheel model", "robot calibration") if model == DIFFERENTIAL_MODEL
+                          else ("drive's wheel-noise model", "robot.nav2_omni"))  # fmt: skip
     return "\n".join([
-        "# nav2 AMCL motion model fitted by maximum likelihood to the calibrated wheel model",
-        "# (pose-uncertainty robot calibration; nav2_amcl differential_motion_model.cpp's sampler).",
+        f"# nav2 AMCL motion model fitted by maximum likelihood to the {fitted_to}",
+        f"# (pose-uncertainty {made_by}; nav2_amcl {_NAV2_SOURCES[model]}'s sampler).",
         f"# Holds for: {nav2['holds_for']}.",
         (f"# Coverage of the wheel model's Monte Carlo draws by the fitted model's 95 % region: "
         f"{cov['overall']:.3f} overall ({nav2['n_increments']} increments x {nav2['n_samples']} draws)."),
         "amcl:",
         "  ros__parameters:",
-        '    robot_model_type: "nav2_amcl::DifferentialMotionModel"',
-        *(f"    alpha{i}: {nav2[f'alpha{i}']:.6g}" for i in range(1, 5)),
+        f'    robot_model_type: "{model}"',
+        *(f"    alpha{i}: {nav2[f'alpha{i}']:.6g}" for i in range(1, n_alphas + 1)),
         f"    update_min_d: {nav2['update_min_d']:g}  # m, the alphas hold for this",
         f"    update_min_a: {nav2['update_min_a']:g}  # rad, the alphas hold for this",
         "",

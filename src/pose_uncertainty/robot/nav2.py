@@ -1,5 +1,8 @@
 """nav2 AMCL's differential motion model, and its alphas fitted to the calibrated wheel model.
 
+The fit's machinery (AMCL's update intervals, the maximum likelihood over ``log α``, the
+coverage of a 95 % highest-density region) is shared with nav2's omni model (:mod:`.nav2_omni`).
+
 The model, as navigation2 samples it
 ------------------------------------
 ``nav2_amcl/src/motion_model/differential_motion_model.cpp`` (ros-navigation/navigation2,
@@ -49,6 +52,7 @@ wheel model's draws inside it; 0.95 if the two distributions were the same.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -58,15 +62,26 @@ from numpy.typing import ArrayLike, NDArray
 from ..core.kinematics import integrate, wrap_angle
 
 __all__ = [
+    "DIFFERENTIAL_MODEL",
     "MOTION_CLASSES",
+    "OMNI_MODEL",
     "Nav2Fit",
     "amcl_update_indices",
+    "fit_log_alphas",
     "fit_nav2_alphas",
+    "motion_kinds",
     "nav2_deltas",
     "nav2_logpdf",
+    "region_coverage",
     "sample_nav2",
+    "update_pairs",
     "wheel_model_draws",
 ]
+
+#: nav2's plugin name of the differential motion model (``robot_model_type``).
+DIFFERENTIAL_MODEL = "nav2_amcl::DifferentialMotionModel"
+#: nav2's plugin name of the omni motion model (:mod:`.nav2_omni`).
+OMNI_MODEL = "nav2_amcl::OmniMotionModel"
 
 #: Kinds of update increments, for the coverage report.
 MOTION_CLASSES: tuple[str, ...] = ("translation", "rotation", "mixed")
@@ -185,16 +200,19 @@ def wheel_model_draws(
 class Nav2Fit:
     """Fitted alphas with the settings they hold for and the coverage of the wheel model."""
 
-    alphas: tuple[float, float, float, float]
+    alphas: tuple[float, ...]
     update_min_d: float
     update_min_a: float
     n_increments: int
     n_samples: int
     coverage: dict[str, Any]
+    #: nav2's ``robot_model_type``: four alphas for the differential model, five for the omni model
+    model_type: str = DIFFERENTIAL_MODEL
 
     def as_dict(self) -> dict[str, Any]:
+        """The alphas as ``alpha1``…, ``robot_model_type``, the thresholds, the coverage and ``holds_for``."""
         return {
-            "robot_model_type": "nav2_amcl::DifferentialMotionModel",
+            "robot_model_type": self.model_type,
             **{f"alpha{i + 1}": a for i, a in enumerate(self.alphas)},
             "update_min_d": self.update_min_d, "update_min_a": self.update_min_a,
             "n_increments": self.n_increments, "n_samples": self.n_samples, "coverage": self.coverage,
@@ -223,10 +241,37 @@ def _increments(
     return dl, dr, delta, odom[a, 2]
 
 
-def _increment_kinds(dl: dict[str, NDArray], update_min_d: float) -> NDArray:
-    small = dl["trans"] < 0.2 * update_min_d
-    straight = (dl["n1"] + dl["n2"]) < 0.05
+def motion_kinds(trans: NDArray, turn: NDArray, update_min_d: float) -> NDArray:
+    """:data:`MOTION_CLASSES` of increments: travel under a fifth of ``update_min_d`` is a
+    rotation, a turn under 0.05 rad a translation, the rest mixed."""
+    small = trans < 0.2 * update_min_d
+    straight = turn < 0.05
     return np.where(small, "rotation", np.where(straight, "translation", "mixed"))
+
+
+def update_pairs(odom: NDArray[np.float64], update_min_d: float, update_min_a: float, max_increments: int) -> NDArray[np.intp]:
+    """(start, end) odometry indices (M, 2) of AMCL's update intervals, at most ``max_increments`` (evenly spaced)."""
+    idx = amcl_update_indices(odom, update_min_d, update_min_a)
+    if idx.size < 5:
+        raise ValueError(f"the drive gives only {idx.size - 1} AMCL updates (need at least 4)")
+    if idx.size - 1 > max_increments:
+        pick = np.unique(np.linspace(0, idx.size - 2, max_increments).round().astype(int))
+        return np.stack([idx[pick], idx[pick + 1]], axis=-1)
+    return np.stack([idx[:-1], idx[1:]], axis=-1)
+
+
+def fit_log_alphas(logpdf: Callable[[NDArray], NDArray], x0: ArrayLike) -> tuple[float, ...]:
+    """Maximum likelihood: the alphas maximising the mean of ``logpdf(alphas)`` (Nelder–Mead over ``log α`` from ``x0``)."""
+    from scipy import optimize  # imported where used: scipy.optimize takes 0.3 s to import
+
+    def nll(log_a: NDArray) -> float:
+        v = logpdf(np.exp(log_a))
+        return -float(np.mean(v)) if np.all(np.isfinite(v)) else 1e300
+
+    x = np.asarray(x0, dtype=np.float64)
+    res = optimize.minimize(nll, x, method="Nelder-Mead",
+                            options={"xatol": 1e-3, "fatol": 1e-7, "maxiter": 150 * x.size})  # fmt: skip
+    return tuple(float(a) for a in np.exp(res.x))
 
 
 def fit_nav2_alphas(
@@ -250,19 +295,10 @@ def fit_nav2_alphas(
     update_min_d [m], update_min_a [rad] — AMCL's thresholds
     n_samples : draws per increment; max_increments : at most this many (evenly spaced)
     """
-    from scipy import optimize  # imported where used: scipy.optimize takes 0.3 s to import
-
     rl, rr, b = geometry
     ds_l_all, ds_r_all = rl * np.diff(phi_l), rr * np.diff(phi_r)
     odom = integrate((ds_r_all + ds_l_all) / 2.0, (ds_r_all - ds_l_all) / b, method="exact")
-    idx = amcl_update_indices(odom, update_min_d, update_min_a)
-    if idx.size < 5:
-        raise ValueError(f"the drive gives only {idx.size - 1} AMCL updates (need at least 4)")
-    if idx.size - 1 > max_increments:
-        pick = np.unique(np.linspace(0, idx.size - 2, max_increments).round().astype(int))
-        pairs = np.stack([idx[pick], idx[pick + 1]], axis=-1)
-    else:
-        pairs = np.stack([idx[:-1], idx[1:]], axis=-1)
+    pairs = update_pairs(odom, update_min_d, update_min_a, max_increments)
     dls, drs, deltas, th0 = [], [], [], []
     for a, c in pairs:
         dl_, dr_, de, t0 = _increments(phi_l, phi_r, rl, rr, b, np.array([a, c]))
@@ -278,19 +314,14 @@ def fit_nav2_alphas(
     draws = wheel_model_draws(dl, dr, b, k[0], k[1], n_samples, rng)
     parts = nav2_deltas(delta, theta_old)
 
-    def nll(log_a: NDArray) -> float:
-        v = nav2_logpdf(draws, parts, np.exp(log_a))
-        return -float(np.mean(v)) if np.all(np.isfinite(v)) else 1e300
-
     # start: the wheel model's variances matched at increments of the thresholds' size,
     # k|Δs| against α δ² (straight: heading and travel; in place: heading and travel)
     ks = max(k[0] + k[1], 1e-12)
     d, a = update_min_d, update_min_a
     x0 = np.log([ks / (2 * b * a), ks / (2 * b * b * d), ks / (4 * d), ks * b / (8 * a)])
-    res = optimize.minimize(nll, x0, method="Nelder-Mead", options={"xatol": 1e-3, "fatol": 1e-7, "maxiter": 600})
-    alphas = tuple(float(a) for a in np.exp(res.x))
-    coverage = _coverage(draws, parts, alphas, rng, _increment_kinds(parts, update_min_d))
-    return Nav2Fit(alphas, update_min_d, update_min_a, int(pairs.shape[0]), n_samples, coverage)  # type: ignore[arg-type]
+    alphas = fit_log_alphas(lambda a: nav2_logpdf(draws, parts, a), x0)
+    coverage = _coverage(draws, parts, alphas, rng, motion_kinds(parts["trans"], parts["n1"] + parts["n2"], update_min_d))
+    return Nav2Fit(alphas, update_min_d, update_min_a, int(pairs.shape[0]), n_samples, coverage)
 
 
 def _coverage(
@@ -305,6 +336,15 @@ def _coverage(
         jac = np.log(np.maximum(np.hypot(x[..., 0], x[..., 1]), 1e-300))
         return nav2_logpdf(x, parts, alphas) - np.where(in_place, 0.0, jac)
 
+    return region_coverage(draws, own, logp, kinds)
+
+
+def region_coverage(draws: NDArray, own: NDArray, logp: Callable[[NDArray], NDArray], kinds: NDArray) -> dict[str, Any]:
+    """Fraction of ``draws`` (M, n, 3) inside a model's 95 % highest-density region, overall and by class.
+
+    The region of increment ``m``: ``logp ≥`` the 5 % quantile of ``logp`` of the model's own
+    samples ``own`` (M, n', 3); ``kinds`` (M,) the increments' :data:`MOTION_CLASSES`.
+    """
     tau = np.quantile(logp(own), 0.05, axis=1)
     inside = logp(draws) >= tau[:, None]
     per = inside.mean(axis=1)
