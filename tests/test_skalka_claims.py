@@ -205,7 +205,7 @@ def test_claim28_active():
 
 def test_without_studies_the_claims_are_not_measured_naming_the_kind():
     claims = {c.number: c for c in evaluate_claims({})}
-    for n in [*range(13, 30), *range(35, 38)]:
+    for n in [*range(13, 30), *range(35, 39)]:
         assert claims[n].verdict == "not measured"
         assert "needs a study of kind" in claims[n].reason
 
@@ -295,3 +295,29 @@ def test_claims35_37_need_two_numbers_of_people():
         assert c.verdict == "not measured"
         assert "two numbers of people" in c.reason
         assert evaluate_claim({}, n, {}).verdict == "not measured"
+
+
+# --- 38: scan matching (scan_matching) -----------------------------------------------------------
+
+
+def _matching(ekf_rms: float, pf_rms: float, along: float, across: float, ekf_fail: float = 0.0) -> dict:
+    def row(rms: float, fail: float) -> dict:
+        return {"rms_position_error": rms, "rms_final_along": rms, "failure_rate": fail, "failure_low": 0.0,
+                "failure_high": min(1.0, fail + 0.5)}
+
+    ekf_room, ekf_cor = row(ekf_rms, ekf_fail), row(0.04, 0.0)
+    ekf_room.update(match_sigma_x=0.03, match_sigma_y=0.03)
+    ekf_cor.update(match_sigma_x=along, match_sigma_y=across)
+    return _doc(m=("scan_matching", {"repeat": 3, "room": {"n_steps": 10, "ekf_matching": ekf_room,
+                                                            "particle": row(pf_rms, 0.0)},
+                                      "corridor": {"n_steps": 10, "ekf_matching": ekf_cor, "particle": row(0.05, 0.0)}}))
+
+
+def test_claim38_scan_matching():
+    assert _verdict(_matching(0.0185, 0.0179, 0.303, 0.028), 38) == "confirmed"
+    # worse than the particle filter beyond the ratio, or failing more often: qualified
+    assert _verdict(_matching(0.03, 0.0179, 0.303, 0.028), 38) == "qualified"
+    assert _verdict(_matching(0.0185, 0.0179, 0.303, 0.028, ekf_fail=1 / 3), 38) == "qualified"
+    # the corridor fixed along it as well as across: qualified; both parts fail: refuted
+    assert _verdict(_matching(0.0185, 0.0179, 0.05, 0.028), 38) == "qualified"
+    assert _verdict(_matching(0.03, 0.0179, 0.05, 0.028), 38) == "refuted"

@@ -58,7 +58,7 @@ class Claim:
     Attributes
     ----------
     number : int — the claim's number (its row of the report's claims table;
-        13–29 and 35–37: Skalka 2011's techniques; 30–34: your robot)
+        13–29 and 35–38: Skalka 2011's techniques; 30–34: your robot)
     claim : str — the claim as the theses make it
     source : str — what the source showed
     measured : str — what we measured, with numbers and units
@@ -1360,8 +1360,46 @@ def distance_filter_helps(studies: Studies, c: Claim) -> None:
     _judge_parts(c, parts, " (as often successful as the mixture alone, its RMS error at most 10 % larger)")
 
 
+
+#: How much larger than the particle filter's the scan-matching EKF's RMS position error may be and still be
+#: "as accurate": a few runs' RMS errors differ by about that much from run to run (claims 37 and 38 alike).
+MATCHING_RMS_RATIO: float = 1.5
+#: How many times the across-corridor σ the along-corridor σ of the matches must be for the corridor to count as
+#: ambiguous (the window's flat score along the walls: σ along is that of a uniform window, σ across the field's).
+MATCHING_AMBIGUITY: float = 3.0
+
+
+@study_claim(38, text=("(Skalka 2011) Matching the laser scan to the map keeps a known pose as accurate as the beam "
+                       "model does, but where the map repeats itself (a corridor) it fixes nothing along it."),
+             source=("Skalka 2011 §4.2.2: scan matching as continuous localization (a reference scan ray-traced "
+                     "in the known map); §2.7: localization needs distinguishable places."))
+def scan_matching_continuous(studies: Studies, c: Claim) -> None:
+    """The scan-matching EKF against the beam-model particle filter in the room, and the matches' σ along and
+    across the corridor (scan_matching)."""
+    name, r = _first_study(studies, "scan_matching")
+    room, cor = r["room"], r["corridor"]
+    ekf, pf = room["ekf_matching"], room["particle"]
+    along, across = cor["ekf_matching"]["match_sigma_x"], cor["ekf_matching"]["match_sigma_y"]
+    c.numbers.update(room_ekf_rms=ekf["rms_position_error"], room_particle_rms=pf["rms_position_error"],
+                     room_ekf_failures=ekf["failure_rate"], corridor_sigma_along=along, corridor_sigma_across=across,
+                     corridor_ekf_rms_along=cor["ekf_matching"]["rms_final_along"])  # fmt: skip
+    c.measured = (f"{name} ({r['repeat']} runs per place): room RMS position error, EKF with scan matching "
+                  f"{_g(ekf['rms_position_error'])} m (failures {_g(100 * ekf['failure_rate'])} %), beam-model particle "
+                  f"filter {_g(pf['rms_position_error'])} m (failures {_g(100 * pf['failure_rate'])} %); corridor: the "
+                  f"matches' σ {_g(along)} m along it against {_g(across)} m across, the EKF's final error along it "
+                  f"{_g(cor['ekf_matching']['rms_final_along'])} m (RMS).")
+    accurate = (ekf["rms_position_error"] <= MATCHING_RMS_RATIO * pf["rms_position_error"]
+                and ekf["failure_rate"] <= pf["failure_rate"])  # fmt: skip
+    ambiguous = along >= MATCHING_AMBIGUITY * across
+    _judge_parts(c, [
+        (accurate, (f"As accurate as the particle filter in the room (RMS at most {MATCHING_RMS_RATIO:g}×, no more "
+                   f"failures): {'yes' if accurate else 'no'};")),
+        (ambiguous, (f"no fix along the corridor (σ along at least {MATCHING_AMBIGUITY:g}× σ across): "
+                    f"{'yes' if ambiguous else 'no'}.")),
+    ])  # fmt: skip
+
 def evaluate_claim(rows: Rows, number: int, studies: Studies | None = None) -> Claim:
-    """Evaluate claim ``number`` from the per-set tables (or, for claims 13–29 and 35–37, the studies' logs).
+    """Evaluate claim ``number`` from the per-set tables (or, for claims 13–29 and 35–38, the studies' logs).
 
     Parameters
     ----------
