@@ -382,7 +382,10 @@ def test_report_section_formats_the_logged_drive_measures(drive_logs, tmp_path: 
         assert _fmt(value, 3) in section, value
     assert "The skid-steer's odometry is not trustworthy in turns." in section
     assert '<a href="#drives">Beyond the differential drive</a>' in html
-    assert section.count('<img src="data:image/webp;base64,') == 1
+    # the drives figure is the set's: drawn once in the report (in set D), the section links to it
+    assert section.count('<img src="data:image/webp;base64,') == 0
+    assert '<a href="#fig-D-set-drives">the figure of set D</a>' in section
+    assert html.count('id="fig-D-set-drives"') == 1
 
 
 def test_a_track_left_to_the_trajectory_is_checked_with_it() -> None:
