@@ -1328,7 +1328,9 @@ def robustness_fails_in_crowds(studies: Studies, c: Claim) -> None:
         drop = a["success_rate"] - b["success_rate"]
         ratio = b["rms_position_error"] / a["rms_position_error"] if a["rms_position_error"] > 0 else math.nan
         fails = drop >= 0.2 or (math.isfinite(ratio) and ratio >= 2.0) or math.isnan(b["rms_position_error"])
-        parts.append((fails, f"{f}: {'fails' if fails else 'holds'} (success −{_g(100 * drop)} points, RMS ×{_g(ratio)});"))
+        sign = "−" if drop > 0 else "+" if drop < 0 else "±"  # the success rate's change with the crowd
+        parts.append((fails, (f"{f}: {'fails' if fails else 'holds'} (success {sign}{_g(100 * abs(drop))} points, "
+                             f"RMS ×{_g(ratio)});")))
         c.numbers.update({f"{f}.success_drop": drop, f"{f}.rms_ratio": ratio})
         texts += [_dyn_text(few, f, "mixture"), _dyn_text(many, f, "mixture")]
     c.measured = (f"{name}: " + "; ".join(texts) + f"; the people block {_g(100 * many['blocked_share'])} % of the "
