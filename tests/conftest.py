@@ -31,7 +31,8 @@ PIPELINE_FIXTURES = {"quick", "quick_report"}
 #: the modules whose tests read the quick pipeline's one build (``test_pipeline.quick_pipeline``, in the
 #: session's base temporary folder, one per process of ``pytest -n``) and run Snakemake in it: on one
 #: process, in turn
-PIPELINE_MODULES = {"test_pipeline", "test_one_source", "test_rebuild_scope", "test_report_browser", "test_slurm"}
+PIPELINE_MODULES = {"test_pipeline", "test_one_source", "test_rebuild_scope", "test_report_browser", "test_robot_pipeline",
+                    "test_slurm"}
 #: modules of a minute or more of work besides the quick pipeline's, handed out first after it (the longest
 #: first, so that the two processes of ``pytest -n 2`` end together)
 LONG_MODULES = ("test_faults", "test_docs", "test_robot_calibration", "test_lint", "test_notebook")

@@ -118,6 +118,7 @@ def test_the_report_section_formats_the_logs(calibrated: tuple[Path, dict]) -> N
     assert '<a href="#your-robot">' in page  # in the contents
 
 
+@pytest.mark.slow  # reads the quick pipeline's build
 def test_the_quick_report_has_the_robot_section(tmp_path_factory: pytest.TempPathFactory) -> None:
     from test_pipeline import _config, quick_pipeline
 

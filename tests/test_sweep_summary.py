@@ -94,6 +94,7 @@ def test_the_report_shows_the_summary_and_links_the_table_instead_of_every_run(b
     assert "Sobol indices" in html
 
 
+@pytest.mark.slow  # a Snakemake dry run of the 200-run sweep
 def test_the_summary_counts_the_chunk_jobs_and_the_summary_job(tmp_path: Path) -> None:
     work = copy_workflow(tmp_path / "w")
     jobs = _planned_jobs(snakemake(work, "--configfile", "config/sweep200.yaml", "--dry-run"))
