@@ -46,6 +46,7 @@ from pose_uncertainty.methods import sampling as sp
 from pose_uncertainty.methods.particles import CHUNK_ELEMENTS
 
 from ._common import write_results
+from .bench_foundation import _loop_particle
 
 N_PARTICLES = 1_000_000
 K = 5e-4
@@ -81,17 +82,9 @@ def numpy_loop(t: tr.Trajectory, k: float, n: int, rng: np.random.Generator) -> 
 
 
 def python_loop(t: tr.Trajectory, k: float, n: int, rng: np.random.Generator) -> None:
-    """One particle, one step at a time, in plain Python floats."""
-    b = t.track
+    """``n`` particles, each one step at a time in plain Python floats (bench_foundation's loop)."""
     for _ in range(n):
-        x = y = th = 0.0
-        for sr, sl in zip(t.ds_r.tolist(), t.ds_l.tolist(), strict=True):
-            r = sr + math.sqrt(k * abs(sr)) * rng.standard_normal()
-            l = sl + math.sqrt(k * abs(sl)) * rng.standard_normal()
-            ds, dth = (r + l) / 2, (r - l) / b
-            x += ds * math.cos(th + dth / 2)
-            y += ds * math.sin(th + dth / 2)
-            th += dth
+        _loop_particle(t, k, rng)
 
 
 def _best(fn: Callable[[], Any], repeat: int = REPEATS) -> tuple[float, float]:

@@ -218,3 +218,14 @@ def interruptible(argv: list[str]) -> list[str]:
     ``preexec_fn``, which is unsafe in a threaded test process).
     """
     return [sys.executable, "-c", _DEFAULT_SIGINT, *argv]
+
+
+def interrupt(proc: subprocess.Popen) -> None:
+    """Stop a child started with :func:`interruptible` as Ctrl-C does (SIGINT), killing it if it has
+    not exited 20 s later; its output is read to the end either way."""
+    proc.send_signal(signal.SIGINT)
+    try:
+        proc.communicate(timeout=20)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.communicate()

@@ -12,14 +12,13 @@ from __future__ import annotations
 
 import os
 import re
-import signal
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
-from hostile import interruptible
+from hostile import interrupt, interruptible
 
 from pose_uncertainty.analysis.accuracy import coverage_ellipse, pr_label
 from pose_uncertainty.cli import main
@@ -213,12 +212,7 @@ def test_server_binds_loopback_by_default() -> None:
         port = int(m.group(1))
         assert _listening(proc.pid) == [("127.0.0.1", port)]
     finally:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.communicate(timeout=20)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.communicate()
+        interrupt(proc)
     assert proc.returncode == 130  # interrupted: the CLI's status for SIGINT
 
 

@@ -13,7 +13,6 @@ import contextlib
 import json
 import os
 import re
-import signal
 import subprocess
 import sys
 import time
@@ -24,7 +23,7 @@ from typing import Any
 import numpy as np
 import pytest
 from browser import CDP, open_chromium
-from hostile import interruptible
+from hostile import interrupt, interruptible
 
 from pose_uncertainty.cli import main
 from pose_uncertainty.present import explore
@@ -88,12 +87,7 @@ def explorer_page(
             cdp.wait_event("Page.loadEventFired", timeout=60)
             yield cdp, url
     finally:
-        server.send_signal(signal.SIGINT)
-        try:
-            server.communicate(timeout=20)
-        except subprocess.TimeoutExpired:
-            server.kill()
-            server.communicate()
+        interrupt(server)
 
 
 def _evaluate(cdp: CDP, expression: str) -> Any:
