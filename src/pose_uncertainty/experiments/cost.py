@@ -545,14 +545,20 @@ def chunk_resources(configs: Sequence[Mapping[str, Any]]) -> dict[str, int]:
     """
     if not configs:
         raise ValueError("a chunk needs at least one run configuration, got none")
-    memo: dict[str, Cost] = {}
     costs = []
     for config in configs:
         key = json.dumps({k: v for k, v in config.items() if k not in _NOT_COSTED}, sort_keys=True, default=repr)
-        if key not in memo:
-            memo[key] = estimate(config)
-        costs.append(memo[key])
+        if key not in _CHUNK_COSTS:
+            if len(_CHUNK_COSTS) >= 4096:
+                _CHUNK_COSTS.clear()
+            _CHUNK_COSTS[key] = estimate(config)
+        costs.append(_CHUNK_COSTS[key])
     return resources_of(Cost(max(c.mem_bytes for c in costs), math.fsum(c.seconds for c in costs), ()))
+
+
+#: :func:`estimate` of each run configuration seen by :func:`chunk_resources`, by the JSON text of its
+#: costed keys (a sweep's chunks repeat a few trajectories over and over).
+_CHUNK_COSTS: dict[str, Cost] = {}
 
 
 def resources_of(cost: Cost) -> dict[str, int]:

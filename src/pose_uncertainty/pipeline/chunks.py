@@ -52,12 +52,24 @@ def chunk_runs(runs: Sequence[T], runs_per_job: int) -> list[list[T]]:
     return [list(runs[i:i + runs_per_job]) for i in range(0, len(runs), runs_per_job)]
 
 
-def _leaves(value: Any, path: tuple[str, ...], out: dict[tuple[str, ...], Any]) -> None:
-    if isinstance(value, Mapping) and value:
-        for k, v in value.items():
-            _leaves(v, (*path, str(k)), out)
-    else:
-        out[path] = value
+_Leaves = dict[tuple[str, ...], Any]
+
+
+def _leaves(value: Mapping[str, Any], path: tuple[str, ...], out: _Leaves) -> _Leaves:
+    """The leaves of a mapping into ``out``, by their key paths (a function call per mapping, not per leaf)."""
+    for k, v in value.items():
+        p = (*path, str(k))
+        if v and (type(v) is dict or isinstance(v, Mapping)):
+            _leaves(v, p, out)
+        else:
+            out[p] = v
+    return out
+
+
+def _delta(a: _Leaves, b: _Leaves) -> list[list[Any]] | None:
+    if a.keys() != b.keys():
+        return None
+    return [[*p, v] for p, v in b.items() if a[p] != v or type(a[p]) is not type(v)]
 
 
 def config_delta(base: Mapping[str, Any], config: Mapping[str, Any]) -> list[list[Any]] | None:
@@ -66,13 +78,7 @@ def config_delta(base: Mapping[str, Any], config: Mapping[str, Any]) -> list[lis
     A leaf is a value that is not a non-empty mapping (a number, a string, a list, ``{}``).
     ``None`` when the two configurations do not have the same leaves (then the run is given in full).
     """
-    a: dict[tuple[str, ...], Any] = {}
-    b: dict[tuple[str, ...], Any] = {}
-    _leaves(base, (), a)
-    _leaves(config, (), b)
-    if a.keys() != b.keys():
-        return None
-    return [[*p, v] for p, v in b.items() if a[p] != v or type(a[p]) is not type(v)]
+    return _delta(_leaves(base, (), {}), _leaves(config, (), {}))
 
 
 def chunk_spec(configs: Sequence[Mapping[str, Any]], logs: Sequence[str], timings: Sequence[str],
@@ -97,13 +103,16 @@ def chunk_spec(configs: Sequence[Mapping[str, Any]], logs: Sequence[str], timing
         raise ValueError(f"a chunk needs one log and one timings file per run, got {len(configs)} runs, "
                          f"{len(logs)} logs and {len(timings)} timings files")  # fmt: skip
     bases: list[dict[str, Any]] = []
+    base_leaves: list[_Leaves] = []  # each base's leaves, found once
     runs: list[dict[str, Any]] = []
     for config, log, tim in zip(configs, logs, timings, strict=True):
-        found = next(((b, d) for b, d in ((b, config_delta(base, config)) for b, base in enumerate(bases)) if d is not None),
+        leaves = _leaves(config, (), {})
+        found = next(((b, d) for b, d in ((b, _delta(a, leaves)) for b, a in enumerate(base_leaves)) if d is not None),
                      None)  # fmt: skip
         if found is None:
             found = (len(bases), [])
             bases.append(dict(config))
+            base_leaves.append(leaves)
         runs.append({"log": log, "timings": tim, "base": found[0], "delta": found[1]})
     return {"kind": kind, "bases": bases, "runs": runs}
 
