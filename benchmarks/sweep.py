@@ -113,8 +113,13 @@ def _job_times(work: Path) -> tuple[int, float, float]:
 
 
 def _runs_total_s(work: Path) -> tuple[int, float]:
-    timings = list((work / "data/runs").rglob("*.timings.json"))
-    return len(timings), sum(float(json.loads(t.read_text(encoding="utf-8"))["total_s"]) for t in timings)
+    """The runs and their summed computing time [s]: each run's timings file, or its chunk's (every run's
+    timings under ``runs``; ``pose_uncertainty.pipeline.chunks.read_timings``)."""
+    runs = []
+    for t in (work / "data/runs").rglob("*.timings.json"):
+        data = json.loads(t.read_text(encoding="utf-8"))
+        runs.extend(data["runs"].values() if isinstance(data.get("runs"), dict) else [data])
+    return len(runs), sum(float(r["total_s"]) for r in runs)
 
 
 def measure(work: Path, cores: int, dag_only: bool = False) -> dict[str, Any]:

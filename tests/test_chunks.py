@@ -16,6 +16,7 @@ import pytest
 import yaml
 from test_pipeline import SCHEMA, _config, _planned_jobs, copy_workflow, snakemake
 
+from pose_uncertainty.core.table_io import read_table
 from pose_uncertainty.experiments import sweep
 from pose_uncertainty.pipeline import chunks
 
@@ -61,6 +62,38 @@ def test_config_delta_lists_the_differing_leaves_and_gives_up_on_different_shape
     assert chunks.config_delta(base, {**base, "k_r": 1}) == [["k_r", 1]]  # an int where a float was
 
 
+def test_a_runs_timings_are_read_from_its_own_file_or_from_its_chunks(tmp_path: Path) -> None:
+    own = tmp_path / "a.timings.json"
+    own.write_text(json.dumps({"propagate_s": 0.5, "total_s": 1.25}), encoding="utf-8")
+    chunk = tmp_path / "chunks" / "0.timings.json"
+    chunk.parent.mkdir()
+    chunk.write_text(json.dumps({"runs": {"a.mcap": {"propagate_s": 0.5, "total_s": 1.25}, "b.mcap": {"total_s": 2.0}}}), encoding="utf-8")
+    assert chunks.read_timings(own, tmp_path / "a.mcap") == {"propagate_s": 0.5, "total_s": 1.25}
+    # a run's key in its chunk's file is its log's name, wherever the log is named from
+    assert chunks.read_timings(chunk, "data/runs/S/b.mcap") == {"total_s": 2.0}
+    assert chunks.read_timings(str(chunk), tmp_path / "a.mcap") == chunks.read_timings(own, "a.mcap")
+    assert chunks.read_timings(None, "a.mcap") is None
+    assert chunks.read_timings(tmp_path / "missing.json", "a.mcap") is None
+    with pytest.raises(KeyError, match=r"holds no run 'c\.mcap'"):
+        chunks.read_timings(chunk, "c.mcap")
+    # rewritten (a rerun chunk): read again, not the first reading kept
+    chunk.write_text(json.dumps({"runs": {"b.mcap": {"total_s": 3.0, "propagate_s": 1.0}}}), encoding="utf-8")
+    assert chunks.read_timings(chunk, "b.mcap") == {"propagate_s": 1.0, "total_s": 3.0}
+
+
+def test_a_chunk_spec_names_the_chunks_timings_file_or_each_runs() -> None:
+    configs = [{"k_r": 1.0, "name": "a"}, {"k_r": 2.0, "name": "b"}]
+    spec = chunks.chunk_spec(configs, ["a.mcap", "b.mcap"], None, chunk_timings="chunks/0.timings.json")
+    assert spec["timings"] == "chunks/0.timings.json"
+    assert all("timings" not in r for r in spec["runs"])
+    assert chunks.run_configs(spec) == configs
+    spec = chunks.chunk_spec(configs, ["a.mcap", "b.mcap"], ["a.json", "b.json"])
+    assert "timings" not in spec
+    assert [r["timings"] for r in spec["runs"]] == ["a.json", "b.json"]
+    with pytest.raises(ValueError, match=r"one log .* per run, got 2 runs, 2 logs and 1 timings files"):
+        chunks.chunk_spec(configs, ["a.mcap", "b.mcap"], ["a.json"])
+
+
 @pytest.mark.parametrize("bad", [0, -1, 10_001, 2.0, True, "3"])
 def test_runs_per_job_out_of_range_is_refused_naming_the_value(bad: object) -> None:
     with pytest.raises(ValueError, match=r"runs_per_job must be an integer in \[1, 10000\], got"):
@@ -89,6 +122,17 @@ def test_chunked_logs_equal_one_run_per_job_and_a_change_reruns_only_its_chunk(t
     assert len(logs) == 6
     assert _logs(batched) == logs  # the same bytes through either layout
     assert sorted(p.name for p in (batched / "data/benchmarks/simulate_chunk/S").iterdir()) == ["0.tsv", "1.tsv"]
+    # the timings: a file per run, or one per chunk holding its runs'; the tables read either
+    assert sorted(p.name for p in (single / "data/runs/S").glob("*.timings.json")) == [f"{r}.timings.json" for r in "abcdef"]
+    assert not list((batched / "data/runs/S").glob("*.timings.json"))
+    held = [json.loads((batched / f"data/runs/S/chunks/{i}.timings.json").read_text(encoding="utf-8"))["runs"] for i in (0, 1)]
+    assert [sorted(h) for h in held] == [["a.mcap", "b.mcap", "c.mcap"], ["d.mcap", "e.mcap", "f.mcap"]]
+    assert all(h[r].keys() == json.loads((single / f"data/runs/S/{r[0]}.timings.json").read_text(encoding="utf-8")).keys()
+               for h in held for r in h)  # fmt: skip
+    rows = {name: read_table(work / table) for name, work in (("single", single), ("batched", batched))}
+    assert all(row["time_total"] > 0 for rs in rows.values() for row in rs)
+    untimed = {name: [{k: v for k, v in row.items() if not k.startswith("time_")} for row in rs] for name, rs in rows.items()}
+    assert untimed["batched"] == untimed["single"]  # wall clock apart, one table
 
     # nothing to do when nothing changed; one run changed: its chunk alone, then its table
     args = ("--dry-run", "--configfile", "config/tiny.yaml", "--config", "runs_per_job=3")  # targets first

@@ -82,10 +82,36 @@ RUNS_PER_JOB = config["runs_per_job"]
 CHUNKS = {s: _chunks.chunk_runs(RUNS[s], RUNS_PER_JOB) for s in SETS} if RUNS_PER_JOB > 1 else {}
 
 
+def chunk_timings(set_name, i):
+    """The timings file of chunk ``i`` of a set: every run's timings, written by its job after its last log
+    (pose_uncertainty.pipeline.chunks.read_timings reads a run's)."""
+    return f"data/runs/{set_name}/chunks/{i}.timings.json"
+
+
+# each chunked run's chunk
+RUN_CHUNK = {(s, r.id): i for s, parts in CHUNKS.items() for i, part in enumerate(parts) for r in part}
+
+
+def runs_made(set_name, timings=False):
+    """What a job that reads every log of a set (and with ``timings`` every run's timings) waits for.
+
+    One job per run: those files. In chunks: each chunk's timings file (:func:`chunk_timings`), the
+    first output of its rule, so that Snakemake resolves a set of 10⁴ runs by 100 files, not by 2·10⁴
+    of them matched against the chunks' explicit outputs one by one. A missing log still reruns its
+    chunk (a job whose output is missing runs again), and a rerun chunk rewrites its timings file,
+    which reruns its readers. The jobs read the files themselves from their params (``logs``,
+    ``timings``).
+    """
+    if RUNS_PER_JOB > 1:
+        return [chunk_timings(set_name, i) for i in range(len(CHUNKS[set_name]))]
+    return [*run_logs(set_name), *(run_timings(set_name) if timings else [])]
+
+
 def chunk_job_spec(runs):
-    """The JSON argument of the job that executes ``runs`` (pose_uncertainty.pipeline.chunks.chunk_spec)."""
-    return _json.dumps(_chunks.chunk_spec([r.config for r in runs], [r.path for r in runs],
-                                          [run_timing(r) for r in runs]), allow_nan=False)
+    """The JSON argument of the job that executes ``runs``, a chunk (pose_uncertainty.pipeline.chunks.chunk_spec):
+    their logs and the chunk's timings file."""
+    return _json.dumps(_chunks.chunk_spec([r.config for r in runs], [r.path for r in runs], None,
+                                          chunk_timings=run_timing(runs[0])), allow_nan=False)
 
 
 def chunk_resources(runs):
@@ -108,6 +134,9 @@ def run_resources(wildcards):
 
 
 def run_timing(run):
+    """The file that holds a run's timings: its own (one job per run) or its chunk's (:func:`chunk_timings`)."""
+    if RUNS_PER_JOB > 1:
+        return chunk_timings(run.set, RUN_CHUNK[(run.set, run.id)])
     return f"data/runs/{run.set}/{run.id}.timings.json"
 
 
@@ -116,6 +145,13 @@ def run_benchmarks(set_name):
     if RUNS_PER_JOB > 1:
         return [f"data/benchmarks/simulate_chunk/{set_name}/{i}.tsv" for i in range(len(CHUNKS[set_name]))]
     return [f"data/benchmarks/simulate_run/{set_name}/{r.id}.tsv" for r in RUNS[set_name]]
+
+
+def run_benchmarks_made(set_name):
+    """What a job that reads :func:`run_benchmarks` waits for: the files, or in chunks the chunks' timings files
+    (a benchmark file comes after a chunk's every output in Snakemake's search for its producer; the job
+    has written it when Snakemake sees the chunk's outputs)."""
+    return runs_made(set_name) if RUNS_PER_JOB > 1 else run_benchmarks(set_name)
 
 
 wildcard_constraints:
@@ -152,6 +188,7 @@ def run_logs(set_name):
 
 
 def run_timings(set_name):
+    """Each run's timings file (:func:`run_timing`), in the set's order."""
     return [run_timing(r) for r in RUNS[set_name]]
 
 
@@ -242,11 +279,12 @@ def studies_json(wildcards=None):
     return ["reports/studies.json"] if STUDIES else []
 
 
-def all_benchmarks(wildcards=None):
-    """Benchmark files of every job the summary depends on (per-rule times in the report)."""
+def all_benchmarks(wildcards=None, made=False):
+    """Benchmark files of every job the summary depends on (per-rule times in the report); with ``made``
+    what the summary waits for (:func:`run_benchmarks_made`: the chunks' timings files for theirs)."""
     out = []
     for s in SETS:
-        out.extend(run_benchmarks(s))
+        out.extend(run_benchmarks_made(s) if made else run_benchmarks(s))
         for kind in set_figures(s):
             out.append(f"data/benchmarks/render_{kind}_figure/{s}.tsv")
         out.append(f"data/benchmarks/{'summarize_sweep' if summarized(s) else 'render_run_figures'}/{s}.tsv")

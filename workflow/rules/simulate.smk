@@ -1,7 +1,8 @@
 # One run → one MCAP log (byte-reproducible) + its wall-clock timings (pose_uncertainty.cli.job).
 # runs_per_job = 1: one job per run (rule simulate_run); above 1: one job per chunk of a set's runs
-# (rules simulate_chunk_<set>_<i>, one process each, the same logs byte for byte). A log is requested
-# by its file either way; in a chunk, its chunk's job makes it.
+# (rules simulate_chunk_<set>_<i>, one process each, the same logs byte for byte, and one timings file
+# for the chunk's runs: half the files for Snakemake to track). A log is requested by its file either
+# way; in a chunk, its chunk's job makes it.
 
 if RUNS_PER_JOB == 1:
 
@@ -34,8 +35,9 @@ for _set, _set_chunks in CHUNKS.items():
             name:
                 f"simulate_chunk_{_set}_{_i}"
             output:
+                # first: what the readers of a chunked set wait for (common.smk, runs_made)
+                timings=chunk_timings(_set, _i),
                 logs=[r.path for r in _runs],
-                timings=[run_timing(r) for r in _runs],
             params:
                 spec=chunk_job_spec(_runs),
                 source=SOURCE_JOB,
