@@ -18,7 +18,11 @@ from snakemake.logging import logger as _logger
 _logger.info(_scheduler.install()[1])
 
 
-configfile: "config/config.yaml"
+# config/config.yaml, unless a config file given on the command line replaces it
+# (workflow/rules/common.smk): then it is not read at all (Snakemake reads YAML in pure Python, 0.2 s).
+if not workflow.overwrite_configfiles:
+
+    configfile: "config/config.yaml"
 
 
 report: "workflow/report/workflow.rst"

@@ -7,8 +7,6 @@ from pathlib import Path
 
 from pose_uncertainty.experiments import sweep as _sweep
 from pose_uncertainty.pipeline import chunks as _chunks
-from pose_uncertainty.experiments import localization as _loc
-from pose_uncertainty.experiments import study as _study
 from pose_uncertainty.core.provenance import closure_sha256, imports_of
 from pose_uncertainty.core.schema import load_schema
 from pose_uncertainty.present.study_figures import STUDY_FIGURE_KEYS as _STUDY_FIGURE_KEYS
@@ -44,14 +42,16 @@ config.update(_validated)  # in place: every default filled in
 
 RUNS = _sweep.expand_all(config)  # {set: [Run, ...]}
 
-# the studies: name -> (kind, every parameter), validated like the runs
-try:
-    STUDIES = {
-        name: _study.study_params(name, spec)
-        for name, spec in (config["studies"]["runs"] if config["studies"]["enabled"] else {}).items()
-    }
-except ValueError as _exc:
-    raise WorkflowError(f"invalid config: {_exc}") from None
+# the studies: name -> (kind, every parameter), validated like the runs (their modules imported only
+# when studies are enabled: a sweep's config turns them off, and its DAG build does not pay for them)
+STUDIES = {}
+if config["studies"]["enabled"]:
+    from pose_uncertainty.experiments import study as _study
+
+    try:
+        STUDIES = {name: _study.study_params(name, spec) for name, spec in config["studies"]["runs"].items()}
+    except ValueError as _exc:
+        raise WorkflowError(f"invalid config: {_exc}") from None
 
 # The source each rule runs (its param `source`): the hash of the import closure of the package modules
 # it executes (pose_uncertainty.core.provenance.closure_sha256). Snakemake reruns a rule when that code
@@ -343,10 +343,14 @@ def polar_logs(wildcards):
 # --- localization (pose_uncertainty.experiments.localization): its sets, runs, outputs --------------------
 # Config key `localization.sets`: sweeps over localization run configurations, expanded like the
 # experiment sets; logs in data/localization/<set>/<run>.mcap, rules in workflow/rules/localization.smk.
-try:
-    LOC_RUNS = _loc.expand_localization(config)  # {set: [Run, ...]}
-except _sweep.ConfigError as _exc:
-    raise WorkflowError(f"invalid config: {_exc}") from None
+LOC_RUNS = {}  # {set: [Run, ...]}; the localization modules imported only when it is enabled
+if config["localization"]["enabled"]:
+    from pose_uncertainty.experiments import localization as _loc
+
+    try:
+        LOC_RUNS = _loc.expand_localization(config)
+    except _sweep.ConfigError as _exc:
+        raise WorkflowError(f"invalid config: {_exc}") from None
 LOC_BY_ID = {(s, r.id): r for s, runs in LOC_RUNS.items() for r in runs}
 LOC_SETS = list(LOC_RUNS)
 LOC_RUN_FIGURES = ("paths", "errors", "nees")
