@@ -76,49 +76,68 @@ RUN_BY_ID = {(s, r.id): r for s, runs in RUNS.items() for r in runs}
 SETS = list(RUNS)
 
 # Config key `runs_per_job` (pose_uncertainty.experiments.pipeline_keys): 1 runs each run as a job of its own
-# (rule simulate_run); above 1 each set's runs are cut, in order, into chunks of at most that many, one
-# job (and one SLURM job) each: the rules simulate_chunk_<set>_<i> of workflow/rules/simulate.smk.
+# (rules simulate_run, simulate_localization); above 1 each set's runs are cut, in order, into chunks of at
+# most that many, one job (and one SLURM job) each: the rules simulate_chunk_<set>_<i> and
+# simulate_localization_chunk_<set>_<i> of workflow/rules/simulate.smk.
 RUNS_PER_JOB = config["runs_per_job"]
 CHUNKS = {s: _chunks.chunk_runs(RUNS[s], RUNS_PER_JOB) for s in SETS} if RUNS_PER_JOB > 1 else {}
 
 
-def chunk_timings(set_name, i):
-    """The timings file of chunk ``i`` of a set: every run's timings, written by its job after its last log
-    (pose_uncertainty.pipeline.chunks.read_timings reads a run's)."""
-    return f"data/runs/{set_name}/chunks/{i}.timings.json"
+def chunk_timings(set_name, i, localization=False):
+    """The timings file of chunk ``i`` of a set (of localization runs with ``localization``): every run's
+    timings, written by its job after its last log (pose_uncertainty.pipeline.chunks.read_timings reads a run's)."""
+    return f"data/{'localization' if localization else 'runs'}/{set_name}/chunks/{i}.timings.json"
 
 
 # each chunked run's chunk
 RUN_CHUNK = {(s, r.id): i for s, parts in CHUNKS.items() for i, part in enumerate(parts) for r in part}
 
 
-def runs_made(set_name, timings=False):
-    """What a job that reads every log of a set (and with ``timings`` every run's timings) waits for.
+def runs_made(set_name, timings=False, localization=False):
+    """What a job that reads every log of a set (and with ``timings`` every run's timings) waits for; with
+    ``localization``, of a localization set.
 
     One job per run: those files. In chunks: each chunk's timings file (:func:`chunk_timings`), the
     first output of its rule, so that Snakemake resolves a set of 10⁴ runs by 100 files, not by 2·10⁴
-    of them matched against the chunks' explicit outputs one by one. A missing log still reruns its
-    chunk (a job whose output is missing runs again), and a rerun chunk rewrites its timings file,
-    which reruns its readers. The jobs read the files themselves from their params (``logs``,
-    ``timings``).
+    of them matched against the chunks' explicit outputs one by one; a rerun chunk rewrites its
+    timings file, which reruns its readers. Snakemake reruns a job for a missing output only when a
+    reader asks for that output, so the log of a finished chunk (its timings file there) that is
+    missing since is asked for too (:func:`_missing_logs`): its chunk runs again. The jobs read the
+    files themselves from their params (``logs``, ``timings``).
     """
     if RUNS_PER_JOB > 1:
-        return [chunk_timings(set_name, i) for i in range(len(CHUNKS[set_name]))]
-    return [*run_logs(set_name), *(run_timings(set_name) if timings else [])]
+        parts = (LOC_CHUNKS if localization else CHUNKS)[set_name]
+        out = [chunk_timings(set_name, i, localization) for i in range(len(parts))]
+        return out + _missing_logs(set_name, localization)
+    logs, tims = (localization_logs, localization_timings) if localization else (run_logs, run_timings)
+    return [*logs(set_name), *(tims(set_name) if timings else [])]
 
 
-def chunk_job_spec(runs):
-    """The JSON argument of the job that executes ``runs``, a chunk (pose_uncertainty.pipeline.chunks.chunk_spec):
-    their logs and the chunk's timings file."""
-    return _json.dumps(_chunks.chunk_spec([r.config for r in runs], [r.path for r in runs], None,
-                                          chunk_timings=run_timing(runs[0])), allow_nan=False)
+@_functools.cache
+def _missing_logs(set_name, localization):
+    """The logs of a set's finished chunks (their timings files exist) that do not exist: one listing of
+    the set's folder when its workflow is read (none for a chunk not yet made, as in a first build)."""
+    parts = (LOC_CHUNKS if localization else CHUNKS)[set_name]
+    done = [i for i in range(len(parts)) if os.path.exists(chunk_timings(set_name, i, localization))]
+    if not done:
+        return []
+    folder = f"data/{'localization' if localization else 'runs'}/{set_name}"
+    present = {e.name for e in os.scandir(folder)} if os.path.isdir(folder) else set()
+    return [f"{folder}/{r.id}.mcap" for i in done for r in parts[i] if f"{r.id}.mcap" not in present]
 
 
-def chunk_resources(runs):
+def chunk_job_spec(runs, logs, timings, kind="run"):
+    """The JSON argument of the job that executes ``runs``, a chunk of ``kind`` (run or localization) with
+    their ``logs`` and the chunk's ``timings`` file (pose_uncertainty.pipeline.chunks.chunk_spec)."""
+    return _json.dumps(_chunks.chunk_spec([r.config for r in runs], logs, None, kind=kind, chunk_timings=timings),
+                       allow_nan=False)
+
+
+def chunk_resources(runs, kind="run"):
     """A chunk's cluster resources: the largest memory and the summed time of its runs' estimates."""
     from pose_uncertainty.experiments import cost as _cost
 
-    return _cost.chunk_resources([r.config for r in runs])
+    return _cost.chunk_resources([r.config for r in runs], kind)
 
 
 @_functools.cache
@@ -292,7 +311,7 @@ def all_benchmarks(wildcards=None, made=False):
     out.append("data/benchmarks/evaluate_claims/all.tsv")
     out.extend(f"data/benchmarks/run_study/{name}.tsv" for name in STUDIES)
     out.extend(f"data/benchmarks/render_study_figure/{Path(f).stem}.tsv" for f in studies_figures().values())
-    out.extend(localization_benchmarks())
+    out.extend(localization_benchmarks(made))
     out.extend(robot_benchmarks())  # workflow/rules/robots.smk
     return out
 
@@ -353,6 +372,9 @@ if config["localization"]["enabled"]:
         raise WorkflowError(f"invalid config: {_exc}") from None
 LOC_BY_ID = {(s, r.id): r for s, runs in LOC_RUNS.items() for r in runs}
 LOC_SETS = list(LOC_RUNS)
+# chunks of localization runs (config key runs_per_job, as the dead-reckoning runs), and each run's chunk
+LOC_CHUNKS = {s: _chunks.chunk_runs(LOC_RUNS[s], RUNS_PER_JOB) for s in LOC_SETS} if RUNS_PER_JOB > 1 else {}
+LOC_RUN_CHUNK = {(s, r.id): i for s, parts in LOC_CHUNKS.items() for i, part in enumerate(parts) for r in part}
 LOC_RUN_FIGURES = ("paths", "errors", "nees")
 
 
@@ -390,8 +412,16 @@ def localization_logs(set_name):
     return [localization_log(set_name, r.id) for r in LOC_RUNS[set_name]]
 
 
+def localization_timing(set_name, run_id):
+    """The file that holds a localization run's timings: its own (one job per run) or its chunk's."""
+    if RUNS_PER_JOB > 1:
+        return chunk_timings(set_name, LOC_RUN_CHUNK[(set_name, run_id)], localization=True)
+    return f"data/localization/{set_name}/{run_id}.timings.json"
+
+
 def localization_timings(set_name):
-    return [f"data/localization/{set_name}/{r.id}.timings.json" for r in LOC_RUNS[set_name]]
+    """Each localization run's timings file (:func:`localization_timing`), in the set's order."""
+    return [localization_timing(set_name, r.id) for r in LOC_RUNS[set_name]]
 
 
 def localization_run_figures(set_name, run_id):
@@ -422,11 +452,16 @@ def localization_table_names():
     return [f"localization/{s}" for s in LOC_SETS]
 
 
-def localization_benchmarks():
+def localization_benchmarks(made=False):
+    """Benchmark files of the localization jobs; with ``made`` what the summary waits for (all_benchmarks)."""
     out = []
     for s in LOC_SETS:
-        for r in LOC_RUNS[s]:
-            out.append(f"data/benchmarks/simulate_localization/{s}/{r.id}.tsv")
+        if made and RUNS_PER_JOB > 1:  # the chunks' timings files (see run_benchmarks_made)
+            out.extend(runs_made(s, localization=True))
+        elif RUNS_PER_JOB > 1:
+            out.extend(f"data/benchmarks/simulate_localization_chunk/{s}/{i}.tsv" for i in range(len(LOC_CHUNKS[s])))
+        else:
+            out.extend(f"data/benchmarks/simulate_localization/{s}/{r.id}.tsv" for r in LOC_RUNS[s])
         out.append(f"data/benchmarks/render_localization_figures/{s}.tsv")
         out.extend(f"data/benchmarks/render_localization_set_figure/{s}/{p}.tsv" for p in localization_set_figures(s))
         out.append(f"data/benchmarks/collect_localization_metrics/{s}.tsv")

@@ -26,26 +26,30 @@ if RUNS_PER_JOB == 1:
             "{JOB} simulate-run {params.config:q} {output.log:q} {output.timings:q} 2> {log:q}"
 
 
-# One rule per chunk (its outputs are its runs' files, which no wildcard can spell). Its params are its
-# runs' configurations: a changed run changes its chunk's params alone, so only that chunk reruns.
-for _set, _set_chunks in CHUNKS.items():
-    for _i, _runs in enumerate(_set_chunks):
+# One rule per chunk (its outputs are its runs' files, which no wildcard can spell), of dead-reckoning runs
+# and of localization runs alike. Its params are its runs' configurations: a changed run changes its
+# chunk's params alone, so only that chunk reruns.
+for _kind, _prefix, _all_chunks in (("run", "simulate_chunk", CHUNKS), ("localization", "simulate_localization_chunk", LOC_CHUNKS)):
+    for _set, _set_chunks in _all_chunks.items():
+        for _i, _runs in enumerate(_set_chunks):
+            _logs = [r.path for r in _runs] if _kind == "run" else [localization_log(_set, r.id) for r in _runs]
+            _timings = chunk_timings(_set, _i, localization=_kind == "localization")
 
-        rule:
-            name:
-                f"simulate_chunk_{_set}_{_i}"
-            output:
-                # first: what the readers of a chunked set wait for (common.smk, runs_made)
-                timings=chunk_timings(_set, _i),
-                logs=[r.path for r in _runs],
-            params:
-                spec=chunk_job_spec(_runs),
-                source=SOURCE_JOB,
-            resources:
-                **chunk_resources(_runs),
-            log:
-                f"logs/simulate_chunk/{_set}/{_i}.log",
-            benchmark:
-                f"data/benchmarks/simulate_chunk/{_set}/{_i}.tsv"
-            shell:
-                "{JOB} simulate-chunk {params.spec:q} 2> {log:q}"
+            rule:
+                name:
+                    f"{_prefix}_{_set}_{_i}"
+                output:
+                    # first: what the readers of a chunked set wait for (common.smk, runs_made)
+                    timings=_timings,
+                    logs=_logs,
+                params:
+                    spec=chunk_job_spec(_runs, _logs, _timings, _kind),
+                    source=SOURCE_JOB,
+                resources:
+                    **chunk_resources(_runs, _kind),
+                log:
+                    f"logs/{_prefix}/{_set}/{_i}.log",
+                benchmark:
+                    f"data/benchmarks/{_prefix}/{_set}/{_i}.tsv"
+                shell:
+                    "{JOB} simulate-chunk {params.spec:q} 2> {log:q}"

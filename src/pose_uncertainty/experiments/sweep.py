@@ -275,7 +275,7 @@ def _deep_merge(a: Mapping[str, Any], b: Mapping[str, Any]) -> dict[str, Any]:
         if isinstance(v, Mapping) and isinstance(out.get(k), Mapping):
             out[k] = _deep_merge(out[k], v)
         else:
-            out[k] = copy.deepcopy(v)
+            out[k] = plain_copy(v)
     return out
 
 
