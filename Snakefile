@@ -18,11 +18,8 @@ from snakemake.logging import logger as _logger
 _logger.info(_scheduler.install()[1])
 
 
-# config/config.yaml, unless a config file given on the command line replaces it
-# (workflow/rules/common.smk): then it is not read at all (Snakemake reads YAML in pure Python, 0.2 s).
-if not workflow.overwrite_configfiles:
-
-    configfile: "config/config.yaml"
+# The config: config/config.yaml, read by workflow/rules/common.smk (not by `configfile:`), unless a
+# --configfile replaces it.
 
 
 report: "workflow/report/workflow.rst"
