@@ -18,7 +18,8 @@ from snakemake.logging import logger as _logger
 _logger.info(_scheduler.install()[1])
 
 
-configfile: "config/config.yaml"
+# The config: config/config.yaml, read by workflow/rules/common.smk (not by `configfile:`), unless a
+# --configfile replaces it.
 
 
 report: "workflow/report/workflow.rst"

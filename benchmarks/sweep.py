@@ -10,12 +10,13 @@ is built from scratch in a temporary copy of the workflow twice, timed in the sa
 
 Per layout:
 
-* ``dag_build_s`` — wall clock of ``snakemake --dry-run`` (parse the workflow, expand the sweep, build
-  the graph of jobs), before anything exists;
+* ``dag_build_s``, ``dag_build_cpu_s`` — wall clock and CPU time of ``snakemake --dry-run`` (parse the
+  workflow, expand the sweep, build the graph of jobs), before anything exists;
 * ``wall_s``, ``cpu_s`` — the build from scratch (``--cores``, default 2): wall clock, and user +
   system CPU of Snakemake and every process it started;
 * ``peak_rss_mb`` — the largest resident set of any one of those processes;
-* ``no_op_s`` — the same command again, with nothing to do;
+* ``no_op_s``, ``no_op_cpu_s`` — the same command again, with nothing to do (``no_op_load_1min``: the
+  load average before it);
 * ``jobs`` — the simulation jobs (what a cluster would be sent);
 * ``per_run_overhead_ms`` — the simulation jobs' summed CPU time (Snakemake's ``benchmark:``
   files) minus the runs' own computing time (each run's ``total_s`` in its timings file), per run:
@@ -113,18 +114,24 @@ def _job_times(work: Path) -> tuple[int, float, float]:
 
 
 def _runs_total_s(work: Path) -> tuple[int, float]:
-    timings = list((work / "data/runs").rglob("*.timings.json"))
-    return len(timings), sum(float(json.loads(t.read_text(encoding="utf-8"))["total_s"]) for t in timings)
+    """The runs and their summed computing time [s]: each run's timings file, or its chunk's (every run's
+    timings under ``runs``; ``pose_uncertainty.pipeline.chunks.read_timings``)."""
+    runs = []
+    for t in (work / "data/runs").rglob("*.timings.json"):
+        data = json.loads(t.read_text(encoding="utf-8"))
+        runs.extend(data["runs"].values() if isinstance(data.get("runs"), dict) else [data])
+    return len(runs), sum(float(r["total_s"]) for r in runs)
 
 
 def measure(work: Path, cores: int, dag_only: bool = False) -> dict[str, Any]:
     """Time one layout in ``work`` (see the module docstring)."""
     out: dict[str, Any] = {"load_1min": os.getloadavg()[0]}
-    out["dag_build_s"] = _snakemake(work, cores, "--dry-run", "--quiet", "rules")[0]
+    out["dag_build_s"], out["dag_build_cpu_s"], _ = _snakemake(work, cores, "--dry-run", "--quiet", "rules")
     if dag_only:
         return out
     out["wall_s"], out["cpu_s"], out["peak_rss_mb"] = _snakemake(work, cores)
-    out["no_op_s"] = _snakemake(work, cores)[0]
+    out["no_op_load_1min"] = os.getloadavg()[0]
+    out["no_op_s"], out["no_op_cpu_s"], _ = _snakemake(work, cores)
     jobs, job_s, job_cpu_s = _job_times(work)
     n, runs_s = _runs_total_s(work)
     out.update(runs=n, jobs=jobs, per_run_overhead_ms=1e3 * (job_cpu_s - runs_s) / n,
@@ -159,7 +166,7 @@ def main(argv: list[str] | None = None) -> int:
         b, s = results["batched"], results["one_run_per_job"]
         results["ratio_to_one_run_per_job"] = {k: b[k] / s[k] for k in
                                                ("wall_s_per_run", "cpu_s_per_run", "per_run_overhead_ms", "no_op_s",
-                                                "dag_build_s", "peak_rss_mb") if s.get(k)}  # fmt: skip
+                                                "dag_build_s", "dag_build_cpu_s", "peak_rss_mb") if s.get(k)}  # fmt: skip
     results["goals"] = {"dag_build_s": 10.0, "sweep_10k_wall_s": 600.0, "per_run_overhead_ms": 20.0, "report_mb": 10.0}
     path = write_results("sweep", results)
     print(f"wrote {path}")

@@ -241,6 +241,26 @@ def test_a_repeated_key_in_the_config_file_fails_before_any_rule_runs(tmp_path: 
     assert not (work / "data").exists()
 
 
+@pytest.mark.slow
+def test_the_default_config_file_is_read_by_the_package_with_config_overrides_on_top(tmp_path: Path) -> None:
+    # config/config.yaml is read by the workflow (not by Snakemake's `configfile:`): --config applies on
+    # top of it, and a repeated key is refused as in a --configfile
+    work = copy_workflow(tmp_path / "default")
+    text = (work / "config/quick.yaml").read_text(encoding="utf-8")
+    (work / "config/config.yaml").write_text(text, encoding="utf-8")
+    proc = snakemake(work, "-n", "--config", "runs_per_job=3", timeout=180)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    jobs = _planned_jobs(proc)
+    assert "simulate_run" not in jobs, jobs
+    assert any(name.startswith("simulate_chunk_") for name in jobs), jobs
+    (work / "config/config.yaml").write_text(text + "\nreport:\n  title: again\n", encoding="utf-8")
+    proc = snakemake(work, "-n", timeout=120)
+    out = proc.stdout + proc.stderr
+    assert proc.returncode != 0
+    assert "config.yaml" in out
+    assert "'report'" in out
+
+
 def test_quick_pipeline_end_to_end(quick: Path) -> None:
     from pose_uncertainty.present import figures
     from pose_uncertainty.records.run import open_run

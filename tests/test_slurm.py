@@ -5,12 +5,13 @@ starts it in CI; ``make slurm-up`` as root on a developer's machine). The test r
 ``config/quick.yaml`` with ``workflow/profiles/slurm-test`` in a copy of the workflow, cancels
 one running simulation with ``scancel`` on the way, and checks that
 
-* the runs are submitted in chunks (config key ``runs_per_job``): one cluster job per chunk;
+* the runs are submitted in chunks (config key ``runs_per_job``): one cluster job per chunk, of
+  dead-reckoning and of localization runs alike;
 * the cancelled chunk job is retried (the profile's ``retries``) and the pipeline completes;
 * that job asked the scheduler for what its runs' cost estimates say
   (``pose_uncertainty.experiments.cost.chunk_resources``: ``--mem`` and ``--time``);
-* every run log made through SLURM is byte-identical to the same run made locally
-  (the quick pipeline of tests/test_pipeline.py, shared by the session);
+* every run log (dead reckoning and localization) made through SLURM is byte-identical to the same
+  run made locally (the quick pipeline of tests/test_pipeline.py, shared by the session);
 * the report builds from them.
 
 Without root or without the SLURM binaries the test is skipped with the reason; with
@@ -35,7 +36,7 @@ import yaml
 from test_pipeline import REPO, copy_workflow, quick_pipeline
 
 from pose_uncertainty.core.schema import load_schema
-from pose_uncertainty.experiments import cost, sweep
+from pose_uncertainty.experiments import cost, localization, sweep
 from pose_uncertainty.pipeline import chunks
 
 VENV_BIN = Path(sys.executable).parent
@@ -223,8 +224,12 @@ def test_quick_pipeline_through_slurm(slurm_cluster: object, tmp_path_factory: p
         work / "workflow/schemas/config.schema.yaml"))  # fmt: skip
     sets = sweep.expand_all(config)
     runs = [r for rs in sets.values() for r in rs]
-    submitted = set(re.findall(r"\(Rule: (simulate_(?:run|chunk_\w+))\)", out))  # dead reckoning: localization runs and the robot are not chunked
+    submitted = set(re.findall(r"\(Rule: (simulate_(?:run|chunk_\w+))\)", out))  # dead reckoning (the robot is not chunked)
     assert submitted == {f"simulate_chunk_{s}_{i}" for s, rs in sets.items() for i in range(-(-len(rs) // RUNS_PER_JOB))}
+    loc_sets = localization.expand_localization(config)  # the localization runs, by the same key
+    submitted = set(re.findall(r"\(Rule: (simulate_localization\w*)\)", out))
+    assert submitted == {f"simulate_localization_chunk_{s}_{i}" for s, rs in loc_sets.items()
+                         for i in range(-(-len(rs) // RUNS_PER_JOB))}  # fmt: skip
     # it asked for what its runs' cost estimates say (the largest memory, the summed time)
     chunk_of = {f"simulate_chunk_{s}_{i}": part for s, rs in sets.items()
                 for i, part in enumerate(chunks.chunk_runs(rs, RUNS_PER_JOB))}  # fmt: skip
@@ -239,5 +244,10 @@ def test_quick_pipeline_through_slurm(slurm_cluster: object, tmp_path_factory: p
     assert len(logs_local) == len(runs)
     differ = [str(p) for p in logs_local if (local / p).read_bytes() != (work / p).read_bytes()]
     assert differ == [], f"run logs made through SLURM differ from the local ones: {differ}"
+    loc_local = sorted(p.relative_to(local) for p in (local / "data/localization").rglob("*.mcap"))
+    assert sorted(p.relative_to(work) for p in (work / "data/localization").rglob("*.mcap")) == loc_local
+    assert len(loc_local) == sum(len(rs) for rs in loc_sets.values())
+    differ = [str(p) for p in loc_local if (local / p).read_bytes() != (work / p).read_bytes()]
+    assert differ == [], f"localization logs made through SLURM differ from the local ones: {differ}"
     html = (work / "reports/comparison.html").read_text(encoding="utf-8")
     assert all(r.id in html for r in runs)

@@ -7,32 +7,46 @@ from pathlib import Path
 
 from pose_uncertainty.experiments import sweep as _sweep
 from pose_uncertainty.pipeline import chunks as _chunks
-from pose_uncertainty.experiments import localization as _loc
-from pose_uncertainty.experiments import study as _study
 from pose_uncertainty.core.provenance import closure_sha256, imports_of
 from pose_uncertainty.core.schema import load_schema
 from pose_uncertainty.present.study_figures import STUDY_FIGURE_KEYS as _STUDY_FIGURE_KEYS
 
-# A config file given on the command line (--configfile config/quick.yaml) REPLACES
-# config/config.yaml instead of deep-merging into it (whose sets would otherwise leak in);
-# --config key=value overrides still apply on top.
+# The config files are read with the package's reader, which refuses a repeated key (naming both
+# lines; Snakemake's YAML loader takes the last of two equal keys), a file that is not a regular one
+# and one over its size limit.
+from pose_uncertainty.core.input_files import InputFileError as _InputFileError
+from pose_uncertainty.core.input_files import read_mapping_file as _read_mapping_file
+
+DEFAULT_CONFIG = "config/config.yaml"
+
 if workflow.overwrite_configfiles:
+    # A config file given on the command line (--configfile config/quick.yaml) REPLACES
+    # config/config.yaml instead of deep-merging into it (whose sets would otherwise leak in);
+    # --config key=value overrides still apply on top. Snakemake has read it: read it once more.
     import copy as _copy
 
     config.clear()
     config.update(_copy.deepcopy(workflow.config_settings.overwrite_config))
+    for _configfile in workflow.configfiles:
+        try:
+            _read_mapping_file(_configfile, "config")
+        except _InputFileError as _exc:
+            raise WorkflowError(f"invalid config: {_exc}") from None
+else:
+    # config/config.yaml, read here rather than by Snakemake's `configfile:` (a pure-Python YAML reader:
+    # 0.2 s of every start, where libyaml takes 0.03 s), and merged as `configfile:` merges it: recorded
+    # among the workflow's config files, the --config key=value overrides on top (or alone, with
+    # --replace-workflow-config).
+    from snakemake.utils import update_config as _update_config
 
-# Snakemake reads the config files with its own YAML loader, which takes the last of two equal
-# keys: read each once more with the package's reader, which refuses a repeated key (naming both
-# lines), a file that is not a regular one and one over its size limit.
-from pose_uncertainty.core.input_files import InputFileError as _InputFileError
-from pose_uncertainty.core.input_files import read_mapping_file as _read_mapping_file
-
-for _configfile in workflow.configfiles:
     try:
-        _read_mapping_file(_configfile, "config")
+        _default_config = _read_mapping_file(DEFAULT_CONFIG, "config")
     except _InputFileError as _exc:
         raise WorkflowError(f"invalid config: {_exc}") from None
+    workflow.configfiles.append(DEFAULT_CONFIG)
+    if not workflow.config_settings.replace_workflow_config:
+        _update_config(config, _default_config)
+    _update_config(config, workflow.config_settings.overwrite_config)
 
 _SCHEMA = load_schema(workflow.source_path("../schemas/config.schema.yaml"))
 try:
@@ -44,14 +58,16 @@ config.update(_validated)  # in place: every default filled in
 
 RUNS = _sweep.expand_all(config)  # {set: [Run, ...]}
 
-# the studies: name -> (kind, every parameter), validated like the runs
-try:
-    STUDIES = {
-        name: _study.study_params(name, spec)
-        for name, spec in (config["studies"]["runs"] if config["studies"]["enabled"] else {}).items()
-    }
-except ValueError as _exc:
-    raise WorkflowError(f"invalid config: {_exc}") from None
+# the studies: name -> (kind, every parameter), validated like the runs (their modules imported only
+# when studies are enabled: a sweep's config turns them off, and its DAG build does not pay for them)
+STUDIES = {}
+if config["studies"]["enabled"]:
+    from pose_uncertainty.experiments import study as _study
+
+    try:
+        STUDIES = {name: _study.study_params(name, spec) for name, spec in config["studies"]["runs"].items()}
+    except ValueError as _exc:
+        raise WorkflowError(f"invalid config: {_exc}") from None
 
 # The source each rule runs (its param `source`): the hash of the import closure of the package modules
 # it executes (pose_uncertainty.core.provenance.closure_sha256). Snakemake reruns a rule when that code
@@ -76,23 +92,68 @@ RUN_BY_ID = {(s, r.id): r for s, runs in RUNS.items() for r in runs}
 SETS = list(RUNS)
 
 # Config key `runs_per_job` (pose_uncertainty.experiments.pipeline_keys): 1 runs each run as a job of its own
-# (rule simulate_run); above 1 each set's runs are cut, in order, into chunks of at most that many, one
-# job (and one SLURM job) each: the rules simulate_chunk_<set>_<i> of workflow/rules/simulate.smk.
+# (rules simulate_run, simulate_localization); above 1 each set's runs are cut, in order, into chunks of at
+# most that many, one job (and one SLURM job) each: the rules simulate_chunk_<set>_<i> and
+# simulate_localization_chunk_<set>_<i> of workflow/rules/simulate.smk.
 RUNS_PER_JOB = config["runs_per_job"]
 CHUNKS = {s: _chunks.chunk_runs(RUNS[s], RUNS_PER_JOB) for s in SETS} if RUNS_PER_JOB > 1 else {}
 
 
-def chunk_job_spec(runs):
-    """The JSON argument of the job that executes ``runs`` (pose_uncertainty.pipeline.chunks.chunk_spec)."""
-    return _json.dumps(_chunks.chunk_spec([r.config for r in runs], [r.path for r in runs],
-                                          [run_timing(r) for r in runs]), allow_nan=False)
+def chunk_timings(set_name, i, localization=False):
+    """The timings file of chunk ``i`` of a set (of localization runs with ``localization``): every run's
+    timings, written by its job after its last log (pose_uncertainty.pipeline.chunks.read_timings reads a run's)."""
+    return f"data/{'localization' if localization else 'runs'}/{set_name}/chunks/{i}.timings.json"
 
 
-def chunk_resources(runs):
+# each chunked run's chunk
+RUN_CHUNK = {(s, r.id): i for s, parts in CHUNKS.items() for i, part in enumerate(parts) for r in part}
+
+
+def runs_made(set_name, timings=False, localization=False):
+    """What a job that reads every log of a set (and with ``timings`` every run's timings) waits for; with
+    ``localization``, of a localization set.
+
+    One job per run: those files. In chunks: each chunk's timings file (:func:`chunk_timings`), the
+    first output of its rule, so that Snakemake resolves a set of 10⁴ runs by 100 files, not by 2·10⁴
+    of them matched against the chunks' explicit outputs one by one; a rerun chunk rewrites its
+    timings file, which reruns its readers. Snakemake reruns a job for a missing output only when a
+    reader asks for that output, so the log of a finished chunk (its timings file there) that is
+    missing since is asked for too (:func:`_missing_logs`): its chunk runs again. The jobs read the
+    files themselves from their params (``logs``, ``timings``).
+    """
+    if RUNS_PER_JOB > 1:
+        parts = (LOC_CHUNKS if localization else CHUNKS)[set_name]
+        out = [chunk_timings(set_name, i, localization) for i in range(len(parts))]
+        return out + _missing_logs(set_name, localization)
+    logs, tims = (localization_logs, localization_timings) if localization else (run_logs, run_timings)
+    return [*logs(set_name), *(tims(set_name) if timings else [])]
+
+
+@_functools.cache
+def _missing_logs(set_name, localization):
+    """The logs of a set's finished chunks (their timings files exist) that do not exist: one listing of
+    the set's folder when its workflow is read (none for a chunk not yet made, as in a first build)."""
+    parts = (LOC_CHUNKS if localization else CHUNKS)[set_name]
+    done = [i for i in range(len(parts)) if os.path.exists(chunk_timings(set_name, i, localization))]
+    if not done:
+        return []
+    folder = f"data/{'localization' if localization else 'runs'}/{set_name}"
+    present = {e.name for e in os.scandir(folder)} if os.path.isdir(folder) else set()
+    return [f"{folder}/{r.id}.mcap" for i in done for r in parts[i] if f"{r.id}.mcap" not in present]
+
+
+def chunk_job_spec(runs, logs, timings, kind="run"):
+    """The JSON argument of the job that executes ``runs``, a chunk of ``kind`` (run or localization) with
+    their ``logs`` and the chunk's ``timings`` file (pose_uncertainty.pipeline.chunks.chunk_spec)."""
+    return _json.dumps(_chunks.chunk_spec([r.config for r in runs], logs, None, kind=kind, chunk_timings=timings),
+                       allow_nan=False)
+
+
+def chunk_resources(runs, kind="run"):
     """A chunk's cluster resources: the largest memory and the summed time of its runs' estimates."""
     from pose_uncertainty.experiments import cost as _cost
 
-    return _cost.chunk_resources([r.config for r in runs])
+    return _cost.chunk_resources([r.config for r in runs], kind)
 
 
 @_functools.cache
@@ -108,6 +169,9 @@ def run_resources(wildcards):
 
 
 def run_timing(run):
+    """The file that holds a run's timings: its own (one job per run) or its chunk's (:func:`chunk_timings`)."""
+    if RUNS_PER_JOB > 1:
+        return chunk_timings(run.set, RUN_CHUNK[(run.set, run.id)])
     return f"data/runs/{run.set}/{run.id}.timings.json"
 
 
@@ -116,6 +180,13 @@ def run_benchmarks(set_name):
     if RUNS_PER_JOB > 1:
         return [f"data/benchmarks/simulate_chunk/{set_name}/{i}.tsv" for i in range(len(CHUNKS[set_name]))]
     return [f"data/benchmarks/simulate_run/{set_name}/{r.id}.tsv" for r in RUNS[set_name]]
+
+
+def run_benchmarks_made(set_name):
+    """What a job that reads :func:`run_benchmarks` waits for: the files, or in chunks the chunks' timings files
+    (a benchmark file comes after a chunk's every output in Snakemake's search for its producer; the job
+    has written it when Snakemake sees the chunk's outputs)."""
+    return runs_made(set_name) if RUNS_PER_JOB > 1 else run_benchmarks(set_name)
 
 
 wildcard_constraints:
@@ -152,6 +223,7 @@ def run_logs(set_name):
 
 
 def run_timings(set_name):
+    """Each run's timings file (:func:`run_timing`), in the set's order."""
     return [run_timing(r) for r in RUNS[set_name]]
 
 
@@ -242,11 +314,12 @@ def studies_json(wildcards=None):
     return ["reports/studies.json"] if STUDIES else []
 
 
-def all_benchmarks(wildcards=None):
-    """Benchmark files of every job the summary depends on (per-rule times in the report)."""
+def all_benchmarks(wildcards=None, made=False):
+    """Benchmark files of every job the summary depends on (per-rule times in the report); with ``made``
+    what the summary waits for (:func:`run_benchmarks_made`: the chunks' timings files for theirs)."""
     out = []
     for s in SETS:
-        out.extend(run_benchmarks(s))
+        out.extend(run_benchmarks_made(s) if made else run_benchmarks(s))
         for kind in set_figures(s):
             out.append(f"data/benchmarks/render_{kind}_figure/{s}.tsv")
         out.append(f"data/benchmarks/{'summarize_sweep' if summarized(s) else 'render_run_figures'}/{s}.tsv")
@@ -254,7 +327,7 @@ def all_benchmarks(wildcards=None):
     out.append("data/benchmarks/evaluate_claims/all.tsv")
     out.extend(f"data/benchmarks/run_study/{name}.tsv" for name in STUDIES)
     out.extend(f"data/benchmarks/render_study_figure/{Path(f).stem}.tsv" for f in studies_figures().values())
-    out.extend(localization_benchmarks())
+    out.extend(localization_benchmarks(made))
     out.extend(robot_benchmarks())  # workflow/rules/robots.smk
     return out
 
@@ -305,12 +378,19 @@ def polar_logs(wildcards):
 # --- localization (pose_uncertainty.experiments.localization): its sets, runs, outputs --------------------
 # Config key `localization.sets`: sweeps over localization run configurations, expanded like the
 # experiment sets; logs in data/localization/<set>/<run>.mcap, rules in workflow/rules/localization.smk.
-try:
-    LOC_RUNS = _loc.expand_localization(config)  # {set: [Run, ...]}
-except _sweep.ConfigError as _exc:
-    raise WorkflowError(f"invalid config: {_exc}") from None
+LOC_RUNS = {}  # {set: [Run, ...]}; the localization modules imported only when it is enabled
+if config["localization"]["enabled"]:
+    from pose_uncertainty.experiments import localization as _loc
+
+    try:
+        LOC_RUNS = _loc.expand_localization(config)
+    except _sweep.ConfigError as _exc:
+        raise WorkflowError(f"invalid config: {_exc}") from None
 LOC_BY_ID = {(s, r.id): r for s, runs in LOC_RUNS.items() for r in runs}
 LOC_SETS = list(LOC_RUNS)
+# chunks of localization runs (config key runs_per_job, as the dead-reckoning runs), and each run's chunk
+LOC_CHUNKS = {s: _chunks.chunk_runs(LOC_RUNS[s], RUNS_PER_JOB) for s in LOC_SETS} if RUNS_PER_JOB > 1 else {}
+LOC_RUN_CHUNK = {(s, r.id): i for s, parts in LOC_CHUNKS.items() for i, part in enumerate(parts) for r in part}
 LOC_RUN_FIGURES = ("paths", "errors", "nees")
 
 
@@ -348,8 +428,16 @@ def localization_logs(set_name):
     return [localization_log(set_name, r.id) for r in LOC_RUNS[set_name]]
 
 
+def localization_timing(set_name, run_id):
+    """The file that holds a localization run's timings: its own (one job per run) or its chunk's."""
+    if RUNS_PER_JOB > 1:
+        return chunk_timings(set_name, LOC_RUN_CHUNK[(set_name, run_id)], localization=True)
+    return f"data/localization/{set_name}/{run_id}.timings.json"
+
+
 def localization_timings(set_name):
-    return [f"data/localization/{set_name}/{r.id}.timings.json" for r in LOC_RUNS[set_name]]
+    """Each localization run's timings file (:func:`localization_timing`), in the set's order."""
+    return [localization_timing(set_name, r.id) for r in LOC_RUNS[set_name]]
 
 
 def localization_run_figures(set_name, run_id):
@@ -380,11 +468,16 @@ def localization_table_names():
     return [f"localization/{s}" for s in LOC_SETS]
 
 
-def localization_benchmarks():
+def localization_benchmarks(made=False):
+    """Benchmark files of the localization jobs; with ``made`` what the summary waits for (all_benchmarks)."""
     out = []
     for s in LOC_SETS:
-        for r in LOC_RUNS[s]:
-            out.append(f"data/benchmarks/simulate_localization/{s}/{r.id}.tsv")
+        if made and RUNS_PER_JOB > 1:  # the chunks' timings files (see run_benchmarks_made)
+            out.extend(runs_made(s, localization=True))
+        elif RUNS_PER_JOB > 1:
+            out.extend(f"data/benchmarks/simulate_localization_chunk/{s}/{i}.tsv" for i in range(len(LOC_CHUNKS[s])))
+        else:
+            out.extend(f"data/benchmarks/simulate_localization/{s}/{r.id}.tsv" for r in LOC_RUNS[s])
         out.append(f"data/benchmarks/render_localization_figures/{s}.tsv")
         out.extend(f"data/benchmarks/render_localization_set_figure/{s}/{p}.tsv" for p in localization_set_figures(s))
         out.append(f"data/benchmarks/collect_localization_metrics/{s}.tsv")

@@ -5,7 +5,7 @@
 
 rule render_run_figures:
     input:
-        logs=lambda w: run_logs(w.set),
+        runs=lambda w: runs_made(w.set),
     output:
         report(
             directory("reports/figures/{set}/runs"),
@@ -17,6 +17,7 @@ rule render_run_figures:
         ),
     params:
         source=script_source("render_run_figures"),
+        logs=lambda w: run_logs(w.set),
         kinds=lambda w: {r.id: list(run_figures(w.set, r)) for r in RUNS[w.set]},
     log:
         "logs/render_run_figures/{set}.log",
@@ -28,7 +29,7 @@ rule render_run_figures:
 
 rule render_growth_figure:
     input:
-        logs=lambda w: run_logs(w.set),
+        runs=lambda w: runs_made(w.set),
     output:
         report(
             "reports/figures/{set}/growth.png",
@@ -39,6 +40,7 @@ rule render_growth_figure:
         ),
     params:
         source=script_source("render_set_figure"),
+        logs=lambda w: run_logs(w.set),
         kind="growth",
         title=lambda w: config["experiment_sets"][w.set]["title"],
     log:
@@ -62,6 +64,7 @@ rule render_cloud_polar_figure:
         ),
     params:
         source=script_source("render_set_figure"),
+        logs=polar_logs,
         kind="cloud_polar",
         title=lambda w: config["experiment_sets"][w.set]["title"],
     log:
@@ -74,7 +77,7 @@ rule render_cloud_polar_figure:
 
 rule render_drives_figure:
     input:
-        logs=lambda w: run_logs(w.set),
+        runs=lambda w: runs_made(w.set),
     output:
         report(
             "reports/figures/{set}/drives.png",
@@ -85,6 +88,7 @@ rule render_drives_figure:
         ),
     params:
         source=script_source("render_set_figure"),
+        logs=lambda w: run_logs(w.set),
         kind="drives",
         title=lambda w: config["experiment_sets"][w.set]["title"],
     log:

@@ -29,10 +29,11 @@ rule summarize_pipeline:
         tables=all_tables,
         loc_tables=localization_tables,
         studies=study_logs,
-        benchmarks=all_benchmarks,
+        benchmarks=lambda w: all_benchmarks(made=True),
     output:
         "reports/pipeline.json",
     params:
+        benchmarks=all_benchmarks,
         sets=SETS,
         loc_sets=localization_table_names(),
         source=script_source("summarize_pipeline"),

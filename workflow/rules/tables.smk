@@ -3,8 +3,7 @@
 
 rule collect_metrics:
     input:
-        logs=lambda w: run_logs(w.set),
-        timings=lambda w: run_timings(w.set),
+        runs=lambda w: runs_made(w.set, timings=True),
     output:
         report(
             "reports/tables/{set}.csv",
@@ -14,6 +13,8 @@ rule collect_metrics:
             labels={"table": "per-run measures"},
         ),
     params:
+        logs=lambda w: run_logs(w.set),
+        timings=lambda w: run_timings(w.set),
         source=script_source("collect_metrics"),
     log:
         "logs/collect_metrics/{set}.log",

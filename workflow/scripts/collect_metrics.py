@@ -6,4 +6,4 @@ from pose_uncertainty.pipeline.tables import collect_table
 
 sm = snakemake  # noqa: F821 - injected by Snakemake
 with open(sm.log[0], "w", encoding="utf-8") as log, redirect_stderr(log):
-    collect_table(sm.wildcards.set, list(sm.input.logs), list(sm.input.timings), sm.output[0])
+    collect_table(sm.wildcards.set, list(sm.params.logs), list(sm.params.timings), sm.output[0])

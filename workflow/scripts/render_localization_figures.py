@@ -10,7 +10,7 @@ from pose_uncertainty.present.localization import render_localization_run_figure
 sm = snakemake  # noqa: F821 - injected by Snakemake
 kinds = list(sm.params.kinds)
 with open(sm.log[0], "w", encoding="utf-8") as log, redirect_stderr(log), atomic_directory(sm.output[0]) as part:
-    logs = list(sm.input.logs)
+    logs = list(sm.params.logs)
     for i, log_path in enumerate(logs):
         run = Path(log_path).stem
         render_localization_run_figures(log_path, kinds, [part / run / f"{kind}.png" for kind in kinds])

@@ -10,6 +10,6 @@ with open(sm.log[0], "w", encoding="utf-8") as log, redirect_stderr(log):
         dict(zip(sm.params.sets, sm.input.tables, strict=True))
         | dict(zip(sm.params.loc_sets, sm.input.loc_tables, strict=True)),  # localization/<set>
         list(sm.input.studies),
-        list(sm.input.benchmarks),
+        list(sm.params.benchmarks),
         sm.output[0],
     )

@@ -8,6 +8,7 @@ cells as None.
 
 from __future__ import annotations
 
+import copy
 import csv
 import os
 from collections.abc import Mapping, Sequence
@@ -18,11 +19,16 @@ import numpy as np
 
 from .atomic import atomic_write
 
-__all__ = ["jsonable", "read_table", "write_table"]
+__all__ = ["jsonable", "plain_copy", "read_table", "write_table"]
+
+#: The types :func:`jsonable` and :func:`plain_copy` return as they are (tested first: the common case).
+_SCALARS = (str, float, int, bool, type(None))
 
 
 def jsonable(value: Any) -> Any:
     """Tuples, numpy scalars and arrays → JSON lists and Python numbers (mappings recursively)."""
+    if type(value) in _SCALARS:
+        return value
     if isinstance(value, Mapping):
         return {str(k): jsonable(v) for k, v in value.items()}
     if isinstance(value, list | tuple | np.ndarray):
@@ -30,6 +36,20 @@ def jsonable(value: Any) -> Any:
     if isinstance(value, np.generic):
         return value.item()
     return value
+
+
+def plain_copy(value: Any) -> Any:
+    """A deep copy of configuration data (dicts, lists, scalars): what ``copy.deepcopy`` gives, several
+    times faster on it (no memo; a sweep copies its base once per run); any other object by ``deepcopy``."""
+    if type(value) in _SCALARS:
+        return value
+    if isinstance(value, dict):
+        return {k: plain_copy(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [plain_copy(v) for v in value]
+    if isinstance(value, _SCALARS):
+        return value
+    return copy.deepcopy(value)
 
 
 def _cell(value: Any) -> Any:

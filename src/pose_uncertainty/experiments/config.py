@@ -29,11 +29,10 @@ is allocated.
 
 from __future__ import annotations
 
-import copy
 import inspect
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -42,7 +41,7 @@ import numpy as np
 from ..core import trajectories
 from ..core.grids import Grid
 from ..core.stats import PR_3SIGMA
-from ..core.table_io import jsonable
+from ..core.table_io import jsonable, plain_copy
 from ..core.validation import parse_numbers
 from ..localization.motion import K_WHEEL
 from ..methods import maps, motion_models
@@ -197,6 +196,10 @@ class MonteCarloConfig:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> MonteCarloConfig:
         """Validate and build from a mapping; unknown keys raise ValueError naming them."""
+        return _by_json(_MONTE_CARLO, data, cls._from_dict)  # type: ignore[no-any-return]  # frozen: shared
+
+    @classmethod
+    def _from_dict(cls, data: Mapping[str, Any]) -> MonteCarloConfig:
         _check_keys("monte_carlo", data, cls.KEYS)
         n, regime, method, cps = (k.get("monte_carlo", data) for k in MONTE_CARLO_KEYS)
         if not isinstance(cps, list | tuple):
@@ -212,6 +215,10 @@ class MonteCarloConfig:
             "method": self.method,
             "checkpoints": list(self.checkpoints),
         }
+
+
+#: :meth:`MonteCarloConfig.from_dict` of each mapping seen, by its JSON text.
+_MONTE_CARLO: dict[str, MonteCarloConfig] = {}
 
 
 @dataclass(frozen=True)
@@ -344,20 +351,28 @@ def _trajectory_params(data: Any) -> tuple[dict[str, Any], int]:
     A sweep's runs share a few trajectories: each distinct mapping is checked and counted once
     (kept by its JSON text), and every call gets its own copy.
     """
-    try:
-        key = json.dumps(data, sort_keys=True, allow_nan=False)
-    except (TypeError, ValueError):  # not plain JSON: checked (and refused) below, never kept
-        return _trajectory_params_of(data)
-    hit = _TRAJECTORIES.get(key)
-    if hit is None:
-        if len(_TRAJECTORIES) >= 4096:
-            _TRAJECTORIES.clear()
-        hit = _TRAJECTORIES[key] = _trajectory_params_of(data)
-    return copy.deepcopy(hit[0]), hit[1]
+    full, n = _by_json(_TRAJECTORIES, data, _trajectory_params_of)
+    return plain_copy(full), n
 
 
 #: :func:`_trajectory_params` of each trajectory mapping seen, by its JSON text.
 _TRAJECTORIES: dict[str, tuple[dict[str, Any], int]] = {}
+
+
+def _by_json(cache: dict[str, Any], data: Any, make: Callable[[Any], Any]) -> Any:
+    """``make(data)``, kept in ``cache`` by the JSON text of ``data`` (a sweep repeats a few sections over
+    thousands of runs): the result must not be changed by its users. ``data`` that is not plain JSON is
+    made (checked, refused) every time, never kept; a failure is not kept either."""
+    try:
+        key = json.dumps(data, sort_keys=True, allow_nan=False)
+    except (TypeError, ValueError):
+        return make(data)
+    hit = cache.get(key)
+    if hit is None:
+        if len(cache) >= 4096:
+            cache.clear()
+        hit = cache[key] = make(data)
+    return hit
 
 
 def _trajectory_params_of(data: Any) -> tuple[dict[str, Any], int]:
@@ -410,6 +425,9 @@ RUN_KEYS: tuple[Key, ...] = (
         "rejected; a drive that cannot follow the path (e.g. a rotation in place with max_steering below 90 "
         "degrees) is rejected when the config is read.", None, nullable=True, keys=DRIVE_KEYS),
 )
+
+#: The keys of :data:`RUN_KEYS` by name.
+_RUN_KEY: dict[str, Key] = {k.name: k for k in RUN_KEYS}
 
 
 @dataclass(frozen=True)
@@ -472,7 +490,7 @@ class RunConfig:
         if "trajectory" not in data:
             raise ValueError("config key 'trajectory' is missing (e.g. {name: straight})")
         traj, n_steps = _trajectory_params(data["trajectory"])
-        k_r, k_l = key_of(RUN_KEYS, "k_r").get("", data), key_of(RUN_KEYS, "k_l").get("", data)
+        k_r, k_l = _RUN_KEY["k_r"].get("", data), _RUN_KEY["k_l"].get("", data)
         cov0_raw = data.get("cov0")
         cov0 = None
         if cov0_raw is not None:
@@ -485,7 +503,7 @@ class RunConfig:
             if not np.array_equal(arr, arr.T) or np.linalg.eigvalsh(arr).min() < -1e-15:
                 raise _fail("cov0", "symmetric positive semi-definite", cov0_raw)
             cov0 = tuple((float(r[0]), float(r[1]), float(r[2])) for r in arr)
-        pr, n_ell, seed = (key_of(RUN_KEYS, k).get("", data) for k in ("pr", "n_ellipses", "seed"))
+        pr, n_ell, seed = _RUN_KEY["pr"].get("", data), _RUN_KEY["n_ellipses"].get("", data), _RUN_KEY["seed"].get("", data)
         mc = MonteCarloConfig.from_dict(data.get("monte_carlo", {}))
         late = [c for c in mc.checkpoints if c > n_steps]
         if late:
@@ -501,7 +519,7 @@ class RunConfig:
         names = [m.name for m in maps]
         if len(set(names)) != len(names):
             raise _fail("maps[].name", "unique", names)
-        name = key_of(RUN_KEYS, "name").get("", data)
+        name = _RUN_KEY["name"].get("", data)
         drive = None
         if data.get("drive") is not None:
             drive = DriveConfig.from_dict(data["drive"])

@@ -536,23 +536,43 @@ def job_resources(config: RunConfig | Mapping[str, Any]) -> dict[str, int]:
 _NOT_COSTED = ("name", "seed", "k_r", "k_l", "cov0", "pr")
 
 
-def chunk_resources(configs: Sequence[Mapping[str, Any]]) -> dict[str, int]:
+#: The keys of a localization run's configuration its estimate does not read.
+_NOT_COSTED_LOCALIZATION = ("name", "seed")
+
+
+def _estimate_localization_mapping(config: Mapping[str, Any]) -> Cost:
+    from .localization_config import LocalizationConfig  # (the localization runs' chunks only)
+
+    return estimate_localization(LocalizationConfig.from_dict(dict(config)))
+
+
+def chunk_resources(configs: Sequence[Mapping[str, Any]], kind: str = "run") -> dict[str, int]:
     """Resources of a pipeline job that simulates several runs one after the other (a chunk).
 
     ``mem_mb`` and ``runtime`` as :func:`job_resources` of one run whose memory is the largest of
     the runs' estimates and whose time is the sum of theirs. Runs that differ only in keys the
     estimate does not read (:data:`_NOT_COSTED`: a sweep over the error constants) are estimated once.
+    ``kind`` ``"localization"``: localization runs (:func:`estimate_localization`).
     """
     if not configs:
         raise ValueError("a chunk needs at least one run configuration, got none")
-    memo: dict[str, Cost] = {}
+    if kind not in ("run", "localization"):
+        raise ValueError(f"a chunk's kind must be 'run' or 'localization', got {kind!r}")
+    skip, estimate_of = (_NOT_COSTED, estimate) if kind == "run" else (_NOT_COSTED_LOCALIZATION, _estimate_localization_mapping)
     costs = []
     for config in configs:
-        key = json.dumps({k: v for k, v in config.items() if k not in _NOT_COSTED}, sort_keys=True, default=repr)
-        if key not in memo:
-            memo[key] = estimate(config)
-        costs.append(memo[key])
+        key = kind + json.dumps({k: v for k, v in config.items() if k not in skip}, sort_keys=True, default=repr)
+        if key not in _CHUNK_COSTS:
+            if len(_CHUNK_COSTS) >= 4096:
+                _CHUNK_COSTS.clear()
+            _CHUNK_COSTS[key] = estimate_of(config)
+        costs.append(_CHUNK_COSTS[key])
     return resources_of(Cost(max(c.mem_bytes for c in costs), math.fsum(c.seconds for c in costs), ()))
+
+
+#: :func:`estimate` of each run configuration seen by :func:`chunk_resources`, by the JSON text of its
+#: costed keys (a sweep's chunks repeat a few trajectories over and over).
+_CHUNK_COSTS: dict[str, Cost] = {}
 
 
 def resources_of(cost: Cost) -> dict[str, int]:

@@ -15,10 +15,11 @@ __all__ = ["PIPELINE_KEYS", "REPORT_KEYS"]
 #: Top-level keys of the pipeline configuration.
 PIPELINE_KEYS: tuple[Key, ...] = (
     Key("runs_per_job", "integer", "1",
-        "The most dead-reckoning runs one pipeline job executes, in one process (a chunk of a set's runs, "
-        "in order). 1: one job per run, each log its own target. Above 1 the runs of a set are cut into "
-        "chunks, one job each (one cluster job each on SLURM); every log is byte-identical to the one "
-        "its own job writes, and a changed run reruns only its chunk.",
+        "The most runs (dead-reckoning or localization) one pipeline job executes, in one process (a chunk "
+        "of a set's runs, in order). 1: one job per run, each log its own target. Above 1 the runs of a set "
+        "are cut into chunks, one job each (one cluster job each on SLURM); every log is byte-identical to "
+        "the one its own job writes, the chunk's runs' timings go to one file per chunk, and a changed run "
+        "reruns only its chunk.",
         default=1, lo=1, hi=10_000),
 )  # fmt: skip
 

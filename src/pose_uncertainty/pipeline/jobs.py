@@ -22,14 +22,18 @@ from ..experiments.run import execute
 from ..experiments.study import run_study
 from ..records.localization import write_localization
 from ..records.run import write_run
-from .chunks import run_configs
+from .chunks import run_configs, timings_key
 
 __all__ = ["run_study", "simulate_chunk", "simulate_localization", "simulate_run"]
 
 
+def _timings_json(timings: Mapping[str, float]) -> dict[str, float]:
+    return {k: float(v) for k, v in sorted(timings.items())}
+
+
 def _write_timings(timings: Mapping[str, float], out: str | os.PathLike[str] | None) -> None:
     if out is not None:
-        atomic_write_text(out, json.dumps({k: float(v) for k, v in sorted(timings.items())}, indent=1) + "\n")
+        atomic_write_text(out, json.dumps(_timings_json(timings), indent=1) + "\n")
 
 
 def _write_run(out: str | os.PathLike[str], result: Any) -> Path:
@@ -45,14 +49,15 @@ _KINDS: dict[str, tuple[Callable[[Mapping[str, Any]], Any], Callable[[Any], Any]
 
 
 def _simulate(kind: str, config: Mapping[str, Any], out: str | os.PathLike[str],
-              timings_out: str | os.PathLike[str] | None) -> Path:  # fmt: skip
-    """Execute one run of ``kind`` (a key of :data:`_KINDS`), write its log to ``out`` and its timings."""
+              timings_out: str | os.PathLike[str] | None) -> tuple[Path, Mapping[str, float]]:  # fmt: skip
+    """Execute one run of ``kind`` (a key of :data:`_KINDS`), write its log to ``out`` and its timings;
+    return the log's path and the timings."""
     parse, run, write = _KINDS[kind]
     result = run(parse(config))
     Path(out).parent.mkdir(parents=True, exist_ok=True)
     path = write(out, result)
     _write_timings(result.timings, timings_out)
-    return path
+    return path, result.timings
 
 
 def simulate_run(config: Mapping[str, Any], out: str | os.PathLike[str],
@@ -69,7 +74,7 @@ def simulate_run(config: Mapping[str, Any], out: str | os.PathLike[str],
     -------
     Path — ``out``
     """
-    return _simulate("run", config, out, timings_out)
+    return _simulate("run", config, out, timings_out)[0]
 
 
 def simulate_localization(config: Mapping[str, Any], out: str | os.PathLike[str],
@@ -78,7 +83,7 @@ def simulate_localization(config: Mapping[str, Any], out: str | os.PathLike[str]
 
     Parameters and return as :func:`simulate_run`, for a ``kind: localization`` configuration.
     """
-    return _simulate("localization", config, out, timings_out)
+    return _simulate("localization", config, out, timings_out)[0]
 
 
 def simulate_chunk(spec: Mapping[str, Any]) -> list[Path]:
@@ -88,7 +93,9 @@ def simulate_chunk(spec: Mapping[str, Any]) -> list[Path]:
     Parameters
     ----------
     spec : mapping — :func:`pose_uncertainty.pipeline.chunks.chunk_spec`: ``kind`` (``"run"`` or
-        ``"localization"``), the runs' configurations and their output files
+        ``"localization"``), the runs' configurations and their output files; with ``timings``, the
+        chunk's timings file, written after the last log (every run's timings by
+        :func:`pose_uncertainty.pipeline.chunks.timings_key`)
 
     Returns
     -------
@@ -103,7 +110,13 @@ def simulate_chunk(spec: Mapping[str, Any]) -> list[Path]:
         raise ValueError(f"chunk kind must be one of {sorted(_KINDS)}, got {kind!r}")
     runs = spec["runs"]
     out = []
+    timings: dict[str, dict[str, float]] = {}
     for i, (config, run) in enumerate(zip(run_configs(spec), runs, strict=True)):
         print(f"chunk: run {i + 1} of {len(runs)}: {run['log']}", file=sys.stderr, flush=True)
-        out.append(_simulate(kind, config, run["log"], run["timings"]))
+        path, tim = _simulate(kind, config, run["log"], run.get("timings"))
+        out.append(path)
+        timings[timings_key(run["log"])] = _timings_json(tim)
+    if spec.get("timings") is not None:
+        Path(spec["timings"]).parent.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(spec["timings"], json.dumps({"runs": timings}, indent=1) + "\n")
     return out

@@ -12,7 +12,8 @@ Every column of a row comes from one logged source of its run:
   ``A_sigma_across``, ``MC_coverage_3s``, ``map_odometry_peak_offset``
   (units and definitions: :mod:`pose_uncertainty.analysis.measures`);
 * ``time_<part>`` — the run's wall-clock timings [s] from its ``*.timings.json``
-  side file (not reproducible, so not in the log itself).
+  side file, or from its chunk's timings file when a job ran a chunk of runs
+  (:func:`pose_uncertainty.pipeline.chunks.read_timings`; not reproducible, so not in the log itself).
 
 A localization run's row (:mod:`pose_uncertainty.records.localization`) has the same
 columns, its ``param.*`` from :data:`LOCALIZATION_PARAMS` and its world's source and random
@@ -30,6 +31,7 @@ from typing import Any
 from ..core.table_io import write_table
 from ..records.localization import LocalizationLog
 from ..records.run import RunLog, open_run
+from .chunks import read_timings
 
 __all__ = ["FIRST_COLUMNS", "LOCALIZATION_PARAMS", "collect_table", "run_row"]
 
@@ -69,9 +71,8 @@ def run_row(
     for key, value in sorted(run.provenance.items()):
         row[f"provenance.{key}"] = value
     row.update({k: float(v) for k, v in sorted(run.metrics.items())})
-    if timings is not None and Path(timings).is_file():
-        for k, v in json.loads(Path(timings).read_text(encoding="utf-8")).items():
-            row[f"time_{k.removesuffix('_s')}"] = float(v)
+    for k, v in (read_timings(timings, run.path) or {}).items():
+        row[f"time_{k.removesuffix('_s')}"] = float(v)
     return row
 
 

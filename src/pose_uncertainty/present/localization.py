@@ -22,7 +22,6 @@ same log gives the same bytes.
 from __future__ import annotations
 
 import functools
-import json
 import math
 import os
 from collections.abc import Iterable, Sequence
@@ -37,6 +36,7 @@ from ..analysis.localization import FILTERS
 from ..core.stats import PR_3SIGMA
 from ..experiments.localization import LocalizationResult
 from ..methods.covariance import ellipse_polyline
+from ..pipeline.chunks import read_timings
 from ..records.run import open_run
 from . import figures
 
@@ -214,14 +214,16 @@ def accuracy_time_figure(logs: Sequence[str | os.PathLike[str]], timings: Sequen
     """RMS position error against compute time per step, one point per run and filter (log-log).
 
     The error is the logged ``loc_<f>_rms_position_error``; the time the run's
-    ``<f>_step_s`` from its timings side file (wall clock: not reproducible).
+    ``<f>_step_s`` from its timings side file or its chunk's (wall clock: not reproducible).
     """
     fig = figures.new_figure((6.6, 5.0), dpi=figures.WIDE_DPI)
     ax = fig.add_subplot()
     seen: set[str] = set()
     runs = _read(logs)
     for log, tpath in zip(runs, timings, strict=True):
-        tim = json.loads(Path(tpath).read_text(encoding="utf-8"))
+        tim = read_timings(tpath, log.path)
+        if tim is None:
+            raise FileNotFoundError(f"no timings file {os.fspath(tpath)!r} for the run {log.config.name!r}")
         for name in log.filters:
             err = log.metrics.get(f"loc_{name}_rms_position_error", math.nan)
             sec = tim.get(f"{name}_step_s", math.nan)
