@@ -347,6 +347,7 @@ def test_the_small_report_shows_the_lighthouse_results(small_report: tuple[str, 
     section = html[html.index('<h3 id="speed-report">'):]
     section = section[:section.index("</table>")]
     assert "Lighthouse 12.2.3" in section
+    assert "served from 127.0.0.1\nas it is, uncompressed" in section  # no content_encoding: the file as it is
     for preset, r in LIGHTHOUSE_RESULTS["results"].items():
         row = re.search(rf"<tr><td>{preset}</td>(.*?)</tr>", section, re.DOTALL)
         assert row is not None, preset
