@@ -266,6 +266,20 @@ def test_the_small_report_links_resolve_and_its_script_is_allowed(small_report: 
     assert sorted(p.name for p in report_pages(tmp / "r.html")) == ["S_small.html", "r.html"]
 
 
+def test_each_section_below_the_first_screen_is_laid_out_when_reached(small_report: tuple[str, Path]) -> None:
+    """Every section after the findings and the contents is a ``section.part`` of its own (one heading each, the
+    tags balanced), which the stylesheet lets Chromium skip until it is scrolled to, and lays out for print."""
+    html, _ = small_report
+    body = html[html.index("<main"):html.index("</main>")]
+    heads = re.findall(r'(<section class="part">\n)?<h2 id="([^"]+)"', body)
+    assert [h for s, h in heads if not s] == ["findings", "contents"]
+    assert len(heads) >= 8  # guide, claims, a set, references, reproducibility, ... (the small report)
+    assert body.count("<section") == body.count("</section>")
+    css = html[html.index("<style>"):html.index("</style>")]
+    assert re.search(r"section\.part \{ content-visibility: auto;", css)
+    assert re.search(r"@media print \{\n  section\.part \{ content-visibility: visible; \}", css)
+
+
 def test_a_runs_entry_links_its_figures_and_the_page_links_back(small_report: tuple[str, Path]) -> None:
     """The run's entry in the report (its id, what its set sweeps, its parameters) links to its anchor on
     the set's companion page; that anchor holds its figures and links back to the entry."""
