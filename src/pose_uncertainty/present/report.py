@@ -21,6 +21,11 @@
   re-encoded as lossless WebP, the same pixels in about 20 % fewer bytes) and the speed
   benchmarks' result files when ``make bench`` has written them.
 
+The report holds the set, study, localization and robot figures; each run's own figures are on
+its set's companion page, ``reports/runs/<set>.html`` (:func:`write_run_pages`: self-contained too,
+one anchor per run, linked from the run's entry in the report and back). A browser reads a whole
+HTML file before its first paint, so the report stays near 1 MB however many runs there are.
+
 Every number in the HTML is one of those values, formatted (units converted for
 display: m² → cm², fractions → %).
 """
@@ -127,9 +132,9 @@ def cite(text: Any, page: str = "") -> Markup:
                                body))
 
 
-#: The page's only script: a run's figures are kept in a ``<template>`` (inert: not decoded, not laid
-#: out) and put into the page when the reader opens the run, or follows a link into it; before printing,
-#: the lazy figures are loaded.
+#: The pages' only script: what a ``<details>`` holds in a ``<template>`` (inert: not parsed into the page,
+#: not laid out — a set's full table, a run's parameters) is put into the page when the reader opens it, or
+#: follows a link into it; before printing, the lazy figures are loaded.
 LAZY_SCRIPT = """(function () {
   function fill(d) { var t = d.querySelector(':scope > template'); if (t) { d.appendChild(t.content.cloneNode(true)); t.remove(); } }
   document.addEventListener('toggle', function (e) { if (e.target.tagName === 'DETAILS' && e.target.open) fill(e.target); }, true);
