@@ -249,7 +249,7 @@ _PRINT_LAYOUT_JS = """(() => {
     images: [...document.images].filter(shown).length,
     // how many shown images carry each picture (a figure may be shown twice: the PDF keeps one image of it)
     pictures: Object.values([...document.images].filter(shown).reduce((n, i) => (n[i.src] = (n[i.src] || 0) + 1, n), {})),
-    run_details_shown: [...document.querySelectorAll('details.run, details.full, ul.runs')].filter(shown).length,
+    run_details_shown: [...document.querySelectorAll('details.run, details.full, details.shared, ul.runs')].filter(shown).length,
     open_details: [...document.querySelectorAll('details[open]')].filter(shown).length,
   };
 })()"""

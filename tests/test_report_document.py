@@ -289,7 +289,7 @@ def test_a_runs_entry_links_its_figures_and_the_page_links_back(small_report: tu
     assert '<a href="runs/S_small.html#run-S_small-r1"><b>r1</b>: 1 figure</a>' in entry
     assert "k_r = " in entry
     # one run: every parameter it logged is the set's, in a table that is inert until opened
-    params = html[html.index('<details class="params" id="params-S_small">'):]
+    params = html[html.index('<details class="shared" id="params-S_small">'):]
     params = params[:params.index("</details>")]
     assert params.index("<template>") < params.index('<table class="kv">') < params.index("</template>")
     assert "<tr><th>seed</th><td>5</td></tr>" in params
