@@ -48,9 +48,10 @@ bench: $(STAMP)
 
 # the report in a browser: Lighthouse (npm, pinned in benchmarks/lighthouse/package-lock.json) with Debian's
 # chromium on reports/comparison.html served from 127.0.0.1 -> benchmarks/results/report.json
+# (ARGS="--gzip --name report-gzip": served gzip-compressed, as a web host would)
 bench-report: $(STAMP)
 	npm ci --prefix benchmarks/lighthouse --no-audit --no-fund --silent
-	CHROME_PATH=$${CHROME_PATH:-/usr/bin/chromium} $(BIN)/python -m benchmarks.report_lighthouse $(REPORT)
+	CHROME_PATH=$${CHROME_PATH:-/usr/bin/chromium} $(BIN)/python -m benchmarks.report_lighthouse $(REPORT) $(ARGS)
 
 # a full regeneration in a fresh clone: times and sizes -> benchmarks/results/regenerate.json
 bench-regenerate: $(STAMP)

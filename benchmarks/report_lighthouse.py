@@ -8,7 +8,7 @@ once with the desktop preset and once with the default mobile one, and writes th
 scores, the paint timings and the page's weight to ``benchmarks/results/report.json`` (which the
 report's "Speed benchmarks" section shows on its next build).
 
-Usage: ``python -m benchmarks.report_lighthouse [REPORT.html] [--name report] [--runs 3]``. Timings
+Usage: ``python -m benchmarks.report_lighthouse [REPORT.html] [--name report] [--runs 3] [--gzip]``. Timings
 depend on the machine and on what else runs on it: the machine is recorded with them, and with each
 preset the load average over the last minute before each run (``load_average_1min``, their mean) and
 every run's performance score; the other numbers are those of the run of median performance.
@@ -17,12 +17,18 @@ What sets the timings: Lighthouse simulates a throttled network (desktop ~10 Mbi
 ~1.6 Mbit/s) and counts the whole HTML document before the first paint, however early in it the
 first screen is: a document of N MB costs about 0.8·N s on the desktop preset and 5·N s on the
 mobile one (a 3 MB page holding one heading and a <template> of 3 MB measured 2.6 s on the desktop).
+Hence the report holds no run's figures: they are on its companion pages (``runs/<set>.html``).
+
+``--gzip`` serves the HTML pages gzip-compressed (``Content-Encoding: gzip``, as any static web host
+does) to a client that accepts it; Lighthouse then counts the compressed bytes. The results record
+how the page was served (``content_encoding``) and the bytes sent (``transfer_MB``).
 """
 
 from __future__ import annotations
 
 import argparse
 import functools
+import gzip
 import http.server
 import json
 import os
@@ -32,7 +38,7 @@ import sys
 import tempfile
 import threading
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 from benchmarks._common import write_results
 
@@ -48,7 +54,7 @@ AUDITS = {
     "interactive": ("time_to_interactive_s", 1e-3),
     "total-blocking-time": ("total_blocking_time_s", 1e-3),
     "cumulative-layout-shift": ("cumulative_layout_shift", 1.0),
-    "total-byte-weight": ("page_weight_MB", 1e-6),
+    "total-byte-weight": ("page_weight_MB", 1e-6),  # bytes sent: compressed when served with --gzip
     "dom-size": ("dom_elements", 1.0),
 }
 
@@ -58,6 +64,30 @@ class _Quiet(http.server.SimpleHTTPRequestHandler):
 
     def log_message(self, format: str, *args: Any) -> None:
         pass
+
+
+class _Gzip(_Quiet):
+    """The static file server sending an HTML page gzip-compressed (level 6, as web servers default to) to a
+    client that accepts it; anything else as it is. The compressed pages are made once per path."""
+
+    cache: ClassVar[dict[str, bytes]] = {}
+
+    def do_GET(self) -> None:
+        path = self.translate_path(self.path)
+        accepts = "gzip" in self.headers.get("Accept-Encoding", "")
+        if not (accepts and path.endswith(".html") and os.path.isfile(path)):
+            super().do_GET()
+            return
+        if path not in self.cache:
+            with open(path, "rb") as f:
+                self.cache[path] = gzip.compress(f.read(), compresslevel=6, mtime=0)
+        body = self.cache[path]
+        self.send_response(200)
+        self.send_header("Content-Type", "text/html; charset=utf-8")
+        self.send_header("Content-Encoding", "gzip")
+        self.send_header("Content-Length", str(len(body)))
+        self.end_headers()
+        self.wfile.write(body)
 
 
 def _version() -> str:
@@ -126,6 +156,8 @@ def main(argv: list[str] | None = None) -> Path:
     ap.add_argument("--performance-only", action="store_true",
                     help="measure the performance category only (the others time out on a large page under load)")
     ap.add_argument("--runs", type=int, default=3, help="Lighthouse runs per preset (the median is kept; default 3)")
+    ap.add_argument("--gzip", action="store_true",
+                    help="serve the HTML gzip-compressed (Content-Encoding: gzip), as a static web host does")
     args = ap.parse_args(argv)
     if args.runs < 1:
         raise SystemExit(f"--runs must be at least 1, got {args.runs}")
@@ -137,7 +169,8 @@ def main(argv: list[str] | None = None) -> Path:
         raise SystemExit(f"lighthouse is not installed in {HERE}: run `npm ci --prefix {HERE}` (make bench-report does)")
     if not shutil.which(chrome):
         raise SystemExit(f"no Chromium at {chrome}: apt-get install -y chromium, or set CHROME_PATH")
-    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), functools.partial(_Quiet, directory=str(report.parent)))
+    handler = _Gzip if args.gzip else _Quiet
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), functools.partial(handler, directory=str(report.parent)))
     threading.Thread(target=server.serve_forever, daemon=True).start()
     try:
         port = server.server_address[1]
@@ -146,8 +179,11 @@ def main(argv: list[str] | None = None) -> Path:
                    for preset in ("desktop", "mobile")}  # fmt: skip
     finally:
         server.shutdown()
+    data = report.read_bytes()
     for preset, r in results.items():
-        r["report_MB"] = report.stat().st_size / 1e6
+        r["report_MB"] = len(data) / 1e6
+        r["content_encoding"] = "gzip" if args.gzip else "identity"
+        r["transfer_MB"] = len(gzip.compress(data, compresslevel=6, mtime=0) if args.gzip else data) / 1e6
         r["lighthouse"] = _version()
         print(preset, json.dumps(r, indent=1), file=sys.stderr)
     return write_results(args.name, results)

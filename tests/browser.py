@@ -124,9 +124,10 @@ class CDP:
             if "method" in msg:
                 self.events.append(msg)
 
-    def wait_event(self, method: str, timeout: float) -> dict[str, Any]:
+    def wait_event(self, method: str, timeout: float, after: int = 0) -> dict[str, Any]:
+        """The first event ``method`` among the events from index ``after`` on (those kept, then new ones)."""
         deadline = time.monotonic() + timeout
-        for ev in self.events:
+        for ev in self.events[after:]:
             if ev["method"] == method:
                 return ev
         while time.monotonic() < deadline:
@@ -136,6 +137,13 @@ class CDP:
                 if msg["method"] == method:
                     return msg
         raise TimeoutError(f"no {method} within {timeout} s")
+
+    def navigate(self, url: str, timeout: float) -> None:
+        """Open ``url`` in the page and wait until it has loaded (its own load event, not an earlier page's;
+        the Page domain enabled)."""
+        mark = len(self.events)
+        self.call("Page.navigate", url=url)
+        self.wait_event("Page.loadEventFired", timeout, after=mark)
 
     def close(self) -> None:
         self.sock.close()

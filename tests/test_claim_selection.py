@@ -149,8 +149,9 @@ def test_the_report_prints_the_logged_parameters_not_the_manifests(tmp_path: Pat
     html = build_report(manifest, {"S": table}, write_claims({"S": table}, tmp_path / "claims.json"),
                         summarize_pipeline({"S": table}, [], [], tmp_path / "pipeline.json"),
                         tmp_path / "r.html").read_text(encoding="utf-8")  # fmt: skip
-    details = html[html.index('<details class="run" id="run-S-b0.2"'):]
-    details = details[:details.index("</template>")]
+    # the set's section: its parameters (one run: every parameter is the set's) and the run's entry
+    details = html[html.index('<details class="shared" id="params-S">'):]
+    details = details[:details.index("</ul>")]
     assert 'trajectory = {"track": 0.2}; k_r = 0.0009' in details  # the swept keys, with the logged values
     assert "<tr><th>k_r</th><td>0.0009</td></tr>" in details
     assert "<tr><th>k_l</th><td>0.0001</td></tr>" in details

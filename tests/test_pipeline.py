@@ -269,14 +269,21 @@ def test_quick_pipeline_end_to_end(quick: Path) -> None:
     sets = sweep.expand_all(cfg)
     html = (quick / "reports/comparison.html").read_text(encoding="utf-8")
     assert html.startswith("<!DOCTYPE html>")
+    # each set's run figures on a companion page of its own beside the report (reports/runs/<set>.html)
+    pages = {p.stem: p.read_text(encoding="utf-8") for p in (quick / "reports/runs").glob("*.html")}
     for name, runs in sets.items():
         rows = read_table(quick / f"reports/tables/{name}.csv")
         assert [r["run"] for r in rows] == [r.id for r in runs]
+        assert pages[name].startswith("<!DOCTYPE html>")
         for run in runs:
             log = open_run(quick / run.path)
             assert log.config.to_dict() == run.config  # the logged config is the swept one
             assert (quick / f"reports/figures/{name}/runs/{run.id}/trajectory.png").is_file()
-            assert f'id="run-{name}-{run.id}"' in html
+            assert f'id="run-{name}-{run.id}"' in html  # its entry in the report
+            assert f'href="runs/{name}.html#run-{name}-{run.id}"' in html  # links its figures
+            assert f'id="run-{name}-{run.id}"' in pages[name]
+            assert f'id="fig-{name}-{run.id}-trajectory"' in pages[name]
+            assert f'id="fig-{name}-{run.id}-trajectory"' not in html
     # a pipeline figure has the bytes the replay functions give from the log alone
     run = sets["A1_shape"][0]
     fig = figures.trajectory_figure(open_run(quick / run.path))
@@ -296,16 +303,23 @@ def test_quick_pipeline_end_to_end(quick: Path) -> None:
     for c in claims:
         if c["figure"]:
             f = c["figure"]
-            assert f'id="fig-{f["set"]}-{f["run"] or "set"}-{f["kind"]}"' in html, c
-    # no network: no http(s) resource references, every image inlined
-    assert not re.search(r'(src|href)="(https?:)?//', html)
-    sources = re.findall(r'<img src="([^"]{0,23})', html)
-    assert sources
-    assert all(s.startswith("data:image/webp;base64,") for s in sources)
+            fid = f'fig-{f["set"]}-{f["run"] or "set"}-{f["kind"]}'
+            if f["run"]:  # a run's figure: on its set's companion page, linked from the claim
+                assert f'id="{fid}"' in pages[f["set"]], c
+                assert f'href="runs/{f["set"]}.html#{fid}"' in html, c
+            else:
+                assert f'id="{fid}"' in html, c
+    # no network: no http(s) resource references, every image inlined, in the report and its companion pages
+    for text in (html, *pages.values()):
+        assert not re.search(r'(src|href)="(https?:)?//', text)
+        sources = re.findall(r'<img src="([^"]{0,23})', text)
+        assert sources
+        assert all(s.startswith("data:image/webp;base64,") for s in sources)
     # the inlined WebP has the pixels of the pipeline's PNG exactly (lossless re-encoding)
     fid = f'id="fig-A1_shape-{run.id}-trajectory"><img src="data:image/webp;base64,'
-    start = html.index(fid) + len(fid)
-    webp = base64.b64decode(html[start : html.index('"', start)])
+    page = pages["A1_shape"]
+    start = page.index(fid) + len(fid)
+    webp = base64.b64decode(page[start : page.index('"', start)])
     with Image.open(io.BytesIO(webp)) as inlined, Image.open(
         quick / f"reports/figures/A1_shape/runs/{run.id}/trajectory.png"
     ) as png:
@@ -315,18 +329,19 @@ def test_quick_pipeline_end_to_end(quick: Path) -> None:
 
 def test_report_cites_only_what_a_reader_can_look_up(quick: Path) -> None:
     """The generated report has none of the words tests/test_words.py keeps out of the product."""
+    from test_report_document import report_pages, report_words
     from test_words import FORBIDDEN
 
-    html = (quick / "reports/comparison.html").read_text(encoding="utf-8")
-    text = re.sub(r"data:[^\"')\s]+", "data:", html)  # inlined images are not words
-    hits = [f"comparison.html:{n}: {kind}: {m.group(0)!r} in {line.strip()[:160]}"
-            for n, line in enumerate(text.splitlines(), 1)
-            for kind, pattern in FORBIDDEN.items() for m in pattern.finditer(line)]
-    assert not hits, "\n".join(hits)
-    # and none of our development words (issue, SPEC, seed001 as a document), in the report's text
-    from test_report_document import report_words
-
-    assert report_words(html) == []
+    pages = report_pages(quick / "reports/comparison.html")  # the report and its companion pages
+    assert len(pages) > 1
+    for path, html in pages.items():
+        text = re.sub(r"data:[^\"')\s]+", "data:", html)  # inlined images are not words
+        hits = [f"{path.name}:{n}: {kind}: {m.group(0)!r} in {line.strip()[:160]}"
+                for n, line in enumerate(text.splitlines(), 1)
+                for kind, pattern in FORBIDDEN.items() for m in pattern.finditer(line)]
+        assert not hits, "\n".join(hits)
+        # and none of our development words (issue, SPEC, seed001 as a document), in the pages' text
+        assert report_words(html) == [], path
 
 
 def test_the_quick_reports_abstract_links_and_references(quick: Path) -> None:
@@ -343,7 +358,11 @@ def test_the_quick_reports_abstract_links_and_references(quick: Path) -> None:
     abstract = html[html.index('<section class="abstract"'):html.index("</figcaption></figure>")]
     assert abstract.count('class="num"') >= 8  # 4–6 findings, most with two numbers, and the headline figure's
     assert abstract_mismatches(abstract, files) == []
-    assert unresolved_links(html) == []
+    # every link resolves: within the report, into its companion pages and back (reports/runs/<set>.html)
+    from test_report_document import report_pages
+
+    for path, text in report_pages(quick / "reports/comparison.html").items():
+        assert unresolved_links(text, path.parent) == [], path
     for key in ("nemec2012", "safranek2022", "skalka2011", "kulich2014", "motion-lecture", "thrun2005", "long2012"):
         assert f'<li id="ref-{key}">' in html, key
         assert f'href="#ref-{key}"' in html, key
@@ -515,8 +534,9 @@ def test_report_has_the_drives_section(quick: Path) -> None:
 
 
 def test_localization_figures_one_job_per_set(quick: Path) -> None:
-    """Every localization run's figures are drawn (one job per set) into runs/<run>/ and shown in the report,
-    with the bytes the replay functions give from the run's log alone."""
+    """Every localization run's figures are drawn (one job per set) into runs/<run>/ and shown on the set's
+    companion page of the report (linked from the run's entry), with the bytes the replay functions give from
+    the run's log alone."""
     from pose_uncertainty.experiments import localization as loc
     from pose_uncertainty.present.localization import RUN_FIGURES, render_localization_run_figures
 
@@ -525,12 +545,14 @@ def test_localization_figures_one_job_per_set(quick: Path) -> None:
     assert sets
     for name, runs in sets.items():
         folder = quick / f"reports/figures/localization/{name}/runs"
+        page = (quick / f"reports/runs/localization-{name}.html").read_text(encoding="utf-8")  # its companion page
         assert sorted(p.name for p in folder.iterdir() if p.is_dir()) == sorted(r.id for r in runs)
         assert not (folder.parent / "runs.part").exists()
         for r in runs:
             for kind in RUN_FIGURES:
                 assert (folder / r.id / f"{kind}.png").is_file(), (name, r.id, kind)
-                assert f'id="fig-localization-{name}-{r.id}-{kind}"' in html, (name, r.id, kind)
+                assert f'id="fig-localization-{name}-{r.id}-{kind}"' in page, (name, r.id, kind)
+            assert f'href="runs/localization-{name}.html#loc-run-{name}-{r.id}"' in html, (name, r.id)
     bench = sorted(p.name for p in (quick / "data/benchmarks/render_localization_figures").iterdir())
     assert bench == sorted(f"{name}.tsv" for name in sets)  # one job per set
     name, runs = next(iter(sets.items()))

@@ -3,10 +3,11 @@
 Chromium (Debian's ``chromium`` package, ``/usr/bin/chromium``) is driven over the
 DevTools protocol with a small WebSocket client written on the standard library
 (``tests/browser.py``): the test enables the Network, Runtime and Log domains, opens
-``reports/comparison.html`` of the quick pipeline run from ``file://``, records
-every request, console message, log entry and uncaught exception, and captures
-a full-page screenshot (kept under the pytest tmp dir and copied to
-``reports/screenshot.png`` of the repository).
+``reports/comparison.html`` of the quick pipeline run from ``file://``, then each of its
+companion pages (``reports/runs/<set>.html``: a set's run figures), records every request,
+console message, log entry and uncaught exception, and captures a full-page screenshot of
+the report (kept under the pytest tmp dir and copied to ``reports/screenshot.png`` of the
+repository).
 
 Chromium missing is a FAILURE with instructions, not a skip: the report is a
 deliverable and this is its only rendering check.
@@ -34,6 +35,12 @@ STUDY_SECTION_IDS: list[str] = [
 ]
 
 
+#: Every image of the page decoded: ``[[alt, natural width (-1: it did not decode)], ...]``. Lazy images load
+#: when near the viewport (an instant scroll does not wait for them): they are made eager first.
+_DECODE_ALL_JS = """Promise.all([...document.images].map(i => (i.loading = 'eager', i))
+  .map(i => i.decode().then(() => [i.alt, i.naturalWidth], () => [i.alt, -1])))"""
+
+
 @pytest.mark.slow
 def test_report_renders_offline_without_console_errors(
     chromium: str, tmp_path: Path, tmp_path_factory: pytest.TempPathFactory
@@ -53,17 +60,7 @@ def test_report_renders_offline_without_console_errors(
         for y in range(0, total, 2000):
             cdp.call("Runtime.evaluate", expression=f"window.scrollTo(0, {y})")
         cdp.call("Runtime.evaluate", expression="window.scrollTo(0, 0)")
-        done = cdp.call(
-            "Runtime.evaluate",
-            expression=(
-                # lazy images load when near the viewport: the instant scroll above does not wait for them
-                "Promise.all([...document.images].map(i => (i.loading = 'eager', i))"
-                ".map(i => i.decode().then(() => [i.alt, i.naturalWidth],"
-                " () => [i.alt, -1])))"
-            ),
-            awaitPromise=True,
-            returnByValue=True,
-        )
+        done = cdp.call("Runtime.evaluate", expression=_DECODE_ALL_JS, awaitPromise=True, returnByValue=True)
         images = done["result"]["value"]
         metrics = cdp.call("Page.getLayoutMetrics")
         size = metrics.get("cssContentSize") or metrics["contentSize"]
@@ -82,6 +79,12 @@ def test_report_renders_offline_without_console_errors(
             expression="JSON.stringify(" + json.dumps(STUDY_SECTION_IDS) + ".filter(i => document.getElementById(i)))",
             returnByValue=True,
         )["result"]["value"]
+        # the companion pages: every figure of every run decodes there
+        companions = sorted((work / "reports/runs").glob("*.html"))
+        for page in companions:
+            cdp.navigate(page.resolve().as_uri(), timeout=60)
+            images += cdp.call("Runtime.evaluate", expression=_DECODE_ALL_JS, awaitPromise=True,
+                               returnByValue=True)["result"]["value"]  # fmt: skip
         # drain what is left
         cdp.call("Runtime.evaluate", expression="1")
 
@@ -109,6 +112,9 @@ def test_report_renders_offline_without_console_errors(
     assert failed == [], f"failed loads: {failed}"
     assert images
     assert all(w > 0 for _, w in images), f"images that did not decode: {[a for a, w in images if w <= 0]}"
+    assert companions, "no companion page of the runs' figures"
+    for page in companions:
+        assert page.resolve().as_uri() in requests, page
     assert title.startswith("Pose uncertainty")
     assert n_claims == len(json.loads((work / "reports/claims.json").read_text(encoding="utf-8"))["claims"])  # a row per claim
     assert json.loads(study_ids) == STUDY_SECTION_IDS  # the studies sections are in the quick report
@@ -117,7 +123,8 @@ def test_report_renders_offline_without_console_errors(
 # --- the report as a reader sees it: first screen, no sideways scroll, runs open on demand ----------
 
 #: Evaluated in the page: what a reader sees and can follow. Internal links resolve to an element, or to
-#: one inside a run's <template> (the page's script opens that run when the link is followed).
+#: one inside a <template> (the page's script opens its details when the link is followed); the links to
+#: other pages (a run's figures on its set's companion page, the report from there) are listed.
 _READ_JS = """(() => {
   const bottom = sel => { const e = document.querySelector(sel); return e ? e.getBoundingClientRect().bottom : 1e9; };
   const inTemplates = id => [...document.querySelectorAll('template')].some(t => t.content.getElementById(id));
@@ -126,21 +133,31 @@ _READ_JS = """(() => {
     abstract: bottom('.abstract ol'), headline: bottom('#fig-studies-expcoords img'),
     body_scroll: document.documentElement.scrollWidth - document.documentElement.clientWidth,
     unresolved: [...new Set(links.filter(id => !document.getElementById(id) && !inTemplates(id)))],
+    other_pages: [...new Set([...document.querySelectorAll('a[href]')].map(a => a.href)
+                              .filter(h => !h.startsWith(location.href.split('#')[0] + '#') && !h.startsWith('data:')))],
     no_alt: [...document.images].filter(i => !i.alt).length,
     closed_runs: document.querySelectorAll('details.run').length,
-    images_before: document.images.length,
+    ids: [...document.querySelectorAll('[id]')].map(e => e.id),
   };
 })()"""
 
-#: Opens every run (as a reader's click does: the toggle event) and decodes every image then present.
+#: Opens every run's parameters (as a reader's click does: the toggle event).
 _OPEN_RUNS_JS = """(async () => {
   document.querySelectorAll('details.run').forEach(d => { d.open = true; });
   await new Promise(r => setTimeout(r, 200));
+  return { templates_left: document.querySelectorAll('details.run > template').length,
+           tables: document.querySelectorAll('details.run > table.kv').length };
+})()"""
+
+#: On a companion page opened at a run's anchor: where that run's section is, and every image decoded.
+_LANDED_JS = """(async () => {
+  const target = document.getElementById(decodeURIComponent(location.hash.slice(1)));
+  const top = target ? target.getBoundingClientRect().top : null;
   const imgs = [...document.images];
   imgs.forEach(i => { i.loading = 'eager'; });  // as if the reader scrolled to each one
   const res = await Promise.all(imgs.map(i => i.decode().then(() => i.naturalWidth, () => -1)));
-  return { n: imgs.length, failed: imgs.filter((_, k) => res[k] <= 0).map(i => i.alt),
-           templates_left: document.querySelectorAll('details.run > template').length };
+  return { top: top, n: imgs.length, failed: imgs.filter((_, k) => res[k] <= 0).map(i => i.alt),
+           in_run: target ? target.querySelectorAll('img').length : 0 };
 })()"""
 
 
@@ -160,6 +177,16 @@ def test_report_reads_first_screen_and_opens_runs(chromium: str, tmp_path: Path,
         opened = cdp.call("Runtime.evaluate", expression=_OPEN_RUNS_JS, awaitPromise=True,
                           returnByValue=True)["result"]["value"]  # fmt: skip
         after = cdp.call("Runtime.evaluate", expression=_READ_JS, returnByValue=True)["result"]["value"]
+        # follow the links into the companion pages: each opens at its run, whose figures decode there
+        report_ids = set(seen["ids"])
+        runs = [h for h in seen["other_pages"] if "/reports/runs/" in h and "#" in h]
+        landed, pages = [], {}
+        for page in sorted({h.split("#")[0] for h in runs}):
+            link = next(h for h in runs if h.startswith(page + "#"))  # the page's first run, as a reader follows it
+            cdp.navigate(link, timeout=120)
+            landed.append((link, cdp.call("Runtime.evaluate", expression=_LANDED_JS, awaitPromise=True,
+                                          returnByValue=True)["result"]["value"]))  # fmt: skip
+            pages[page] = cdp.call("Runtime.evaluate", expression=_READ_JS, returnByValue=True)["result"]["value"]
         cdp.call("Runtime.evaluate", expression="1")
     (REPO / "reports").mkdir(exist_ok=True)
     (REPO / "reports/first-screen.png").write_bytes(base64.b64decode(first["data"]))
@@ -170,9 +197,27 @@ def test_report_reads_first_screen_and_opens_runs(chromium: str, tmp_path: Path,
     assert seen["no_alt"] == 0
     assert seen["closed_runs"] > 0
     assert opened["templates_left"] == 0
-    assert opened["n"] > seen["images_before"]  # the runs' figures came in when opened
-    assert opened["failed"] == [], f"images that did not decode: {opened['failed']}"
+    assert opened["tables"] == seen["closed_runs"]  # each run's parameters came in when opened
     assert after["body_scroll"] <= 0, f"with the runs open the page scrolls sideways by {after['body_scroll']} px"
+    # every run's figures are linked, every link leads to a page and an anchor that are there
+    assert runs, "no run links to its figures"
+    assert {p.resolve().as_uri() for p in (work / "reports/runs").glob("*.html")} == set(pages)
+    for page, read in pages.items():
+        ids = set(read["ids"])
+        missing = [h for h in runs if h.startswith(page + "#") and h.split("#", 1)[1] not in ids]
+        assert missing == [], missing
+        assert read["unresolved"] == [], (page, read["unresolved"])
+        assert read["no_alt"] == 0, page
+        assert read["body_scroll"] <= 0, f"{page} scrolls sideways by {read['body_scroll']} px"
+        back = [h for h in read["other_pages"] if h.split("#")[0] == url]
+        assert back, f"{page} does not link back to the report"
+        assert all(h.split("#", 1)[1] in report_ids for h in back if "#" in h), (page, back)
+    for link, at in landed:
+        assert at["top"] is not None, f"{link}: no such anchor"
+        # the run (or the figure a claim links to) at the top of the window: its top within a pixel of it
+        assert -1 <= at["top"] < 900, f"{link}: its target starts at {at['top']} px, not at the top of the window"
+        assert at["in_run"] > 0, f"{link}: no figure at the run or figure followed"
+        assert at["failed"] == [], f"{link}: images that did not decode: {at['failed']}"
     errors = [e["params"] for e in cdp.events
               if (e["method"] == "Runtime.consoleAPICalled" and e["params"]["type"] in ("error", "assert", "warning"))
               or (e["method"] == "Log.entryAdded" and e["params"]["entry"]["level"] in ("error", "warning"))
@@ -204,7 +249,7 @@ _PRINT_LAYOUT_JS = """(() => {
     images: [...document.images].filter(shown).length,
     // how many shown images carry each picture (a figure may be shown twice: the PDF keeps one image of it)
     pictures: Object.values([...document.images].filter(shown).reduce((n, i) => (n[i.src] = (n[i.src] || 0) + 1, n), {})),
-    run_details_shown: [...document.querySelectorAll('details.run, details.full')].filter(shown).length,
+    run_details_shown: [...document.querySelectorAll('details.run, details.full, details.shared, ul.runs')].filter(shown).length,
     open_details: [...document.querySelectorAll('details[open]')].filter(shown).length,
   };
 })()"""
@@ -291,7 +336,7 @@ def test_report_prints_to_pdf_with_the_pages_a_bound_predicts(chromium: str, tmp
     for f in lay["figures"]:
         assert f["avoid"] == "avoid", f"figure {f['id']} may be split (break-inside: {f['avoid']})"
         assert f["h"] <= PRINT_H, f"figure {f['id']} is taller ({f['h']} px) than a page ({PRINT_H} px)"
-    assert lay["run_details_shown"] == 0  # the runs' figures and full tables are left to the screen
+    assert lay["run_details_shown"] == 0  # the runs' list (links to their figures) and full tables are left to the screen
     # every image print shows is in the PDF (the lazy ones too: the page loads them before it prints),
     # each on one page only: no figure was split
     drawn = [i for p in pages for i in p]

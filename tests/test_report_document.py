@@ -2,10 +2,11 @@
 
 * every work it names is cited by author and year and linked to a full entry under References;
   none of the development words (``issue``, ``SPEC``, a private document number) reaches its text;
-* every internal link resolves (an id inside a run's ``<template>`` counts: the page's script opens
-  the run when a link points into it), and the one inline script is allowed by its CSP hash;
+* every internal link resolves (an id inside a ``<template>`` counts: the page's script opens its
+  ``<details>`` when a link points into it), and so does every link between the report and its companion
+  pages (``runs/<set>.html``: each set's run figures); each page's one inline script is allowed by its CSP hash;
 * a set's summary table has at most 10 columns, and no table shows a column without a value;
-* every image has alt text and a size; a run's figures are inert until the run is opened;
+* every image has alt text and a size; a run's figures are on its set's companion page, lazy;
 * every number of the abstract equals the logged value it names (:func:`abstract_mismatches`,
   also run on the quick pipeline's report in tests/test_pipeline.py).
 """
@@ -42,10 +43,40 @@ def report_words(html: str) -> list[str]:
             for kind, pattern in REPORT_FORBIDDEN.items() for m in pattern.finditer(text)]  # fmt: skip
 
 
-def unresolved_links(html: str) -> list[str]:
-    """Internal links (``href="#id"``) with no element of that id (ids inside ``<template>`` count)."""
-    ids = set(re.findall(r'\bid="([^"]+)"', html))
-    return sorted({h for h in re.findall(r'href="#([^"]*)"', html) if h not in ids})
+def _ids(html: str) -> set[str]:
+    return set(re.findall(r'\bid="([^"]+)"', html))
+
+
+def unresolved_links(html: str, here: Path | None = None) -> list[str]:
+    """Links that lead nowhere: internal ones (``href="#id"``) with no element of that id (ids inside
+    ``<template>`` count), and, with ``here`` (the folder of the page), links to a page beside it
+    (``runs/<set>.html#id``, ``../comparison.html#id``) whose file is missing or has no such id.
+    Without ``here`` a link to another page is unresolved."""
+    ids = _ids(html)
+    pages: dict[Path, set[str] | None] = {}
+    bad = set()
+    for href in re.findall(r'href="([^"]*)"', html):
+        if href.startswith("data:"):
+            continue
+        page, _, anchor = href.partition("#")
+        if not page:
+            if anchor not in ids:
+                bad.add(href)
+            continue
+        if here is None or re.match(r"[a-z]+:", page):
+            bad.add(href)
+            continue
+        path = (here / page).resolve()
+        if path not in pages:
+            pages[path] = _ids(path.read_text(encoding="utf-8")) if path.is_file() else None
+        if pages[path] is None or (anchor and anchor not in pages[path]):
+            bad.add(href)
+    return sorted(bad)
+
+
+def report_pages(report: Path) -> dict[Path, str]:
+    """The report and its companion pages (``runs/*.html`` beside it): path → text."""
+    return {p: p.read_text(encoding="utf-8") for p in [report, *sorted((report.parent / "runs").glob("*.html"))]}
 
 
 def _logged(path: str, files: dict[str, Any]) -> Any:
@@ -132,6 +163,19 @@ def test_the_run_config_is_a_two_column_table_not_a_json_wall() -> None:
                     ("maps[0].name", '"v"'), ("maps[0].alphas", "[1, 2]")]  # fmt: skip
 
 
+def test_a_sets_shared_parameters_are_printed_once_and_each_runs_own_with_it() -> None:
+    """The parameters every run of a set logged alike, and each run's others: together its whole configuration."""
+    runs = [{"params": {"seed": 1, "k_r": 5e-4, "trajectory": {"name": "arc", "radius": 1.0}}},
+            {"params": {"seed": 2, "k_r": 5e-4, "trajectory": {"name": "arc", "radius": 2.0}}}]  # fmt: skip
+    shared = rp._shared_params(runs)
+    assert shared == {("k_r", "0.0005"), ("trajectory.name", '"arc"')}
+    for r in runs:
+        own = [kv for kv in rp._param_rows(r["params"]) if kv not in shared]
+        assert sorted(own + sorted(shared)) == sorted(rp._param_rows(r["params"]))
+    assert [kv[0] for kv in rp._param_rows(runs[0]["params"]) if kv not in shared] == ["seed", "trajectory.radius"]
+    assert rp._shared_params([]) == set()
+
+
 def test_the_csp_hash_is_the_scripts() -> None:
     digest = base64.b64encode(hashlib.sha256(rp.LAZY_SCRIPT.encode()).digest()).decode()
     assert rp._csp_hash(rp.LAZY_SCRIPT) == f"'sha256-{digest}'"
@@ -191,45 +235,92 @@ def small_report(tmp_path_factory: pytest.TempPathFactory) -> tuple[str, Path]:
     return out.read_text(encoding="utf-8"), tmp
 
 
+def _companion(tmp: Path) -> str:
+    return (tmp / "runs/S_small.html").read_text(encoding="utf-8")
+
+
 def test_the_small_report_has_no_development_words_and_cites_its_sources(small_report: tuple[str, Path]) -> None:
-    html, _ = small_report
+    html, tmp = small_report
     assert report_words(html) == []
+    assert report_words(_companion(tmp)) == []
     assert '<li id="ref-safranek2022">' in html
     assert '<li id="ref-nemec2012">' in html
     assert 'Source: <a class="cite" href="#ref-safranek2022">Šafránek 2022</a> §4.2' in html
+    # the companion page cites the report's entries
+    assert 'Source: <a class="cite" href="../r.html#ref-safranek2022">Šafránek 2022</a> §4.2' in _companion(tmp)
 
 
 def test_the_small_report_links_resolve_and_its_script_is_allowed(small_report: tuple[str, Path]) -> None:
+    html, tmp = small_report
+    assert unresolved_links(html) == ["runs/S_small.html", "runs/S_small.html#run-S_small-r1"]  # not without a folder
+    for page, text in report_pages(tmp / "r.html").items():
+        assert unresolved_links(text, page.parent) == [], page
+        script = re.search(r"<script>(.*?)</script>", text, re.DOTALL)
+        assert script is not None
+        assert script.group(1) == rp.LAZY_SCRIPT
+        csp = re.search(r'http-equiv="Content-Security-Policy" content="([^"]+)"', text)
+        assert csp is not None
+        assert rp._csp_hash(rp.LAZY_SCRIPT) in csp.group(1).replace("&#39;", "'")
+        assert "https:" not in text
+        assert "http:" not in text
+    assert sorted(p.name for p in report_pages(tmp / "r.html")) == ["S_small.html", "r.html"]
+
+
+def test_each_section_below_the_first_screen_is_laid_out_when_reached(small_report: tuple[str, Path]) -> None:
+    """Every section after the findings and the contents is a ``section.part`` of its own (one heading each, the
+    tags balanced), which the stylesheet lets Chromium skip until it is scrolled to, and lays out for print."""
     html, _ = small_report
-    assert unresolved_links(html) == []
-    script = re.search(r"<script>(.*?)</script>", html, re.DOTALL)
-    assert script is not None
-    assert script.group(1) == rp.LAZY_SCRIPT
-    csp = re.search(r'http-equiv="Content-Security-Policy" content="([^"]+)"', html)
-    assert csp is not None
-    assert rp._csp_hash(rp.LAZY_SCRIPT) in csp.group(1).replace("&#39;", "'")
-    assert "https:" not in html
-    assert "http:" not in html
+    body = html[html.index("<main"):html.index("</main>")]
+    heads = re.findall(r'(<section class="part">\n)?<h2 id="([^"]+)"', body)
+    assert [h for s, h in heads if not s] == ["findings", "contents"]
+    assert len(heads) >= 8  # guide, claims, a set, references, reproducibility, ... (the small report)
+    assert body.count("<section") == body.count("</section>")
+    css = html[html.index("<style>"):html.index("</style>")]
+    assert re.search(r"section\.part \{ content-visibility: auto;", css)
+    assert re.search(r"@media print \{\n  section\.part \{ content-visibility: visible; \}", css)
+
+
+def test_a_runs_entry_links_its_figures_and_the_page_links_back(small_report: tuple[str, Path]) -> None:
+    """The run's entry in the report (its id, what its set sweeps, its parameters) links to its anchor on
+    the set's companion page; that anchor holds its figures and links back to the entry."""
+    html, tmp = small_report
+    entry = html[html.index('<li id="run-S_small-r1">'):]
+    entry = entry[:entry.index("</li>")]
+    assert '<a href="runs/S_small.html#run-S_small-r1"><b>r1</b>: 1 figure</a>' in entry
+    assert "k_r = " in entry
+    # one run: every parameter it logged is the set's, in a table that is inert until opened
+    params = html[html.index('<details class="shared" id="params-S_small">'):]
+    params = params[:params.index("</details>")]
+    assert params.index("<template>") < params.index('<table class="kv">') < params.index("</template>")
+    assert "<tr><th>seed</th><td>5</td></tr>" in params
+    page = _companion(tmp)
+    run = page[page.index('id="run-S_small-r1"'):page.index("</section>")]
+    assert '<a href="../r.html#run-S_small-r1">' in run
+    assert 'id="fig-S_small-r1-trajectory"' in run
+    assert re.search(r'<h1>Chassis: each run.s figures</h1>', page)
+    assert "<style>" in page
+    assert page[page.index("<style>"):page.index("</style>")] == html[html.index("<style>"):html.index("</style>")]
 
 
 def test_the_small_reports_tables_and_images(small_report: tuple[str, Path]) -> None:
-    html, _ = small_report
+    html, tmp = small_report
     summary = html[html.index("<h3>Comparison per run</h3>"):html.index('<details class="full">')]
     heads = re.findall(r"<th>", summary.split("</thead>")[0])
     assert 2 <= len(heads) <= 10
+    assert '<table class="nums">' in summary  # every cell but the run's a number, right-aligned
     body = summary.split("</thead>")[1]
-    cells = re.findall(r'<td class="n">([^<]*)</td>', body)
+    cells = re.findall(r'<td>([^<]*)</td>', body)
     assert cells
     assert "–" not in cells
-    imgs = re.findall(r"<img [^>]*>", html)
-    assert imgs
+    assert "<img " not in html  # the run's figure is on its set's companion page, not in the report
+    imgs = re.findall(r"<img [^>]*>", _companion(tmp))
+    assert len(imgs) == 1
     for i in imgs:
         assert re.search(r'alt="[^"]{8,}"', i), i
         assert 'width="' in i, i
         assert 'height="' in i, i
-    run = html[html.index('id="run-S_small-r1"'):]
-    assert run.index("<template>") < run.index("<img ") < run.index("</template>")  # inert until opened
-    assert 'width="40" height="30"' in run  # an 80 × 60 PNG is shown at half its pixels (2×)
+        assert 'loading="lazy"' in i, i
+    assert 'width="40" height="30"' in imgs[0]  # an 80 × 60 PNG is shown at half its pixels (2×)
 
 
 def test_the_quick_tables_match_the_abstract_format(small_report: tuple[str, Path]) -> None:
@@ -270,6 +361,7 @@ def test_the_small_report_shows_the_lighthouse_results(small_report: tuple[str, 
     section = html[html.index('<h3 id="speed-report">'):]
     section = section[:section.index("</table>")]
     assert "Lighthouse 12.2.3" in section
+    assert "served from 127.0.0.1\nas it is, uncompressed" in section  # no content_encoding: the file as it is
     for preset, r in LIGHTHOUSE_RESULTS["results"].items():
         row = re.search(rf"<tr><td>{preset}</td>(.*?)</tr>", section, re.DOTALL)
         assert row is not None, preset

@@ -98,7 +98,7 @@ def test_the_report_section_formats_the_logs(calibrated: tuple[Path, dict]) -> N
     out = rp.build_report(*small_report_inputs(d), d / "r.html", robots=robots)
     page = out.read_text(encoding="utf-8")
     assert report_words(page) == []
-    assert unresolved_links(page) == []
+    assert unresolved_links(page, out.parent) == []
     section = page[page.index('<h2 id="your-robot">'):page.index('<h2 id="references">')]
     cal = json.loads((d / "out/calibration.json").read_text())
     rec = json.loads((d / "out/recovery.json").read_text())

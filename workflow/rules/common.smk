@@ -80,6 +80,8 @@ SOURCE_JOB = closure_sha256("pose_uncertainty.cli.job")  # the JOB commands: run
 REPORT_TEMPLATE = "pose_uncertainty/present/templates/comparison.html.j2"
 SWEEP_TEMPLATE = "pose_uncertainty/present/templates/sweep_summary.html.j2"  # included by it
 SKALKA_TEMPLATE = "pose_uncertainty/present/templates/skalka.html.j2"  # included by it
+RUNS_TEMPLATE = "pose_uncertainty/present/templates/runs.html.j2"  # the companion pages of the runs' figures
+STYLE_SHEET = "pose_uncertainty/present/templates/report.css"  # included by the report and its companion pages
 
 
 @_functools.cache
@@ -365,7 +367,7 @@ def report_manifest():
 
 
 def all_outputs():
-    return ["reports/comparison.html", *all_tables(), *all_figures(), *studies_figures().values(),
+    return ["reports/comparison.html", "reports/runs", *all_tables(), *all_figures(), *studies_figures().values(),
             *localization_tables(), *localization_figures(), *robot_tables()]
 
 

@@ -2,6 +2,11 @@
 # logs, and the self-contained HTML report that formats them.
 
 
+# the report's templates (they ship with the package, present/templates): hashed with its code, so editing one
+# rebuilds the report and its companion pages
+REPORT_TEMPLATES = (REPORT_TEMPLATE, ROBOTS_TEMPLATE, SWEEP_TEMPLATE, SKALKA_TEMPLATE, RUNS_TEMPLATE, STYLE_SHEET)
+
+
 rule evaluate_claims:
     input:
         tables=all_tables,
@@ -59,7 +64,9 @@ rule build_report:
         # the speed benchmarks' results, when `make bench` has written them (not made by the DAG)
         speed=lambda w: sorted(str(p) for p in Path("benchmarks/results").glob("*.json")),
     output:
-        "reports/comparison.html",
+        report="reports/comparison.html",
+        # the companion pages: each set's run figures, one self-contained page per set, linked from the report
+        runs=directory("reports/runs"),
     params:
         manifest=report_manifest(),
         sets=SETS,
@@ -67,7 +74,7 @@ rule build_report:
         studies_figures=studies_figures(),
         loc_sets=LOC_SETS,
         robots=robot_manifest(),
-        source=script_source("build_report", data=(REPORT_TEMPLATE, ROBOTS_TEMPLATE, SWEEP_TEMPLATE, SKALKA_TEMPLATE)),
+        source=script_source("build_report", data=REPORT_TEMPLATES),
     # the last job, alone: it encodes the figures on the machine's cores (OMP_NUM_THREADS = its
     # threads; Snakemake scales them down to --cores; a cluster run has no --cores: a local rule)
     threads: min(8, os.cpu_count() or 1)

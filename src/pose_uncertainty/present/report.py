@@ -21,6 +21,11 @@
   re-encoded as lossless WebP, the same pixels in about 20 % fewer bytes) and the speed
   benchmarks' result files when ``make bench`` has written them.
 
+The report holds the set, study, localization and robot figures; each run's own figures are on
+its set's companion page, ``reports/runs/<set>.html`` (:func:`write_run_pages`: self-contained too,
+one anchor per run, linked from the run's entry in the report and back). A browser reads a whole
+HTML file before its first paint, so the report stays near 1 MB however many runs there are.
+
 Every number in the HTML is one of those values, formatted (units converted for
 display: m² → cm², fractions → %).
 """
@@ -44,15 +49,15 @@ import jinja2
 from markupsafe import Markup
 from PIL import Image
 
-from ..core.atomic import atomic_write_text
+from ..core.atomic import atomic_directory, atomic_write_text
 from ..core.drives import DRIVES
 from ..core.provenance import MACHINE_KEYS
 from ..core.stats import COVERAGE_LEVELS
 from ..core.table_io import read_table
 from .robot_report import robot_section
 
-__all__ = ["REFERENCES", "RUN_COLUMNS", "SUMMARY_COLUMNS", "build_report", "cite", "logged_params",
-           "read_speed_results"]
+__all__ = ["REFERENCES", "RUNS_DIR", "RUN_COLUMNS", "SUMMARY_COLUMNS", "build_report", "cite", "logged_params",
+           "read_speed_results", "write_run_pages"]
 
 
 #: The works the report cites: ``(key, how the text names it, the full entry)``. Every name in
@@ -106,22 +111,30 @@ _CITE_RE = re.compile("|".join(re.escape(n) for n, _ in _CITE_NAMES))
 _CITE_KEY = dict(_CITE_NAMES)
 
 
-def cite(text: Any) -> Markup:
+def cite(text: Any, page: str = "") -> Markup:
     """``text`` with every work of :data:`REFERENCES` it names linked to its entry (``#ref-<key>``).
 
     Plain text is escaped first; markup (a ``{% filter cite %}`` block of the template) is kept as it is,
     so only prose may pass through (a name inside an attribute would be linked too).
 
+    Parameters
+    ----------
+    text : str or markup
+    page : str — the page that holds the references, relative to the page the text is on ("" for the report
+        itself; a companion page links to the report's entries, ``../comparison.html``)
+
     >>> str(cite("Němec 2012 §3.1"))
     '<a class="cite" href="#ref-nemec2012">Němec 2012</a> §3.1'
     """
     body = str(text) if hasattr(text, "__html__") else html.escape("" if text is None else str(text), quote=False)
-    return Markup(_CITE_RE.sub(lambda m: f'<a class="cite" href="#ref-{_CITE_KEY[m.group(0)]}">{m.group(0)}</a>', body))
+    href = html.escape(page)
+    return Markup(_CITE_RE.sub(lambda m: f'<a class="cite" href="{href}#ref-{_CITE_KEY[m.group(0)]}">{m.group(0)}</a>',
+                               body))
 
 
-#: The page's only script: a run's figures are kept in a ``<template>`` (inert: not decoded, not laid
-#: out) and put into the page when the reader opens the run, or follows a link into it; before printing,
-#: the lazy figures are loaded.
+#: The pages' only script: what a ``<details>`` holds in a ``<template>`` (inert: not parsed into the page,
+#: not laid out — a set's full table, a run's parameters) is put into the page when the reader opens it, or
+#: follows a link into it; before printing, the lazy figures are loaded.
 LAZY_SCRIPT = """(function () {
   function fill(d) { var t = d.querySelector(':scope > template'); if (t) { d.appendChild(t.content.cloneNode(true)); t.remove(); } }
   document.addEventListener('toggle', function (e) { if (e.target.tagName === 'DETAILS' && e.target.open) fill(e.target); }, true);
@@ -452,9 +465,20 @@ def _sets(manifest: Mapping[str, Any], tables: Mapping[str, str | os.PathLike[st
         rows = {r["run"]: r for r in read_table(tables[s["name"]])} if s["name"] in tables else {}
         runs = [{**_with_row(r, rows.get(r["id"], {})), "maps": [k[4:] for k in r["figures"] if k.startswith("map_")]}
                 for r in s["runs"]]  # fmt: skip
+        shared = _shared_params(runs)
+        for r in runs:
+            r["own_params"] = [kv for kv in _param_rows(r["params"]) if kv not in shared]
         sets.append({**s, "runs": runs, "summary_columns": _columns_with_data(runs, SUMMARY_COLUMNS),
-                     "columns": _columns_with_data(runs, RUN_COLUMNS) + _map_columns(runs)})
+                     "columns": _columns_with_data(runs, RUN_COLUMNS) + _map_columns(runs),
+                     "shared_params": [kv for kv in _param_rows(runs[0]["params"]) if kv in shared] if runs else []})
     return sets
+
+
+def _shared_params(runs: list[dict[str, Any]]) -> set[tuple[str, str]]:
+    """The logged parameters (``(dotted key, value)`` rows, :func:`_param_rows`) every run of a set has alike:
+    the report prints them once for the set, and for each run the rest (selection only; the values are the logs')."""
+    rows = [set(_param_rows(r["params"])) for r in runs]
+    return set.intersection(*rows) if rows else set()
 
 
 def _drive_runs(sets: list[dict[str, Any]]) -> dict[str, Any]:
@@ -552,6 +576,70 @@ def sweep_views(sets: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return out
 
 
+#: The folder beside the report that holds its companion pages: ``<set>.html`` per experiment set and
+#: ``localization-<set>.html`` per localization set (set names have no hyphen: the two never collide).
+RUNS_DIR = "runs"
+
+
+def _relative(target: Path, start: Path) -> str:
+    """``target`` as a link from a page in the folder ``start`` (forward slashes, as a URL)."""
+    return Path(os.path.relpath(target.resolve(), start.resolve())).as_posix()
+
+
+def write_run_pages(
+    env: jinja2.Environment,
+    sets: list[dict[str, Any]],
+    localization_sets: list[dict[str, Any]],
+    report: Path,
+    folder: str | os.PathLike[str],
+    *,
+    title: str,
+) -> dict[str, dict[str, Any]]:
+    """Write the companion pages of the runs' figures into ``folder`` (replaced as a whole, atomically).
+
+    One self-contained page (images inlined, the report's stylesheet, no network) per set whose runs have
+    figures: ``<set>.html`` for an experiment set, ``localization-<set>.html`` for a localization set, with
+    one anchor per run (``run-<set>-<run>``, ``loc-run-<set>-<run>``: the ids of the runs' entries in the
+    report, which link to them) and links back to the report.
+
+    Parameters
+    ----------
+    env : the report's Jinja2 environment (its ``img`` filter inlines the figures)
+    sets : the experiment sets as the report has them (:func:`_sets`, :func:`sweep_views`)
+    localization_sets : the localization sets (:func:`_localization`)
+    report : path of the report the pages link back to
+    folder : path of the pages' folder
+    title : the report's title
+
+    Returns
+    -------
+    dict — ``set name`` (``localization/<set>`` for a localization set) → ``{"href": the page relative to the
+    report, "folder", "n_figures", "megabytes": its size}``, for the sets that have a page
+    """
+    folder = Path(folder)
+    template = env.get_template("runs.html.j2")
+    pages: dict[str, dict[str, Any]] = {}
+    with atomic_directory(folder) as part:
+        for s, localized in [*((s, False) for s in sets), *((s, True) for s in localization_sets)]:
+            runs = [r for r in s["runs"] if r.get("figures")]
+            if not runs:
+                continue
+            name = f"localization-{s['name']}.html" if localized else f"{s['name']}.html"
+            back = f"localization-{s['name']}" if localized else f"set-{s['name']}"
+            text = template.render(
+                title=title, s=s, localization=localized, prefix="loc-run" if localized else "run", back=back,
+                report=_relative(report, folder), lazy_script=LAZY_SCRIPT, script_hash=_csp_hash(LAZY_SCRIPT),
+            )  # fmt: skip
+            atomic_write_text(part / name, text)
+            pages[f"localization/{s['name']}" if localized else s["name"]] = {
+                "href": f"{_relative(folder, report.parent)}/{name}",
+                "folder": _relative(folder, report.parent) + "/",
+                "n_figures": sum(len(r["figures"]) for r in runs),
+                "megabytes": len(text.encode("utf-8")) / 1e6,
+            }
+    return pages
+
+
 def build_report(
     manifest: Mapping[str, Any],
     tables: Mapping[str, str | os.PathLike[str]],
@@ -567,8 +655,12 @@ def build_report(
     localization: Mapping[str, Any] | None = None,
     localization_tables: Mapping[str, str | os.PathLike[str]] | None = None,
     robots: list[Mapping[str, Any]] | None = None,
+    runs_out: str | os.PathLike[str] | None = None,
 ) -> Path:
-    """Render ``reports/comparison.html``.
+    """Render ``reports/comparison.html`` and its companion pages of the runs' figures (``reports/runs/``).
+
+    The report holds every number, table, set and study figure; each run's figures are on the companion
+    page of its set (:func:`write_run_pages`), which the run's entry in the report links to.
 
     Parameters
     ----------
@@ -591,16 +683,28 @@ def build_report(
     localization_tables : mapping, optional — ``localization/<set>`` (or ``<set>``) to its CSV
     robots : list, optional — the robots of the section "Your robot" with their output files
         (:func:`pose_uncertainty.present.robot_report.robot_section`)
+    runs_out : path, optional — the folder of the companion pages, one per set with run figures (default
+        :data:`RUNS_DIR` beside ``out``; replaced as a whole, :func:`write_run_pages`)
+
+    Returns
+    -------
+    Path — ``out``
     """
     claims = _read_json(claims_path)
     pipeline = _read_json(pipeline_path)
     studies = _read_json(studies_path) or {"studies": None, "summary": {}}
     prov = pipeline["provenance"]
     sets = sweep_views(_sets(manifest, tables))
+    loc = _localization(localization, localization_tables or {})
     env = _environment()
     encoded = _encode_all(_pngs(manifest, localization or {}, dict(studies_figures or {}), robots or []))
     env.filters["datauri"] = lambda path: _data_uri(path, encoded)
     env.filters["img"] = lambda path, alt, eager=False: _img(path, alt, env.filters["datauri"], eager=eager)
+    p = Path(out)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    # the companion pages first: the report never links to a page that is not there
+    pages = write_run_pages(env, sets, (loc or {}).get("sets", []), p, p.parent / RUNS_DIR if runs_out is None else runs_out,
+                            title=title)  # fmt: skip
     text = env.get_template("comparison.html.j2").render(
         title=title,
         sets=sets,
@@ -626,14 +730,13 @@ def build_report(
         # byte of the file is loaded before its first paint
         studies_json=json.dumps(_abridged(studies["studies"]), sort_keys=True, separators=(", ", ": "))
         if studies["studies"] else "",
-        localization=_localization(localization, localization_tables or {}),
+        localization=loc,
+        pages=pages,  # the companion pages of the runs' figures (write_run_pages)
         skalka=skalka_sections(studies),  # Skalka 2011's techniques (template skalka.html.j2)
         robots=robot_section(robots or []),  # the section "Your robot" (templates/robots.html.j2)
         references=[{"key": k, "entry": Markup(e)} for k, _, e in REFERENCES],
         lazy_script=LAZY_SCRIPT,
         script_hash=_csp_hash(LAZY_SCRIPT),
     )
-    p = Path(out)
-    p.parent.mkdir(parents=True, exist_ok=True)
     atomic_write_text(p, text)
     return p
