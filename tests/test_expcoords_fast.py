@@ -113,7 +113,7 @@ def test_shapes_and_nan_points():
 
 
 @pytest.mark.parametrize(
-    "traj, k, n",
+    ("traj", "k", "n"),
     [
         (tr.straight(2.5, dt=0.01, track=0.2), 7e-4, 20_000),  # the explorer's path: ~430 nodes
         (tr.straight(2.5, dt=0.01, track=0.2), 4e-3, 20_000),  # wider heading spread, more nodes
