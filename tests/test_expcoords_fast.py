@@ -168,3 +168,6 @@ def test_density_quantiles_bad_input():
         ec.density_quantiles([[2.5, 0.0]], mu, S, 1.5)
     with pytest.raises(ValueError, match="xy must have shape"):
         ec.density_quantiles(np.zeros((0, 2)), mu, S, 0.5)
+    pts = ec.sample(mu, S, 200, np.random.default_rng(1))[:, :2]
+    pts[7] = np.nan  # as np.quantile of the densities: NaN
+    assert np.isnan(ec.density_quantiles(pts, mu, S, [0.1, 0.5])).all()

@@ -67,7 +67,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..core.drives import Drive, SkidSteer
 from ..core.kinematics import Method
 from ..core.validation import check_choice, check_finite, check_nonnegative
-from .particles import REGIMES
+from .particles import REGIMES, DrawCache
 from .wheel_noise import WheelErrorSources, sample_speed_errors, speed_variance
 
 __all__ = [
@@ -318,6 +318,7 @@ def sample_errors(
     n: int,
     rng: np.random.Generator,
     regime: str = "per_step",
+    draws: DrawCache | None = None,
 ) -> SampledErrors:
     """Draw the errors of ``n`` runs of a measurement sequence (biases included).
 
@@ -331,6 +332,8 @@ def sample_errors(
     ----------
     drive : Drive; u : array_like, shape (N, m); dt : float [s]; model : DriveErrorModel
     n : int; rng : numpy.random.Generator; regime : {"per_step", "per_run"}
+    draws : DrawCache, optional — the Gaussian channels' standard normals kept for the next call
+        from the same stream state (:class:`.particles.DrawCache`; the same errors either way)
 
     Returns
     -------
@@ -343,7 +346,8 @@ def sample_errors(
     N = a.shape[0]
     gauss = [j for j in range(a.shape[1]) if not ch.travel[j] or model.encoder is None]
     width = N if regime == "per_step" else 1
-    z = rng.standard_normal((len(gauss), n, width))
+    shape = (len(gauss), n, width)
+    z = rng.standard_normal(shape) if draws is None else draws.normals(rng, shape).copy()
     errors = dict(zip(gauss, _gaussian_errors(ch, a, gauss, z, regime), strict=True))
     for j in range(a.shape[1]):
         if j not in errors and model.encoder is not None:

@@ -670,7 +670,7 @@ def _pdf_xy_pruned(flat: NDArray, cond: _Conditional, prune: float = _TRUNC) -> 
         buf = np.empty((2, _BLOCK, most))
         for b in np.flatnonzero(np.diff(edges)):
             sel = order[edges[b] : edges[b + 1]]
-            block_sum[sel] = _block_sum(tree, b, x[pt[sel]], y[pt[sel]], buf[:, :, : sel.size])
+            block_sum[sel] = _block_sum(tree, int(b), x[pt[sel]], y[pt[sel]], buf[:, :, : sel.size])
         out[start : start + size] = np.bincount(pt, weights=block_sum, minlength=size)
         # the dense stage holds _BLOCK terms a pair
         per_point = 1.25 * max(peak, _BLOCK * pt.size) / size
@@ -789,7 +789,7 @@ def density_quantiles(
 
     Parameters
     ----------
-    xy : array_like, shape (n, 2) [m] — finite points, n ≥ 1
+    xy : array_like, shape (n, 2) [m] — points, n ≥ 1 (with a NaN, every quantile is NaN)
     mean_pose : array_like, shape (3,); cov : array_like, shape (3, 3)
     q : float or array_like in [0, 1] — probabilities of the quantiles
     n_quad : int — see :func:`pdf_xy`
@@ -798,8 +798,8 @@ def density_quantiles(
     -------
     ndarray, shape of ``q`` [1/m²]
     """
-    pts = check_finite("xy", xy)
-    if pts.ndim != 2 or pts.shape[-1] != 2 or pts.shape[0] < 1:
+    pts = check_last_axis("xy", xy, 2)
+    if pts.ndim != 2 or pts.shape[0] < 1:
         raise ValueError(f"xy must have shape (n, 2) with n >= 1, got shape {pts.shape}")
     qq = check_finite("q", q)
     if np.any((qq < 0.0) | (qq > 1.0)):
@@ -807,8 +807,8 @@ def density_quantiles(
     mu = check_last_axis("mean_pose", mean_pose, 3)
     S = _check_cov3(cov)
     cond = _conditional(mu, S, check_positive_int("n_quad", n_quad))
-    if cond.nodes.size <= _DENSE_NODES:
-        return np.quantile(_pdf_xy_dense(pts, cond), qq)
+    if cond.nodes.size <= _DENSE_NODES or not np.isfinite(pts).all():  # (a NaN point: NaN quantiles)
+        return np.quantile(pdf_xy(pts, mu, S, n_quad=n_quad), qq)
     n = pts.shape[0]
     lo = _pdf_xy_pruned(pts, cond, _BOUND_TRUNC)
     with np.errstate(divide="ignore"):

@@ -37,6 +37,7 @@ from ..experiments.drive_config import DriveConfig
 from ..experiments.run import RunResult, execute
 from ..methods import covariance, expcoords
 from ..methods.maps import ProbabilityMap
+from ..methods.particles import DrawCache
 
 __all__ = [
     "DEFAULTS",
@@ -225,6 +226,10 @@ class View:
     growth: dict[str, dict[str, dict[str, float]]] = field(default_factory=dict)
 
 
+#: The Monte Carlo's standard normals, kept from one move of a control to the next (the same
+#: cloud, drawn once per seed, particles and steps).
+_DRAWS = DrawCache()
+
 #: Method key → the prefix of its coverage in the run's accuracy measures.
 _ACCURACY = {"a": "accuracy_cartesian", "c": "accuracy_unscented", "e": "accuracy_expcoords"}
 
@@ -291,7 +296,9 @@ def compute(
 
     The run is executed without the accuracy comparison's density distances
     (``execute(config, distances=False)``): every number shown is the one a run of the same
-    configuration logs.
+    configuration logs. The Monte Carlo's standard normals are kept between calls
+    (:class:`~pose_uncertainty.methods.particles.DrawCache`): a move of a control other than the
+    seed, the particles or the path's steps draws none, and the cloud is the same.
 
     Parameters
     ----------
@@ -307,7 +314,7 @@ def compute(
     """
     config = RunConfig.from_dict(data)
     cost.check(config)
-    res = execute(config, distances=False, progress=progress or (lambda label: _silent))
+    res = execute(config, distances=False, progress=progress or (lambda label: _silent), draws=_DRAWS)
     m, pr, n_end = res.metrics, config.pr, res.n_steps
     regions: dict[str, list[NDArray[np.float64]]] = {
         "a": [covariance.ellipse_polyline(res.covs[n_end, :2, :2], pr, res.poses[n_end, :2])]
