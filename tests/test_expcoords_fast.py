@@ -134,19 +134,27 @@ def test_density_quantiles_equal_the_quantiles_of_every_density(traj, k, n):
     assert np.array_equal(ec.density_quantiles(twice, mu, S, q), np.quantile(ec.pdf_xy(twice, mu, S), q))
 
 
-def test_density_brackets_hold_the_density():
-    """The lower bound (blocks kept at truncation 5) is a subset of pdf_xy's terms, and the
-    upper bound adds at most e^-5 of the largest node peak: both hold at every point."""
-    mu, S = banana(tr.straight(2.5, dt=0.01, track=0.2), 7e-4)
+@pytest.mark.parametrize(("traj", "k"), [(tr.straight(2.5, dt=0.01, track=0.2), 7e-4),
+                                         (tr.straight(2.5, dt=0.01, track=0.2), 4e-3),
+                                         (tr.arc(1.0, 2.0, dt=0.01, track=0.2), 2e-3)])
+def test_density_brackets_hold_the_density(traj, k):
+    """The brackets of density_quantiles: the sum over the blocks kept at truncation 5 (a subset
+    of pdf_xy's terms, in single precision, within 2e-5 of the double sum), less its margin, is
+    below the density; with the margin and e^-5 of the largest node peak (all it leaves out) added,
+    above it: at every point, near the banana and far from it."""
+    mu, S = banana(traj, k)
     pts = points_around(mu, S, 4000, seed=21, spread=0.1)
     cond = ec._conditional(mu, S, 64)
     assert cond.nodes.size > ec._DENSE_NODES
     exact = ec.pdf_xy(pts, mu, S)
-    lo = ec._pdf_xy_pruned(pts, cond, ec._BOUND_TRUNC)
-    la_max = np.max(np.log(cond.weights) + cond.log_norm)
+    lo, hi = ec._density_brackets(pts, cond)
     assert np.all(lo <= exact)
-    assert np.all(exact - lo <= np.exp(la_max - ec._BOUND_TRUNC))
+    assert np.all(exact <= hi)
     assert np.mean(lo < exact) > 0.25  # it does leave terms out
+    # the single-precision sum against the double one of the same terms
+    double = ec._pdf_xy_pruned(pts, cond, ec._BOUND_TRUNC)
+    single = ec._pdf_xy_pruned(pts, cond, ec._BOUND_TRUNC, single=True)
+    assert np.all(np.abs(single - double) <= 2e-5 * double)
 
 
 def test_block_sum_adds_in_numpys_order():
