@@ -292,17 +292,22 @@ class SampledErrors(NamedTuple):
 
 
 def _gaussian_errors(
-    ch: Channels, u: NDArray, gauss: list[int], z: NDArray, regime: str
+    ch: Channels, u: NDArray, gauss: list[int], z: NDArray, regime: str, overwrite: bool = True
 ) -> list[NDArray]:
-    """Errors (n, N) of the Gaussian channels from standard normals z (len(gauss), n, N or 1)."""
+    """Errors (n, N) of the Gaussian channels from standard normals z (len(gauss), n, N or 1);
+    ``overwrite``: the per-step errors are formed in ``z`` itself (else ``z`` is left as it is)."""
     out = []
     for row, j in enumerate(gauss):
         uj = u[:, j]
         if not ch.travel[j]:
             out.append(z[row] * np.sqrt(ch.angle_var[j]) + np.zeros_like(uj))
         elif regime == "per_step":
-            z[row] *= np.sqrt(ch.k[j] * np.abs(uj))  # Δs' − Δs ~ N(0, k|Δs|)
-            out.append(z[row])
+            scale = np.sqrt(ch.k[j] * np.abs(uj))  # Δs' − Δs ~ N(0, k|Δs|)
+            if overwrite:
+                z[row] *= scale
+                out.append(z[row])
+            else:
+                out.append(z[row] * scale)
         else:
             L = float(np.abs(uj).sum())  # Δs' − Δs = ε Δs, ε ~ N(0, k/L)
             eps_std = np.sqrt(ch.k[j] / L) if L > 0 else 0.0
@@ -347,8 +352,8 @@ def sample_errors(
     gauss = [j for j in range(a.shape[1]) if not ch.travel[j] or model.encoder is None]
     width = N if regime == "per_step" else 1
     shape = (len(gauss), n, width)
-    z = rng.standard_normal(shape) if draws is None else draws.normals(rng, shape).copy()
-    errors = dict(zip(gauss, _gaussian_errors(ch, a, gauss, z, regime), strict=True))
+    z = rng.standard_normal(shape) if draws is None else draws.normals(rng, shape)
+    errors = dict(zip(gauss, _gaussian_errors(ch, a, gauss, z, regime, overwrite=draws is None), strict=True))
     for j in range(a.shape[1]):
         if j not in errors and model.encoder is not None:
             errors[j] = sample_speed_errors(model.encoder, a[:, j] / dt, n, rng, regime) * dt
