@@ -570,7 +570,7 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
     growth_div = Div(text="", name="growth")
 
     xy = figure(title="x–y overlay", match_aspect=True, width=620, height=520,
-                x_axis_label="x [m]", y_axis_label="y [m]", output_backend="webgl")  # fmt: skip
+                x_axis_label="x [m]", y_axis_label="y [m]")  # fmt: skip
     src: dict[str, ColumnDataSource] = {
         "path": ColumnDataSource({"x": [], "y": []}),
         "mc": ColumnDataSource({"x": [], "y": []}, name="source-mc"),
