@@ -577,7 +577,8 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
         **{k: ColumnDataSource({"xs": [], "ys": []}, name=f"source-{k}") for k in ("a", "c", "e", "map")},
     }
     xy.line("x", "y", source=src["path"], color="#999999", legend_label="nominal path")
-    glyphs: dict[str, Any] = {"mc": xy.scatter("x", "y", source=src["mc"], size=2, alpha=0.3, color=_COLOURS["mc"],
+    glyphs: dict[str, Any] = {"mc": xy.scatter("x", "y", source=src["mc"], size=2, alpha=0.3, marker="square",
+                               line_color=None, fill_color=_COLOURS["mc"],
                                legend_label=METHODS["mc"])}  # fmt: skip
     for k in ("a", "c", "e", "map"):
         glyphs[k] = xy.multi_line(
