@@ -1,5 +1,6 @@
 """Every drive's error models, Method A, Monte Carlo and exponential-coordinates Gaussian."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -174,6 +175,24 @@ def test_monte_carlo_end_poses_equal_the_integrated_particles(drive, method):
         b = ds.sample_poses(path, model, 2000, np.random.default_rng(4), regime=regime,
                             checkpoints=[path.n_steps], **kw)  # fmt: skip
         assert_allclose(a, b[:, 0], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("drive", ALL_DRIVES, ids=IDS)
+def test_kept_normals_give_every_drive_the_same_particles(drive):
+    """A DrawCache (the explorer's) keeps the Gaussian channels' normals: the next call with other
+    error levels reads them, draws the rest (encoders, the ICR slip) after them from the same
+    stream, and gives the particles drawn afresh, bit for bit; the kept normals stay untouched."""
+    from pose_uncertainty.methods.particles import DrawCache
+
+    path = dr.follow(drive, SHORT_ARC)
+    cache = DrawCache()
+    for scale in (1.0, 3.0, 1.0):
+        model = _small_model(drive)
+        model = dataclasses.replace(model, k=1e-6 * scale, steer_var=model.steer_var * scale)
+        for regime in ("per_step", "per_run"):
+            kept = ds.sample_poses(path, model, 600, np.random.default_rng(7), regime=regime, draws=cache)
+            fresh = ds.sample_poses(path, model, 600, np.random.default_rng(7), regime=regime)
+            assert_array_equal(kept, fresh)
 
 
 # --- Jacobians of the step ----------------------------------------------------------------

@@ -107,3 +107,75 @@ def test_shapes_and_nan_points():
     assert np.isnan(out2[1, 2])
     assert np.array_equal(np.isnan(out2), np.isnan(pts).any(-1))
     assert ec.pdf_xy(np.zeros((0, 2)), mu, S).shape == (0,)
+
+
+# --- quantiles of the density (the banana's region levels) -----------------------------------
+
+
+@pytest.mark.parametrize(
+    ("traj", "k", "n"),
+    [
+        (tr.straight(2.5, dt=0.01, track=0.2), 7e-4, 20_000),  # the explorer's path: ~430 nodes
+        (tr.straight(2.5, dt=0.01, track=0.2), 4e-3, 20_000),  # wider heading spread, more nodes
+        (tr.straight(0.5, dt=0.05, track=0.2), 0.05, 5_000),  # a fat banana: the dense sum
+        pytest.param(tr.straight(20.0, dt=0.05, track=0.2), 5e-4, 50_000, marks=pytest.mark.slow),
+    ],
+)
+def test_density_quantiles_equal_the_quantiles_of_every_density(traj, k, n):
+    """The bracketed route reads few exact densities, and gives np.quantile of all of them, bit for bit."""
+    mu, S = banana(traj, k)
+    q = np.array([0.0, 1.0 - 0.98889, 0.1, 0.5, 0.9, 1.0])
+    for seed in range(3):
+        pts = ec.sample(mu, S, n, np.random.default_rng(seed))[:, :2]
+        assert np.array_equal(ec.density_quantiles(pts, mu, S, q), np.quantile(ec.pdf_xy(pts, mu, S), q))
+    # scalar q, a handful of points, ties
+    assert ec.density_quantiles(pts[:3], mu, S, 0.5) == np.quantile(ec.pdf_xy(pts[:3], mu, S), 0.5)
+    twice = np.concatenate([pts[:500], pts[:500]])
+    assert np.array_equal(ec.density_quantiles(twice, mu, S, q), np.quantile(ec.pdf_xy(twice, mu, S), q))
+
+
+@pytest.mark.parametrize(("traj", "k"), [(tr.straight(2.5, dt=0.01, track=0.2), 7e-4),
+                                         (tr.straight(2.5, dt=0.01, track=0.2), 4e-3),
+                                         (tr.arc(1.0, 2.0, dt=0.01, track=0.2), 2e-3)])
+def test_density_brackets_hold_the_density(traj, k):
+    """The brackets of density_quantiles: the sum over the blocks kept at truncation 5 (a subset
+    of pdf_xy's terms, in single precision, within 2e-5 of the double sum), less its margin, is
+    below the density; with the margin and e^-5 of the largest node peak (all it leaves out) added,
+    above it: at every point, near the banana and far from it."""
+    mu, S = banana(traj, k)
+    pts = points_around(mu, S, 4000, seed=21, spread=0.1)
+    cond = ec._conditional(mu, S, 64)
+    assert cond.nodes.size > ec._DENSE_NODES
+    exact = ec.pdf_xy(pts, mu, S)
+    lo, hi = ec._density_brackets(pts, cond)
+    assert np.all(lo <= exact)
+    assert np.all(exact <= hi)
+    assert np.mean(lo < exact) > 0.25  # it does leave terms out
+    # the single-precision sum against the double one of the same terms
+    double = ec._pdf_xy_pruned(pts, cond, ec._BOUND_TRUNC)
+    single = ec._pdf_xy_pruned(pts, cond, ec._BOUND_TRUNC, single=True)
+    assert np.all(np.abs(single - double) <= 2e-5 * double)
+
+
+def test_block_sum_adds_in_numpys_order():
+    """A block's terms, node-major, added as numpy adds a contiguous row (eight running sums, then
+    a tree): the pruned density is unchanged by its node-major layout."""
+    rng = np.random.default_rng(4)
+    for m in (1, 7, 300):
+        terms = np.exp(rng.uniform(-60.0, 5.0, (ec._BLOCK, m))) * (rng.random((ec._BLOCK, m)) < 0.7)
+        r = terms[0:8] + terms[8:16]
+        for i in range(16, ec._BLOCK, 8):
+            r += terms[i : i + 8]
+        mine = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+        assert np.array_equal(mine, np.ascontiguousarray(terms.T).sum(axis=1))
+
+
+def test_density_quantiles_bad_input():
+    mu, S = banana(tr.straight(2.5, dt=0.01, track=0.2), 7e-4)
+    with pytest.raises(ValueError, match=r"q must be in \[0, 1\]"):
+        ec.density_quantiles([[2.5, 0.0]], mu, S, 1.5)
+    with pytest.raises(ValueError, match="xy must have shape"):
+        ec.density_quantiles(np.zeros((0, 2)), mu, S, 0.5)
+    pts = ec.sample(mu, S, 200, np.random.default_rng(1))[:, :2]
+    pts[7] = np.nan  # as np.quantile of the densities: NaN
+    assert np.isnan(ec.density_quantiles(pts, mu, S, [0.1, 0.5])).all()

@@ -144,6 +144,22 @@ def test_bad_value_gives_the_run_config_one_line_error(field: str, value: str, w
     assert str(same.value) == msg
 
 
+def test_map_alphas_are_the_run_configs() -> None:
+    """The map's motion-model error constants: a field of the page, validated by the run config."""
+    settings = {**TINY_MAP, "map_alphas": "0.1, 0.02, 0.03, 0.04"}
+    cfg = RunConfig.from_dict(explore.run_config(settings))
+    assert cfg.maps[0].params["alphas"] == [0.1, 0.02, 0.03, 0.04]
+    default = RunConfig.from_dict(explore.run_config(TINY_MAP))  # empty: the model's own
+    assert default.maps[0].params["alphas"] == [0.05] * 4
+    with pytest.raises(ValueError, match="alphas") as exc:  # six for the odometry model's four
+        RunConfig.from_dict(explore.run_config({**settings, "map_alphas": "0.1, 0.1, 0.1, 0.1, 0.1, 0.1"}))
+    assert "\n" not in str(exc.value)
+    with pytest.raises(ValueError, match="alphas"):  # not numbers
+        RunConfig.from_dict(explore.run_config({**settings, "map_alphas": "a, b, c, d"}))
+    with pytest.raises(ValueError, match=r"map alphas '\[1' is not a list"):  # not a list at all
+        explore.run_config({**settings, "map_alphas": "[1"})
+
+
 def test_cost_guard_refuses_in_the_explorer() -> None:
     data = explore.run_config(
         {**SMALL, "n_particles": "100000000", "size": "50", "path": "straight"}

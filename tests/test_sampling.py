@@ -152,3 +152,35 @@ def test_bad_initial_covariance(rng):
         sp.sample_end_poses(tr.straight(1.0), 1e-4, 1e-4, 10, rng, cov0=np.diag([1.0, -1.0, 1.0]))
     with pytest.raises(ValueError, match="cov0 must be a symmetric 3x3"):
         sp.sample_end_poses(tr.straight(1.0), 1e-4, 1e-4, 10, rng, cov0=np.eye(2))
+
+
+@pytest.mark.parametrize("kernel", ["numpy", "compiled"])
+def test_kept_normals_give_the_same_cloud_for_other_error_constants(kernel):
+    """A DrawCache keeps each chunk's standard normals (they depend on the seed, particles and steps
+    only): a second call with other k_r, k_l or cov0 takes them, and its cloud is the one drawn
+    afresh, bit for bit, for both kernels and with the start offsets drawn after them."""
+    t = tr.straight(0.5, speed=0.5, dt=0.01, track=0.2)
+    cache = sp.DrawCache()
+    c0 = np.diag([1e-4, 2e-4, 1e-3])
+    for k_r, cov0, regime in [(7e-4, None, "per_step"), (2e-3, None, "per_step"), (2e-3, c0, "per_step"),
+                              (5e-4, c0, "per_step"), (5e-4, None, "per_run"), (9e-4, None, "per_run")]:  # fmt: skip
+        kept = sp.sample_end_poses(t, k_r, 5e-4, 700, np.random.default_rng(4), regime=regime, cov0=cov0,
+                                   kernel=kernel, draws=cache)  # fmt: skip
+        fresh = sp.sample_end_poses(t, k_r, 5e-4, 700, np.random.default_rng(4), regime=regime, cov0=cov0,
+                                    kernel=kernel)  # fmt: skip
+        assert_array_equal(kept, fresh)
+    assert cache._kept  # and it did keep them
+
+
+def test_draw_cache_returns_the_draw_and_leaves_the_stream_where_it_would_be():
+    cache = sp.DrawCache(max_bytes=1000)  # one block of 2 × 50 normals (800 bytes)
+    for _ in range(2):  # drawn, then kept
+        g, h = np.random.default_rng(8), np.random.default_rng(8)
+        assert_array_equal(cache.normals(g, (2, 50)), h.standard_normal((2, 50)))
+        assert_array_equal(g.standard_normal(5), h.standard_normal(5))  # the next draws are unchanged
+    assert len(cache._kept) == 1
+    cache.normals(np.random.default_rng(9), (2, 50))  # a second block: the first goes (least recently used)
+    assert len(cache._kept) == 1
+    assert cache._bytes == 800
+    cache.normals(np.random.default_rng(10), (10, 50))  # larger than the cache: drawn, not kept
+    assert cache._bytes == 800

@@ -252,3 +252,33 @@ def test_bad_input_one_line_errors(prop, kwargs, match):
 def test_bad_perturbation():
     with pytest.raises(ValueError, match=r"^perturbation must be one of 'right', 'left', got 'up'$"):
         ut.propagate_se2(ARC, 1e-4, 1e-4, perturbation="up")
+
+
+def test_ut_step_equals_sigma_points_through_the_kinematic_step(rng):
+    """ut_step builds its sigma points block by block: the same numbers as the augmented state's
+    points (unscented.sigma_points of blockdiag(L_p, √var_r, √var_l)) through kinematics.step."""
+    from pose_uncertainty.core.kinematics import step
+
+    w = ut.sigma_weights(5)
+    for batch in [(), (4,)]:
+        X = rng.normal(size=(*batch, 4, 3)) * [0.1, 0.2, 0.3]
+        cov = np.swapaxes(X, -1, -2) @ X
+        if not batch:
+            cov[0] = cov[:, 0] = 0.0  # a singular Σ, as at the start of a path
+        pose = rng.normal(size=(*batch, 3))
+        sr, sl = 0.01 + 0.001 * rng.random(batch), 0.008 + 0.001 * rng.random(batch)
+        kr, kl, b = 7e-4, 5e-4, np.full(batch, 0.2)
+        z = np.concatenate([pose, np.stack([sr, sl], axis=-1)], axis=-1)
+        L = np.zeros((*batch, 5, 5))
+        L[..., :3, :3] = ut.psd_cholesky(cov)
+        L[..., 3, 3], L[..., 4, 4] = np.sqrt(kr * np.abs(sr)), np.sqrt(kl * np.abs(sl))
+        chi = ut.sigma_points(z, L, w.lam)
+        r, l_ = chi[..., 3], chi[..., 4]
+        moved = step(chi[..., :3], (r + l_) / 2.0, (r - l_) / b[..., None], method="midpoint")
+        mean = moved[..., :2].swapaxes(-1, -2) @ w.Wm
+        got_pose, got_cov = ut.ut_step(pose, cov, sr, sl, kr, kl, b, w)
+        assert np.array_equal(got_pose[..., :2], mean)
+        d = moved - got_pose[..., None, :]
+        d[..., 2] = wrap_angle(d[..., 2])
+        ref = np.swapaxes(d * w.Wc[:, None], -1, -2) @ d
+        assert np.array_equal(got_cov, 0.5 * (ref + np.swapaxes(ref, -1, -2)))

@@ -37,6 +37,7 @@ noiseless exact-arc end pose. Probability levels are those of
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 
@@ -223,8 +224,10 @@ _COMPILED = tuple(
 )
 
 
+@functools.lru_cache(maxsize=4096)
 def describe(name: str) -> tuple[str, str]:
-    """``(unit, definition)`` of a logged measure; ``KeyError`` for an unknown name."""
+    """``(unit, definition)`` of a logged measure; ``KeyError`` for an unknown name (remembered
+    per name: a run describes each of its ~100 measures, and the next run the same ones)."""
     for pattern, unit, definition in _COMPILED:
         m = pattern.match(name)
         if m:

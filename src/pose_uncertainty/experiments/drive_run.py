@@ -40,6 +40,7 @@ from ..methods import drive_sampling as dsm
 from ..methods.covariance import CovarianceResult
 from ..methods.drive_noise import DriveErrorModel
 from ..methods.expcoords import ExpGaussian
+from ..methods.particles import DrawCache
 from .drive_config import DriveConfig
 
 __all__ = ["DriveSetup", "expcoords", "growth_steps", "measures", "method_a", "sample", "setup"]
@@ -81,11 +82,15 @@ def sample(
     method: str,
     cov0: ArrayLike | None,
     checkpoints: Sequence[int] | None,
+    kernel: str = "auto",
+    draws: DrawCache | None = None,
 ) -> NDArray[np.float64]:
-    """Monte Carlo poses: (n, 3) end poses, or (n, C, 3) at ``checkpoints`` (:func:`.drive_sampling.sample_poses`)."""
+    """Monte Carlo poses: (n, 3) end poses, or (n, C, 3) at ``checkpoints`` (:func:`.drive_sampling.sample_poses`,
+    with its ``kernel`` and ``draws``)."""
     return dsm.sample_poses(
-        s.path, s.model, n, rng, regime=regime, method=method, checkpoints=checkpoints, cov0=cov0
-    )
+        s.path, s.model, n, rng, regime=regime, method=method, checkpoints=checkpoints, cov0=cov0,
+        kernel=kernel, draws=draws,
+    )  # fmt: skip
 
 
 def expcoords(s: DriveSetup, cov0: ArrayLike | None) -> ExpGaussian:

@@ -67,7 +67,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..core.drives import Drive, SkidSteer
 from ..core.kinematics import Method
 from ..core.validation import check_choice, check_finite, check_nonnegative
-from .particles import REGIMES
+from .particles import REGIMES, DrawCache
 from .wheel_noise import WheelErrorSources, sample_speed_errors, speed_variance
 
 __all__ = [
@@ -292,17 +292,22 @@ class SampledErrors(NamedTuple):
 
 
 def _gaussian_errors(
-    ch: Channels, u: NDArray, gauss: list[int], z: NDArray, regime: str
+    ch: Channels, u: NDArray, gauss: list[int], z: NDArray, regime: str, overwrite: bool = True
 ) -> list[NDArray]:
-    """Errors (n, N) of the Gaussian channels from standard normals z (len(gauss), n, N or 1)."""
+    """Errors (n, N) of the Gaussian channels from standard normals z (len(gauss), n, N or 1);
+    ``overwrite``: the per-step errors are formed in ``z`` itself (else ``z`` is left as it is)."""
     out = []
     for row, j in enumerate(gauss):
         uj = u[:, j]
         if not ch.travel[j]:
             out.append(z[row] * np.sqrt(ch.angle_var[j]) + np.zeros_like(uj))
         elif regime == "per_step":
-            z[row] *= np.sqrt(ch.k[j] * np.abs(uj))  # Δs' − Δs ~ N(0, k|Δs|)
-            out.append(z[row])
+            scale = np.sqrt(ch.k[j] * np.abs(uj))  # Δs' − Δs ~ N(0, k|Δs|)
+            if overwrite:
+                z[row] *= scale
+                out.append(z[row])
+            else:
+                out.append(z[row] * scale)
         else:
             L = float(np.abs(uj).sum())  # Δs' − Δs = ε Δs, ε ~ N(0, k/L)
             eps_std = np.sqrt(ch.k[j] / L) if L > 0 else 0.0
@@ -318,6 +323,7 @@ def sample_errors(
     n: int,
     rng: np.random.Generator,
     regime: str = "per_step",
+    draws: DrawCache | None = None,
 ) -> SampledErrors:
     """Draw the errors of ``n`` runs of a measurement sequence (biases included).
 
@@ -331,6 +337,8 @@ def sample_errors(
     ----------
     drive : Drive; u : array_like, shape (N, m); dt : float [s]; model : DriveErrorModel
     n : int; rng : numpy.random.Generator; regime : {"per_step", "per_run"}
+    draws : DrawCache, optional — the Gaussian channels' standard normals kept for the next call
+        from the same stream state (:class:`.particles.DrawCache`; the same errors either way)
 
     Returns
     -------
@@ -343,8 +351,9 @@ def sample_errors(
     N = a.shape[0]
     gauss = [j for j in range(a.shape[1]) if not ch.travel[j] or model.encoder is None]
     width = N if regime == "per_step" else 1
-    z = rng.standard_normal((len(gauss), n, width))
-    errors = dict(zip(gauss, _gaussian_errors(ch, a, gauss, z, regime), strict=True))
+    shape = (len(gauss), n, width)
+    z = rng.standard_normal(shape) if draws is None else draws.normals(rng, shape)
+    errors = dict(zip(gauss, _gaussian_errors(ch, a, gauss, z, regime, overwrite=draws is None), strict=True))
     for j in range(a.shape[1]):
         if j not in errors and model.encoder is not None:
             errors[j] = sample_speed_errors(model.encoder, a[:, j] / dt, n, rng, regime) * dt

@@ -42,7 +42,7 @@ from ..core.threads import default_workers
 from ..core.validation import check_choice, check_positive_int
 from . import drive_noise as dn
 from . import mc_kernel
-from .particles import REGIMES, chunk_streams, start_factor
+from .particles import REGIMES, DrawCache, chunk_streams, start_factor
 
 __all__ = ["KERNELS", "sample_poses"]
 
@@ -222,6 +222,7 @@ def sample_poses(
     workers: int | None = None,
     progress: Callable[[int, int], None] | None = None,
     kernel: str = "auto",
+    draws: DrawCache | None = None,
 ) -> NDArray[np.float64]:
     """Noisy executions of a drive's path: the Monte Carlo ground truth of its error model.
 
@@ -246,6 +247,8 @@ def sample_poses(
         (the same draws, equal up to rounding); ``"auto"``: compiled from
         :data:`.mc_kernel.MIN_PARTICLE_STEPS` particle-steps. Other drives and models, and
         checkpoints, always use numpy.
+    draws : DrawCache, optional — keeps the standard normals of the Gaussian channels for the next
+        call with the same seed, particles and steps (the output is the same with or without it)
 
     Returns
     -------
@@ -269,11 +272,14 @@ def sample_poses(
     buffers = threading.local()  # each thread's block for the draws of a chunk
 
     def run_compiled(g: np.random.Generator, m: int, plan: _Compiled) -> NDArray[np.float64]:
-        size = 2 * chunk * plan.width
-        if getattr(buffers, "z", None) is None:
-            buffers.z = np.empty(size)
-        z = buffers.z[: 2 * m * plan.width].reshape(2, m, plan.width)
-        g.standard_normal(out=z)  # the draw of drive_noise.sample_errors, number for number
+        if draws is not None:  # the draw of drive_noise.sample_errors, kept for the next call
+            z = draws.normals(g, (2, m, plan.width))
+        else:
+            size = 2 * chunk * plan.width
+            if getattr(buffers, "z", None) is None:
+                buffers.z = np.empty(size)
+            z = buffers.z[: 2 * m * plan.width].reshape(2, m, plan.width)
+            g.standard_normal(out=z)  # the draw of drive_noise.sample_errors, number for number
         offset = None if start_sqrt is None else g.standard_normal((m, 3)) @ start_sqrt.T
         return mc_kernel.compiled_end_poses(
             z[0], z[1], plan.scale_r, plan.scale_l, plan.eps, plan.nominal, path.start,
@@ -287,7 +293,7 @@ def sample_poses(
         if plan is not None:
             out[lo : lo + m, 0] = run_compiled(g, m, plan)
             return
-        errors = dn.sample_errors(path.drive, path.u, path.dt, model, m, g, regime)
+        errors = dn.sample_errors(path.drive, path.u, path.dt, model, m, g, regime, draws)
         offset = None if start_sqrt is None else g.standard_normal((m, 3)) @ start_sqrt.T
         out[lo : lo + m] = _chunk_poses(path, nom, errors, offset, method, cps)
 

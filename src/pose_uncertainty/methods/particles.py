@@ -9,7 +9,10 @@ any number of threads (:func:`chunk_streams`).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import threading
+from collections import OrderedDict
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -18,7 +21,7 @@ from ..core.drives import differential_twist
 from ..core.kinematics import integrate_twist
 from ..core.validation import check_finite
 
-__all__ = ["REGIMES", "chunk_streams", "integrate_end", "start_factor"]
+__all__ = ["REGIMES", "DrawCache", "chunk_streams", "integrate_end", "start_factor"]
 
 #: The two regimes of odometry error (:mod:`.sampling`, :mod:`.drive_noise`): fresh errors
 #: every step (non-systematic), or one draw per run kept for the whole run (systematic).
@@ -26,6 +29,60 @@ REGIMES: tuple[str, ...] = ("per_step", "per_run")
 
 #: elements per chunk array: large enough for vectorisation, small enough for cache
 CHUNK_ELEMENTS = 1 << 16
+
+
+class DrawCache:
+    """Standard normals drawn from the chunks' random streams, kept for the next run of the same seed.
+
+    The Monte Carlo's normals depend on the seed, the number of particles and the steps
+    only, not on the error constants, the track or the path's shape: a run that differs from
+    the last in those alone (the explorer's move of a slider) draws exactly the normals it
+    drew. :meth:`normals` returns what ``g.standard_normal(shape)`` would, and leaves ``g``
+    where that draw would have left it, so every later draw from ``g`` is unchanged: the
+    output with a cache is the output without it, bit for bit. Entries are keyed by the
+    stream's full state and the shape; the least recently used go first beyond
+    ``max_bytes``, and a block larger than that is not kept. Thread-safe.
+
+    Parameters
+    ----------
+    max_bytes : int — memory the kept normals may take (default 256 MiB)
+    """
+
+    def __init__(self, max_bytes: int = 256 << 20) -> None:
+        self.max_bytes = int(max_bytes)
+        self._kept: OrderedDict[tuple[object, ...], tuple[NDArray[np.float64], Mapping[str, Any]]] = OrderedDict()
+        self._bytes = 0
+        self._lock = threading.Lock()
+
+    def normals(self, g: np.random.Generator, shape: tuple[int, ...]) -> NDArray[np.float64]:
+        """``g.standard_normal(shape)`` (a kept copy when this state drew it before; do not write to it)."""
+        state = g.bit_generator.state
+        key = (tuple(int(d) for d in shape), _state_key(state))
+        with self._lock:
+            got = self._kept.get(key)
+            if got is not None:
+                self._kept.move_to_end(key)
+        if got is not None:
+            g.bit_generator.state = got[1]
+            return got[0]
+        z = g.standard_normal(shape)
+        if z.nbytes <= self.max_bytes:
+            with self._lock:
+                self._kept[key] = (z, g.bit_generator.state)
+                self._bytes += z.nbytes
+                while self._bytes > self.max_bytes:
+                    _, (old, _) = self._kept.popitem(last=False)
+                    self._bytes -= old.nbytes
+        return z
+
+
+def _state_key(state: object) -> object:
+    """A hashable copy of a bit generator's state (its arrays as bytes)."""
+    if isinstance(state, dict):
+        return tuple((k, _state_key(v)) for k, v in sorted(state.items()))
+    if isinstance(state, np.ndarray):
+        return (state.dtype.str, state.shape, state.tobytes())
+    return state
 
 
 def start_factor(cov0: ArrayLike | None) -> NDArray[np.float64] | None:

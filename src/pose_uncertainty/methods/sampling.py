@@ -36,9 +36,9 @@ from ..core.trajectories import Trajectory
 from ..core.validation import check_nonnegative
 from .drive_noise import DriveErrorModel
 from .drive_sampling import sample_poses
-from .particles import REGIMES, chunk_streams, integrate_end, start_factor
+from .particles import REGIMES, DrawCache, chunk_streams, integrate_end, start_factor
 
-__all__ = ["REGIMES", "chunk_streams", "integrate_end", "sample_end_poses", "start_factor"]
+__all__ = ["REGIMES", "DrawCache", "chunk_streams", "integrate_end", "sample_end_poses", "start_factor"]
 
 
 def sample_end_poses(
@@ -55,6 +55,7 @@ def sample_end_poses(
     workers: int | None = None,
     progress: Callable[[int, int], None] | None = None,
     kernel: str = "auto",
+    draws: DrawCache | None = None,
 ) -> NDArray[np.float64]:
     """Noisy executions of a trajectory: the Monte Carlo ground truth of Method A's model.
 
@@ -82,6 +83,8 @@ def sample_end_poses(
     kernel : {"auto", "numpy", "compiled"} — the end poses by numpy (the reference) or by the
         compiled loop of :mod:`.mc_kernel` (the same draws, equal up to rounding); ``"auto"``
         (default): compiled from :data:`.mc_kernel.MIN_PARTICLE_STEPS` particle-steps
+    draws : DrawCache, optional — the standard normals kept for the next call with
+        the same seed (:class:`.particles.DrawCache`; the output does not depend on it)
 
     Returns
     -------
@@ -92,5 +95,5 @@ def sample_end_poses(
     kl = float(check_nonnegative("k_l", k_l))
     return sample_poses(
         wheel_path(trajectory), DriveErrorModel(k=(kr, kl)), n, rng, regime=regime, method=method,
-        checkpoints=checkpoints, cov0=cov0, workers=workers, progress=progress, kernel=kernel,
+        checkpoints=checkpoints, cov0=cov0, workers=workers, progress=progress, kernel=kernel, draws=draws,
     )  # fmt: skip

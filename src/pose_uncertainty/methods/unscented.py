@@ -81,7 +81,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..core.kinematics import integrate, step, wrap_angle
+from ..core.kinematics import _translation_twist, integrate, wrap_angle
 from ..core.se2 import adjoint, compose, exp, inverse, log
 from ..core.trajectories import Trajectory
 from ..core.validation import check_choice, check_finite, check_positive
@@ -161,12 +161,25 @@ def psd_cholesky(P: ArrayLike) -> NDArray[np.float64]:
     L = np.zeros_like(A)
     tol = 1e-14 * np.abs(A).max(axis=(-1, -2))
     for j in range(n):
-        d = A[..., j, j] - np.einsum("...k,...k->...", L[..., j, :j], L[..., j, :j])
+        # d = A_jj − Σ_k L_jk², below_i = A_ij − Σ_k L_ik L_jk (k < j): up to two terms added
+        # elementwise, as einsum adds them (without its dispatch: a 3×3 factor is every step of
+        # Method C), more by einsum
+        d = A[..., j, j]
+        below = A[..., j + 1 :, j]
+        if 0 < j <= 2:
+            acc = L[..., j, 0] * L[..., j, 0] if j == 1 else L[..., j, 0] * L[..., j, 0] + L[..., j, 1] * L[..., j, 1]
+            d = d - acc
+            if j + 1 < n:
+                lo = L[..., j + 1 :, 0] * L[..., j, 0, None]
+                below = below - (lo if j == 1 else lo + L[..., j + 1 :, 1] * L[..., j, 1, None])
+        elif j:
+            d = d - np.einsum("...k,...k->...", L[..., j, :j], L[..., j, :j])
+            below = below - np.einsum("...ik,...k->...i", L[..., j + 1 :, :j], L[..., j, :j])
         ok = d > tol
         root = np.sqrt(np.where(ok, d, 1.0))
         L[..., j, j] = np.where(ok, root, 0.0)
-        below = A[..., j + 1 :, j] - np.einsum("...ik,...k->...i", L[..., j + 1 :, :j], L[..., j, :j])
-        L[..., j + 1 :, j] = np.where(ok[..., None], below / root[..., None], 0.0)
+        if j + 1 < n:
+            L[..., j + 1 :, j] = np.where(ok[..., None], below / root[..., None], 0.0)
     return L
 
 
@@ -251,14 +264,28 @@ def ut_step(
     w = sigma_weights(_N_AUG) if weights is None else weights
     p = np.asarray(pose, dtype=np.float64)
     sr, sl, b = np.asarray(ds_r, float), np.asarray(ds_l, float), np.asarray(track, float)
-    # z = (x, y, θ, Δs_r, Δs_l),  Cov z = blockdiag(Σ_p, k_r|Δs_r|, k_l|Δs_l|)
+    # z = (x, y, θ, Δs_r, Δs_l),  Cov z = blockdiag(Σ_p, k_r|Δs_r|, k_l|Δs_l|): the sigma points of
+    # sigma_points(z, blockdiag(L_p, √(k_r|Δs_r|), √(k_l|Δs_l|)), λ), built block by block (each
+    # point moves the pose or one wheel only; the same numbers, fewer operations a step)
     shape = np.broadcast_shapes(p.shape[:-1], sr.shape, sl.shape)
-    z = np.empty((*shape, _N_AUG))
-    z[..., :3], z[..., 3], z[..., 4] = p, sr, sl
-    L = _augmented_sqrt(psd_cholesky(cov), np.asarray(k_r) * np.abs(sr), np.asarray(k_l) * np.abs(sl))
-    chi = sigma_points(z, L, w.lam)  # (..., 11, 5)
-    r, l_ = chi[..., 3], chi[..., 4]
-    moved = step(chi[..., :3], (r + l_) / 2.0, (r - l_) / b[..., None], method="midpoint")
+    spread = np.sqrt(_N_AUG + w.lam)
+    cols = spread * np.swapaxes(psd_cholesky(cov), -1, -2)  # row j: √(n+λ) L_p[:, j]
+    pose_pts = np.empty((*shape, 2 * _N_AUG + 1, 3))
+    pose_pts[...] = p[..., None, :]
+    pose_pts[..., 1:4, :] += cols
+    pose_pts[..., 6:9, :] -= cols
+    wheel = np.empty((*shape, 2, 2 * _N_AUG + 1))  # Δs_r, Δs_l of each point
+    wheel[..., 0, :], wheel[..., 1, :] = sr[..., None], sl[..., None]
+    for row, var, at in ((0, np.asarray(k_r) * np.abs(sr), 4), (1, np.asarray(k_l) * np.abs(sl), 5)):
+        dev = spread * np.sqrt(var)
+        wheel[..., row, at] += dev
+        wheel[..., row, at + _N_AUG] -= dev
+    r, l_ = wheel[..., 0, :], wheel[..., 1, :]
+    # the midpoint step of kinematics.step (its translation, without re-checking the points)
+    ds, dth = (r + l_) / 2.0, (r - l_) / b[..., None]
+    th = pose_pts[..., 2]
+    dx, dy = _translation_twist(th, ds, 0.0, dth, "midpoint")  # type: ignore[arg-type]
+    moved = np.stack([pose_pts[..., 0] + dx, pose_pts[..., 1] + dy, th + dth], axis=-1)
     return _cartesian_recombine(moved, w)
 
 

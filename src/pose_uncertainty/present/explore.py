@@ -37,6 +37,7 @@ from ..experiments.drive_config import DriveConfig
 from ..experiments.run import RunResult, execute
 from ..methods import covariance, expcoords
 from ..methods.maps import ProbabilityMap
+from ..methods.particles import DrawCache
 
 __all__ = [
     "DEFAULTS",
@@ -98,6 +99,7 @@ DEFAULTS: dict[str, str] = {
     "seed": "1",
     "map": "none",
     "map_resolution": "0.02",
+    "map_alphas": "",
 }
 
 #: Grid points per axis of the banana's drawn boundary (its level is the run's logged one).
@@ -138,6 +140,19 @@ def _geometry(text: str) -> dict[str, Any]:
     raise ValueError(f"drive geometry {text!r} is not a list of 'key: value' (e.g. 'wheelbase: 0.3')")
 
 
+def _alphas(text: str) -> Any:
+    """The map-alphas field ``a, b, …`` as a list (the run configuration validates its count and values)."""
+    import yaml
+
+    try:
+        out = yaml.safe_load("[" + text + "]")
+    except yaml.YAMLError:
+        out = None
+    if isinstance(out, list):
+        return out
+    raise ValueError(f"map alphas {text!r} is not a list of numbers separated by commas (e.g. '0.05, 0.05, 0.05, 0.05')")
+
+
 def run_config(
     settings: Mapping[str, str], base: Mapping[str, Any] | None = None
 ) -> dict[str, Any]:
@@ -151,7 +166,8 @@ def run_config(
         [m] (arc, circle, S-curve), target offset ``dx = dy`` [m] (right angles, direct) or
         angle [rad] (rotation: turning in place). ``drive`` (one of :data:`DRIVES`) with its
         ``geometry`` (``key: value, …``; empty = the drive's defaults); ``map`` (one of
-        :data:`MAP_MODELS`) with its cell ``map_resolution`` [m].
+        :data:`MAP_MODELS`) with its cell ``map_resolution`` [m] and its motion model's error
+        constants ``map_alphas`` (``a, b, …``: 6 velocity, 4 odometry; empty = the model's defaults).
     base : mapping, optional
         A full run configuration (e.g. a logged run's) whose other keys (``cov0``,
         ``n_ellipses``, ``name``, the trajectory's start and profile) are kept.
@@ -195,6 +211,8 @@ def run_config(
         out["drive"] = {"type": s["drive"], **_geometry(s["geometry"])}
     if s["map"] != "none":
         out["maps"] = [{"name": s["map"], "model": s["map"], "resolution": s["map_resolution"]}]
+        if s["map_alphas"].strip():
+            out["maps"][0]["alphas"] = _alphas(s["map_alphas"])
     return out
 
 
@@ -224,6 +242,10 @@ class View:
     spreads: dict[str, dict[str, NDArray[np.float64]]] = field(default_factory=dict)
     growth: dict[str, dict[str, dict[str, float]]] = field(default_factory=dict)
 
+
+#: The Monte Carlo's standard normals, kept from one move of a control to the next (the same
+#: cloud, drawn once per seed, particles and steps).
+_DRAWS = DrawCache()
 
 #: Method key → the prefix of its coverage in the run's accuracy measures.
 _ACCURACY = {"a": "accuracy_cartesian", "c": "accuracy_unscented", "e": "accuracy_expcoords"}
@@ -291,7 +313,9 @@ def compute(
 
     The run is executed without the accuracy comparison's density distances
     (``execute(config, distances=False)``): every number shown is the one a run of the same
-    configuration logs.
+    configuration logs. The Monte Carlo's standard normals are kept between calls
+    (:class:`~pose_uncertainty.methods.particles.DrawCache`): a move of a control other than the
+    seed, the particles or the path's steps draws none, and the cloud is the same.
 
     Parameters
     ----------
@@ -307,7 +331,7 @@ def compute(
     """
     config = RunConfig.from_dict(data)
     cost.check(config)
-    res = execute(config, distances=False, progress=progress or (lambda label: _silent))
+    res = execute(config, distances=False, progress=progress or (lambda label: _silent), draws=_DRAWS)
     m, pr, n_end = res.metrics, config.pr, res.n_steps
     regions: dict[str, list[NDArray[np.float64]]] = {
         "a": [covariance.ellipse_polyline(res.covs[n_end, :2, :2], pr, res.poses[n_end, :2])]
@@ -400,6 +424,7 @@ def load_log_settings(path: str | Path) -> tuple[dict[str, str], dict[str, Any]]
         "geometry": ", ".join(f"{k}: {v}" for k, v in drive.items() if k not in ("type", "errors") and v is not None),
         "map": str(maps[0]["model"]) if maps else "none",
         "map_resolution": repr(maps[0].get("resolution")) if maps else DEFAULTS["map_resolution"],
+        "map_alphas": ", ".join(repr(a) for a in maps[0].get("alphas") or []) if maps else DEFAULTS["map_alphas"],
     }  # fmt: skip
     return settings, cfg
 
@@ -528,6 +553,8 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
                            options=_options(MAP_MODELS), name="field-map")  # fmt: skip
     fields["map_resolution"] = TextInput(title="map cell [m]", value=settings["map_resolution"],
                                          name="field-map_resolution")  # fmt: skip
+    fields["map_alphas"] = TextInput(title="map alphas (6 velocity, 4 odometry; empty: 0.05 each)",
+                                     value=settings["map_alphas"], name="field-map_alphas")  # fmt: skip
     sliders = {
         k: Slider(title=f"log10 {k}", start=-5.0, end=-1.5, step=0.05, name=f"slider-{k}",
                   value=_log10_or(settings[k], -3.3))
@@ -543,14 +570,15 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
     growth_div = Div(text="", name="growth")
 
     xy = figure(title="x–y overlay", match_aspect=True, width=620, height=520,
-                x_axis_label="x [m]", y_axis_label="y [m]", output_backend="webgl")  # fmt: skip
+                x_axis_label="x [m]", y_axis_label="y [m]")  # fmt: skip
     src: dict[str, ColumnDataSource] = {
         "path": ColumnDataSource({"x": [], "y": []}),
         "mc": ColumnDataSource({"x": [], "y": []}, name="source-mc"),
         **{k: ColumnDataSource({"xs": [], "ys": []}, name=f"source-{k}") for k in ("a", "c", "e", "map")},
     }
     xy.line("x", "y", source=src["path"], color="#999999", legend_label="nominal path")
-    glyphs: dict[str, Any] = {"mc": xy.scatter("x", "y", source=src["mc"], size=2, alpha=0.3, color=_COLOURS["mc"],
+    glyphs: dict[str, Any] = {"mc": xy.scatter("x", "y", source=src["mc"], size=2, alpha=0.3, marker="square",
+                               line_color=None, fill_color=_COLOURS["mc"],
                                legend_label=METHODS["mc"])}  # fmt: skip
     for k in ("a", "c", "e", "map"):
         glyphs[k] = xy.multi_line(
@@ -573,26 +601,30 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
     def settings_now() -> dict[str, str]:
         return {k: str(w.value) for k, w in fields.items()}
 
-    def put(source: ColumnDataSource, data: dict[str, NDArray[np.float64]]) -> None:
-        """Send a source's columns only when they changed (a k_r move keeps the nominal path)."""
+    def put(source: ColumnDataSource, data: dict[str, NDArray[Any]]) -> None:
+        """Send the columns of a source that changed, in one message (a k_r move keeps the nominal
+        path and the distances along it)."""
         old = source.data
-        if set(old) == set(data) and all(np.array_equal(np.asarray(old[k]), v, equal_nan=True)
-                                         for k, v in data.items()):  # fmt: skip
+        if set(old) != set(data) or any(len(old[k]) != len(v) for k, v in data.items()):
+            source.data = data
             return
-        source.data = data
+        changed = {k: v for k, v in data.items() if not np.array_equal(np.asarray(old[k]), v, equal_nan=True)}
+        if changed:
+            source.data.update(changed)
 
     def draw(view: View) -> None:
         res = view.result
         put(src["path"], {"x": res.poses[:, 0], "y": res.poses[:, 1]})
         cloud = res.end_poses if res.end_poses is not None else np.zeros((0, 3))
-        src["mc"].data = {"x": cloud[:, 0], "y": cloud[:, 1]}
+        # the cloud and the σ curves are only drawn: single precision halves what is sent
+        put(src["mc"], {"x": cloud[:, 0].astype(np.float32), "y": cloud[:, 1].astype(np.float32)})
         for k in ("a", "c", "e"):
             lines = view.regions.get(k, [])
             src[k].data = {"xs": [ln[:, 0] for ln in lines], "ys": [ln[:, 1] for ln in lines]}
         nan = np.full(view.distance.shape, np.nan)
         sp = view.spreads
-        put(sp_src, {"s": view.distance,
-                     **{f"{k}_{w}": sp[k][f"sigma_{w}"] if k in sp else nan
+        put(sp_src, {"s": view.distance.astype(np.float32),
+                     **{f"{k}_{w}": (sp[k][f"sigma_{w}"] if k in sp else nan).astype(np.float32)
                         for k in ("a", "c") for w in ("along", "across")}})  # fmt: skip
         cov_div.text = coverage_html(view)
         growth_div.text = growth_html(view)
@@ -696,7 +728,7 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
     def start_map(s: dict[str, str]) -> None:
         """Start the map of these settings unless it is the one computed or computing: a map
         depends on the path and its own settings only (its coverage is redrawn on each move)."""
-        key = (repr(run_config(s)["trajectory"]), s["map"], s["map_resolution"])
+        key = (repr(run_config(s)["trajectory"]), s["map"], s["map_resolution"], s["map_alphas"])
         if key == state.get("map_key"):
             return
         state["map_key"] = key
@@ -786,7 +818,8 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
     controls = column(fields["drive"], fields["geometry"], sliders["k_r"], fields["k_r"], sliders["k_l"],
                       fields["k_l"], *(fields[k] for k in ("track", "path", "size", "speed", "dt", "pr",
                                                            "n_particles", "regime", "seed")),
-                      shown, fields["map"], fields["map_resolution"], save_path, save_btn, open_path, open_btn,
+                      shown, fields["map"], fields["map_resolution"], fields["map_alphas"], save_path, save_btn,
+                      open_path, open_btn,
                       width=300)  # fmt: skip
     views = column(error, status, said("xy"), xy, map_status, cov_div, said("spread"), spread_fig, growth_div)
     doc.add_root(row(controls, views))
