@@ -88,10 +88,10 @@ def _parts_cpu(k_values: list[str]) -> dict[str, list[float]]:
         mc = (traj, cfg.k_r, cfg.k_l, cfg.monte_carlo.n_particles)
         timed("method_c", unscented.propagate, traj, cfg.k_r, cfg.k_l)
         cloud = timed("monte_carlo", sampling.sample_end_poses, *mc, np.random.default_rng(cfg.seed),
-                      draws=explore._DRAWS)  # fmt: skip
-        sampling.sample_end_poses(*mc, np.random.default_rng(cfg.seed), kernel="compiled", draws=kept)  # its normals
+                      cache=explore._DRAWS)  # fmt: skip
+        sampling.sample_end_poses(*mc, np.random.default_rng(cfg.seed), kernel="compiled", cache=kept)  # its normals
         timed("option_compiled_monte_carlo", sampling.sample_end_poses, *mc, np.random.default_rng(cfg.seed),
-              kernel="compiled", draws=kept)  # fmt: skip
+              kernel="compiled", cache=kept)  # fmt: skip
         E = expcoords.propagate(traj, cfg.k_r, cfg.k_l)
         mu, cov = E.poses[-1], E.covs[-1]
         timed("banana_levels_50000_draws", expcoords.hdr_threshold, mu, cov, np.array([0.5, 0.9, 0.98889]),

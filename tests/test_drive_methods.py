@@ -190,7 +190,7 @@ def test_kept_normals_give_every_drive_the_same_particles(drive):
         model = _small_model(drive)
         model = dataclasses.replace(model, k=1e-6 * scale, steer_var=model.steer_var * scale)
         for regime in ("per_step", "per_run"):
-            kept = ds.sample_poses(path, model, 600, np.random.default_rng(7), regime=regime, draws=cache)
+            kept = ds.sample_poses(path, model, 600, np.random.default_rng(7), regime=regime, cache=cache)
             fresh = ds.sample_poses(path, model, 600, np.random.default_rng(7), regime=regime)
             assert_array_equal(kept, fresh)
 

@@ -165,7 +165,7 @@ def test_kept_normals_give_the_same_cloud_for_other_error_constants(kernel):
     for k_r, cov0, regime in [(7e-4, None, "per_step"), (2e-3, None, "per_step"), (2e-3, c0, "per_step"),
                               (5e-4, c0, "per_step"), (5e-4, None, "per_run"), (9e-4, None, "per_run")]:  # fmt: skip
         kept = sp.sample_end_poses(t, k_r, 5e-4, 700, np.random.default_rng(4), regime=regime, cov0=cov0,
-                                   kernel=kernel, draws=cache)  # fmt: skip
+                                   kernel=kernel, cache=cache)  # fmt: skip
         fresh = sp.sample_end_poses(t, k_r, 5e-4, 700, np.random.default_rng(4), regime=regime, cov0=cov0,
                                     kernel=kernel)  # fmt: skip
         assert_array_equal(kept, fresh)

@@ -83,13 +83,13 @@ def sample(
     cov0: ArrayLike | None,
     checkpoints: Sequence[int] | None,
     kernel: str = "auto",
-    draws: DrawCache | None = None,
+    cache: DrawCache | None = None,
 ) -> NDArray[np.float64]:
     """Monte Carlo poses: (n, 3) end poses, or (n, C, 3) at ``checkpoints`` (:func:`.drive_sampling.sample_poses`,
-    with its ``kernel`` and ``draws``)."""
+    with its ``kernel`` and ``cache``)."""
     return dsm.sample_poses(
         s.path, s.model, n, rng, regime=regime, method=method, checkpoints=checkpoints, cov0=cov0,
-        kernel=kernel, draws=draws,
+        kernel=kernel, cache=cache,
     )  # fmt: skip
 
 

@@ -119,7 +119,7 @@ def execute(
     distances: bool = True,
     progress: Callable[[str], Callable[[int, int], None]] | None = None,
     kernel: str = "auto",
-    draws: DrawCache | None = None,
+    cache: DrawCache | None = None,
 ) -> RunResult:
     """Compute one run: trajectory, covariance, Monte Carlo, maps and every measure.
 
@@ -140,7 +140,7 @@ def execute(
         The Monte Carlo's end poses by numpy or by the compiled kernel
         (:func:`pose_uncertainty.methods.sampling.sample_end_poses`: the same draws, equal up to
         rounding, within the reproducibility contract); ``"auto"`` (default) as a run logs them.
-    draws : DrawCache, optional
+    cache : DrawCache, optional
         Keeps the Monte Carlo's standard normals for the next run of the same seed,
         particles and steps (:class:`pose_uncertainty.methods.particles.DrawCache`; the result
         is the same with or without it).
@@ -181,7 +181,7 @@ def execute(
     checkpoints: dict[int, NDArray[np.float64]] = {}
     if config.monte_carlo.n_particles > 0:
         with _timed(timings, "monte_carlo_s"):
-            end_poses, checkpoints = _monte_carlo(config, traj, ds, bar("Monte Carlo"), kernel, draws)
+            end_poses, checkpoints = _monte_carlo(config, traj, ds, bar("Monte Carlo"), kernel, cache)
     maps, samplers = [], {}
     for i, mcfg in enumerate(config.maps):
         with _timed(timings, f"map_{mcfg.name}_s"):
@@ -231,7 +231,7 @@ def _monte_carlo(
     ds: DriveSetup | None = None,
     progress: Callable[[int, int], None] | None = None,
     kernel: str = "auto",
-    draws: DrawCache | None = None,
+    cache: DrawCache | None = None,
 ) -> tuple[NDArray[np.float64], dict[int, NDArray[np.float64]]]:
     """Monte Carlo end poses (n, 3) and the clouds at the checkpoint steps (of the drive, if any)."""
     mc = config.monte_carlo
@@ -241,11 +241,11 @@ def _monte_carlo(
         out = sampling.sample_end_poses(
             traj, config.k_r, config.k_l, mc.n_particles, rng,
             regime=mc.regime, method=mc.method, cov0=config.cov0, checkpoints=steps,
-            progress=progress, kernel=kernel, draws=draws,
+            progress=progress, kernel=kernel, cache=cache,
         )  # fmt: skip
     else:
         out = drive_sample(ds, mc.n_particles, rng, regime=mc.regime, method=mc.method,
-                           cov0=_cov0(config), checkpoints=steps, kernel=kernel, draws=draws)  # fmt: skip
+                           cov0=_cov0(config), checkpoints=steps, kernel=kernel, cache=cache)  # fmt: skip
     if steps is None:  # the sampler's fast path: end poses only, (n, 3)
         return np.ascontiguousarray(out, dtype=np.float64), {}
     # (n, C, 3): the clouds at the checkpoints, then at the end

@@ -323,7 +323,7 @@ def sample_errors(
     n: int,
     rng: np.random.Generator,
     regime: str = "per_step",
-    draws: DrawCache | None = None,
+    cache: DrawCache | None = None,
 ) -> SampledErrors:
     """Draw the errors of ``n`` runs of a measurement sequence (biases included).
 
@@ -337,7 +337,7 @@ def sample_errors(
     ----------
     drive : Drive; u : array_like, shape (N, m); dt : float [s]; model : DriveErrorModel
     n : int; rng : numpy.random.Generator; regime : {"per_step", "per_run"}
-    draws : DrawCache, optional — the Gaussian channels' standard normals kept for the next call
+    cache : DrawCache, optional — the Gaussian channels' standard normals kept for the next call
         from the same stream state (:class:`.particles.DrawCache`; the same errors either way)
 
     Returns
@@ -352,8 +352,8 @@ def sample_errors(
     gauss = [j for j in range(a.shape[1]) if not ch.travel[j] or model.encoder is None]
     width = N if regime == "per_step" else 1
     shape = (len(gauss), n, width)
-    z = rng.standard_normal(shape) if draws is None else draws.normals(rng, shape)
-    errors = dict(zip(gauss, _gaussian_errors(ch, a, gauss, z, regime, overwrite=draws is None), strict=True))
+    z = rng.standard_normal(shape) if cache is None else cache.normals(rng, shape)
+    errors = dict(zip(gauss, _gaussian_errors(ch, a, gauss, z, regime, overwrite=cache is None), strict=True))
     for j in range(a.shape[1]):
         if j not in errors and model.encoder is not None:
             errors[j] = sample_speed_errors(model.encoder, a[:, j] / dt, n, rng, regime) * dt

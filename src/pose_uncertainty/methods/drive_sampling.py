@@ -222,7 +222,7 @@ def sample_poses(
     workers: int | None = None,
     progress: Callable[[int, int], None] | None = None,
     kernel: str = "auto",
-    draws: DrawCache | None = None,
+    cache: DrawCache | None = None,
 ) -> NDArray[np.float64]:
     """Noisy executions of a drive's path: the Monte Carlo ground truth of its error model.
 
@@ -247,7 +247,7 @@ def sample_poses(
         (the same draws, equal up to rounding); ``"auto"``: compiled from
         :data:`.mc_kernel.MIN_PARTICLE_STEPS` particle-steps. Other drives and models, and
         checkpoints, always use numpy.
-    draws : DrawCache, optional — keeps the standard normals of the Gaussian channels for the next
+    cache : DrawCache, optional — keeps the standard normals of the Gaussian channels for the next
         call with the same seed, particles and steps (the output is the same with or without it)
 
     Returns
@@ -272,8 +272,8 @@ def sample_poses(
     buffers = threading.local()  # each thread's block for the draws of a chunk
 
     def run_compiled(g: np.random.Generator, m: int, plan: _Compiled) -> NDArray[np.float64]:
-        if draws is not None:  # the draw of drive_noise.sample_errors, kept for the next call
-            z = draws.normals(g, (2, m, plan.width))
+        if cache is not None:  # the draw of drive_noise.sample_errors, kept for the next call
+            z = cache.normals(g, (2, m, plan.width))
         else:
             size = 2 * chunk * plan.width
             if getattr(buffers, "z", None) is None:
@@ -293,7 +293,7 @@ def sample_poses(
         if plan is not None:
             out[lo : lo + m, 0] = run_compiled(g, m, plan)
             return
-        errors = dn.sample_errors(path.drive, path.u, path.dt, model, m, g, regime, draws)
+        errors = dn.sample_errors(path.drive, path.u, path.dt, model, m, g, regime, cache)
         offset = None if start_sqrt is None else g.standard_normal((m, 3)) @ start_sqrt.T
         out[lo : lo + m] = _chunk_poses(path, nom, errors, offset, method, cps)
 

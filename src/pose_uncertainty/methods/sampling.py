@@ -55,7 +55,7 @@ def sample_end_poses(
     workers: int | None = None,
     progress: Callable[[int, int], None] | None = None,
     kernel: str = "auto",
-    draws: DrawCache | None = None,
+    cache: DrawCache | None = None,
 ) -> NDArray[np.float64]:
     """Noisy executions of a trajectory: the Monte Carlo ground truth of Method A's model.
 
@@ -83,7 +83,7 @@ def sample_end_poses(
     kernel : {"auto", "numpy", "compiled"} — the end poses by numpy (the reference) or by the
         compiled loop of :mod:`.mc_kernel` (the same draws, equal up to rounding); ``"auto"``
         (default): compiled from :data:`.mc_kernel.MIN_PARTICLE_STEPS` particle-steps
-    draws : DrawCache, optional — the standard normals kept for the next call with
+    cache : DrawCache, optional — the standard normals kept for the next call with
         the same seed (:class:`.particles.DrawCache`; the output does not depend on it)
 
     Returns
@@ -95,5 +95,5 @@ def sample_end_poses(
     kl = float(check_nonnegative("k_l", k_l))
     return sample_poses(
         wheel_path(trajectory), DriveErrorModel(k=(kr, kl)), n, rng, regime=regime, method=method,
-        checkpoints=checkpoints, cov0=cov0, workers=workers, progress=progress, kernel=kernel, draws=draws,
+        checkpoints=checkpoints, cov0=cov0, workers=workers, progress=progress, kernel=kernel, cache=cache,
     )  # fmt: skip
