@@ -57,7 +57,10 @@ from types import ModuleType
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["MIN_PARTICLE_STEPS", "SIN_COS_ULPS", "TRIG", "compiled_end_poses", "jit_module"]
+__all__ = [
+    "DRAWS", "DRAW_BLOCK", "MIN_PARTICLE_STEPS", "SIN_COS_ULPS", "TRIG", "block_draws", "block_generator",
+    "block_key", "compiled_end_poses", "compiled_end_poses_drawn", "jit_module",
+]  # fmt: skip
 
 #: The kernel's trigonometry: branch-free polynomials (vectorised), or a C-library call per step.
 TRIG: tuple[str, ...] = ("polynomial", "libm")
@@ -70,6 +73,15 @@ SIN_COS_ULPS = 2
 #: (measured ~1.4 CPU-s) cost more than the kernel saves (~3·10⁻⁸ CPU-s per particle-step);
 #: ``benchmarks/bench_kernel.py`` measures both.
 MIN_PARTICLE_STEPS = 50_000_000
+
+#: The draw schemes of the Monte Carlo's normals (module docstring): ``"per-chunk"`` (numpy draws
+#: each chunk of particles from the chunk's stream), ``"per-block"`` (each block of
+#: :data:`DRAW_BLOCK` particles from its own stream, drawn inside the compiled kernel).
+DRAWS: tuple[str, ...] = ("per-chunk", "per-block")
+
+#: Particles per block of the ``"per-block"`` draws: part of the draws' definition (a seed's
+#: numbers depend on it), and the compiled kernel's block of particles.
+DRAW_BLOCK = 32
 
 _JIT: list[ModuleType] = []
 _LOCK = threading.Lock()
@@ -117,3 +129,83 @@ def compiled_end_poses(
         float(start[1]), th_end, out,
     )  # fmt: skip
     return out
+
+
+def block_key(rng: np.random.Generator) -> NDArray[np.uint64]:
+    """The key of the ``"per-block"`` draws: 4 words below 2³² from a child of ``rng``'s seed sequence.
+
+    Spawning leaves ``rng``'s own stream untouched, as the ``"per-chunk"`` streams do
+    (:func:`.particles.chunk_streams`); a second call spawns another child, so another key.
+    """
+    seq = rng.bit_generator.seed_seq
+    if not isinstance(seq, np.random.SeedSequence):
+        raise TypeError("rng must be seeded from a SeedSequence (e.g. numpy.random.default_rng(seed))")
+    return seq.spawn(1)[0].generate_state(4, np.uint32).astype(np.uint64)
+
+
+def block_generator(key: NDArray[np.uint64], block: int) -> np.random.Generator:
+    """The stream of block ``block``: ``Generator(SFC64(SeedSequence(key, spawn_key=(block,))))``."""
+    if not 0 <= block < 2**32:
+        raise ValueError(f"block must be in [0, 2**32), got {block}")
+    return np.random.Generator(np.random.SFC64(np.random.SeedSequence([int(w) for w in key], spawn_key=(block,))))
+
+
+def block_draws(
+    key: NDArray[np.uint64], block: int, nb: int, width: int, start: bool
+) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+    """The normals of one block of the ``"per-block"`` draws, by numpy (the reference route).
+
+    Parameters
+    ----------
+    key : ndarray (4,) — :func:`block_key`; block : int — the block's index (its particles are
+        ``block·DRAW_BLOCK …``); nb : int — its particles (``DRAW_BLOCK``, fewer in the last block)
+    width : int — draws per particle and wheel: the steps N per step, 1 per run
+    start : bool — draw the start offsets' normals first
+
+    Returns
+    -------
+    z : ndarray, shape (2, nb, width) — the right and left wheels' normals, as
+        :func:`.drive_noise.sample_errors` lays them out; z0 : ndarray, shape (nb, 3), or None —
+        the start offsets' normals
+
+    The block's stream gives, in this order: the start offsets' normals of ``DRAW_BLOCK``
+    particles (particle by particle), then for each step the right wheel's ``DRAW_BLOCK``
+    normals and the left wheel's. A last block of ``nb < DRAW_BLOCK`` particles keeps the first
+    ``nb`` of each, so a particle's numbers depend on the key and its index only. The compiled
+    kernel draws the same numbers in the same order (numpy's ziggurat on numpy's SFC64, seeded
+    by numpy's SeedSequence algorithm).
+    """
+    if not 1 <= nb <= DRAW_BLOCK:
+        raise ValueError(f"nb must be in [1, {DRAW_BLOCK}], got {nb}")
+    g = block_generator(key, block)
+    z0 = g.standard_normal((DRAW_BLOCK, 3))[:nb] if start else None
+    z = g.standard_normal((width, 2, DRAW_BLOCK))[:, :, :nb].transpose(1, 2, 0)
+    return z, z0
+
+
+def compiled_end_poses_drawn(
+    key: NDArray[np.uint64], blocks: tuple[int, int], per_run: bool, scale_r: NDArray[np.float64],
+    scale_l: NDArray[np.float64], eps: tuple[float, float], nominal: tuple[NDArray[np.float64], ...],
+    start: NDArray[np.float64], track: float, c: float, exact: bool, start_sqrt: NDArray[np.float64] | None,
+    out: NDArray[np.float64], trig: str = "polynomial",
+) -> None:  # fmt: skip
+    """End poses of the particles of blocks ``blocks[0] … blocks[1]−1`` into their rows of ``out``
+    (n, 3), by the compiled kernel drawing each block's normals itself (``"per-block"`` draws).
+
+    Parameters
+    ----------
+    key : ndarray (4,) — :func:`block_key`; blocks : (int, int) — the first and one past the last block
+    per_run : bool — one draw per wheel and run (else per step)
+    scale_r, scale_l, eps, nominal, track, c, exact, trig — as :func:`compiled_end_poses`
+    start : ndarray, shape (3,) — start pose
+    start_sqrt : ndarray (3, 3), optional — ``A`` with ``A Aᵀ`` the start covariance (offset ``A z``)
+    out : ndarray, shape (n, 3) — the end poses of all n particles; only these blocks' rows are written
+    """
+    v1, dtheta, cos_phi, sin_phi = nominal
+    th_end = float(start[2] + dtheta.sum())
+    sq = np.zeros((0, 3)) if start_sqrt is None else np.ascontiguousarray(start_sqrt, dtype=np.float64)
+    jit_module().end_poses_drawn(
+        np.ascontiguousarray(key, dtype=np.uint64), int(blocks[0]), int(blocks[1]), bool(per_run), scale_r,
+        scale_l, float(eps[0]), float(eps[1]), v1, dtheta, cos_phi, sin_phi, float(track), float(c), bool(exact),
+        trig == "polynomial", sq, float(start[0]), float(start[1]), th_end, out,
+    )  # fmt: skip
