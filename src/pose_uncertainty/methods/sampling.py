@@ -55,6 +55,7 @@ def sample_end_poses(
     workers: int | None = None,
     progress: Callable[[int, int], None] | None = None,
     kernel: str = "auto",
+    draws: str = "auto",
 ) -> NDArray[np.float64]:
     """Noisy executions of a trajectory: the Monte Carlo ground truth of Method A's model.
 
@@ -80,8 +81,13 @@ def sample_end_poses(
     progress : callable, optional — ``progress(done, n)`` with the particles done so
         far, called from the calling thread after each chunk (default None: nothing)
     kernel : {"auto", "numpy", "compiled"} — the end poses by numpy (the reference) or by the
-        compiled loop of :mod:`.mc_kernel` (the same draws, equal up to rounding); ``"auto"``
+        compiled loop of :mod:`.mc_kernel` (on the same draws, equal up to rounding); ``"auto"``
         (default): compiled from :data:`.mc_kernel.MIN_PARTICLE_STEPS` particle-steps
+    draws : {"auto", "per-chunk", "per-block"} — the normals drawn by numpy per chunk of particles,
+        or per block of :data:`.mc_kernel.DRAW_BLOCK` particles from the block's own stream (inside
+        the compiled kernel; the numpy kernel takes the same numbers from numpy); ``"auto"``
+        (default): per block where the compiled kernel runs, else per chunk
+        (:func:`.drive_sampling.sample_poses`)
 
     Returns
     -------
@@ -93,4 +99,5 @@ def sample_end_poses(
     return sample_poses(
         wheel_path(trajectory), DriveErrorModel(k=(kr, kl)), n, rng, regime=regime, method=method,
         checkpoints=checkpoints, cov0=cov0, workers=workers, progress=progress, kernel=kernel,
+        draws=draws,
     )  # fmt: skip
