@@ -44,6 +44,9 @@ _C5 = 2.08757232129817482790e-09
 _C6 = -1.13596475577881948265e-11
 
 _jit = numba.njit(nogil=True, cache=True, error_model="numpy")
+# a function of its own (compiled once, called): the pieces the entry points share, so that numba
+# types and inlines each piece once (inlined everywhere, the compilation took minutes)
+_part = numba.njit(nogil=True, error_model="numpy")
 _inline = numba.njit(inline="always", error_model="numpy")
 
 
@@ -101,24 +104,54 @@ def _lanes(
         y[q] += a * (sd * cos_phi + cd * sin_phi)
 
 
+@_part
+def _lanes_poly(
+    zr: np.ndarray, zl: np.ndarray, sr: float, sl: float, cum: np.ndarray, off: np.ndarray, x: np.ndarray,
+    y: np.ndarray, big: np.ndarray, nb: int, v1: float, dtheta: float, cos_phi: float, sin_phi: float,
+    track: float, rest: float,
+) -> None:  # fmt: skip
+    """:func:`_lanes` with the polynomials (not the exact step)."""
+    _lanes(zr, zl, sr, sl, cum, off, x, y, big, nb, v1, dtheta, cos_phi, sin_phi, track, rest, False, True)
+
+
+@_part
+def _lanes_poly_exact(
+    zr: np.ndarray, zl: np.ndarray, sr: float, sl: float, cum: np.ndarray, off: np.ndarray, x: np.ndarray,
+    y: np.ndarray, big: np.ndarray, nb: int, v1: float, dtheta: float, cos_phi: float, sin_phi: float,
+    track: float, rest: float,
+) -> None:  # fmt: skip
+    """:func:`_lanes` with the polynomials, the exact step."""
+    _lanes(zr, zl, sr, sl, cum, off, x, y, big, nb, v1, dtheta, cos_phi, sin_phi, track, rest, True, True)
+
+
+@_part
+def _lanes_libm(
+    zr: np.ndarray, zl: np.ndarray, sr: float, sl: float, cum: np.ndarray, off: np.ndarray, x: np.ndarray,
+    y: np.ndarray, big: np.ndarray, nb: int, v1: float, dtheta: float, cos_phi: float, sin_phi: float,
+    track: float, rest: float, exact: bool,
+) -> None:  # fmt: skip
+    """:func:`_lanes` with the C library's ``cos``/``sin``."""
+    _lanes(zr, zl, sr, sl, cum, off, x, y, big, nb, v1, dtheta, cos_phi, sin_phi, track, rest, exact, False)
+
+
 @_inline
 def _step(
     zr: np.ndarray, zl: np.ndarray, sr: float, sl: float, cum: np.ndarray, off: np.ndarray, x: np.ndarray,
     y: np.ndarray, big: np.ndarray, nb: int, v1: float, dtheta: float, cos_phi: float, sin_phi: float,
     track: float, rest: float, exact: bool, poly: bool,
 ) -> None:  # fmt: skip
-    """:func:`_lanes` with ``exact`` and ``poly`` as constants: each case is its own loop, and the
-    polynomial ones vectorise (with the flags as variables LLVM may keep the C-library calls in the
-    loop and leave it scalar)."""
+    """:func:`_lanes` with ``exact`` and ``poly`` as constants, one compiled loop per case: the
+    polynomial ones vectorise (with the flags as variables LLVM may keep the C-library calls in
+    the loop and leave it scalar)."""
     if poly and exact:
-        _lanes(zr, zl, sr, sl, cum, off, x, y, big, nb, v1, dtheta, cos_phi, sin_phi, track, rest, True, True)
+        _lanes_poly_exact(zr, zl, sr, sl, cum, off, x, y, big, nb, v1, dtheta, cos_phi, sin_phi, track, rest)
     elif poly:
-        _lanes(zr, zl, sr, sl, cum, off, x, y, big, nb, v1, dtheta, cos_phi, sin_phi, track, rest, False, True)
+        _lanes_poly(zr, zl, sr, sl, cum, off, x, y, big, nb, v1, dtheta, cos_phi, sin_phi, track, rest)
     else:
-        _lanes(zr, zl, sr, sl, cum, off, x, y, big, nb, v1, dtheta, cos_phi, sin_phi, track, rest, exact, False)
+        _lanes_libm(zr, zl, sr, sl, cum, off, x, y, big, nb, v1, dtheta, cos_phi, sin_phi, track, rest, exact)
 
 
-@_inline
+@_part
 def _block(
     z_r: np.ndarray, z_l: np.ndarray, p0: int, nb: int, scale_r: np.ndarray, scale_l: np.ndarray,
     eps_r: float, eps_l: float, nominal: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
@@ -172,9 +205,9 @@ def end_poses(
         nb = min(BLOCK, m - p0)
         _block(z_r, z_l, p0, nb, scale_r, scale_l, eps_r, eps_l, nominal, track, 1.0 - c, exact, poly,
                offset, work)  # fmt: skip
-        if poly and big[:nb].max() > REDUCTION_LIMIT:
+        if poly and big[:nb].max() > REDUCTION_LIMIT:  # again with the C library (not poly: False)
             _block(z_r, z_l, p0, nb, scale_r, scale_l, eps_r, eps_l, nominal, track, 1.0 - c, exact,
-                   False, offset, work)  # fmt: skip
+                   not poly, offset, work)  # fmt: skip
         for q in range(nb):
             p = p0 + q
             dx = x[q]
@@ -303,22 +336,19 @@ def block_state(key: np.ndarray, block: int) -> tuple[np.uint64, np.uint64, np.u
     numpy's SFC64 seeding (``a, b, c`` from the state, counter 1, 12 outputs discarded).
     """
     hc = _INIT_A
-    pool = [np.uint64(0)] * 4
-    p0, hc = _hashmix(key[0], hc)
-    p1, hc = _hashmix(key[1], hc)
-    p2, hc = _hashmix(key[2], hc)
-    p3, hc = _hashmix(key[3], hc)
-    pool = [p0, p1, p2, p3]
+    pool = np.empty(4, dtype=np.uint64)
+    for i in range(4):  # the entropy words key[0..3] (as many as the pool), then the mixing
+        pool[i], hc = _hashmix(key[i], hc)
     for src in range(4):
         for dst in range(4):
             if src != dst:
                 h, hc = _hashmix(pool[src], hc)
                 pool[dst] = _mix(pool[dst], h)
-    for dst in range(4):
+    for dst in range(4):  # the spawn key's word: the block
         h, hc = _hashmix(np.uint64(block), hc)
         pool[dst] = _mix(pool[dst], h)
     hb = _INIT_B
-    words = [np.uint64(0)] * 6
+    words = np.empty(6, dtype=np.uint64)  # generate_state(3, uint64): 6 words, little-endian pairs
     for i in range(6):
         v = pool[i % 4] ^ hb
         hb = (hb * _MULT_B) & _M32
@@ -375,7 +405,7 @@ def block_normals(key: np.ndarray, block: int, out: np.ndarray) -> None:
         flat[i] = x
 
 
-@_inline
+@_part
 def _draw(buf: np.ndarray, nb: int, s0: np.uint64, s1: np.uint64, s2: np.uint64, s3: np.uint64) -> tuple:
     """``buf[:nb]`` filled with the stream's next normals; returns the stream's state."""
     for q in range(nb):
@@ -384,7 +414,7 @@ def _draw(buf: np.ndarray, nb: int, s0: np.uint64, s1: np.uint64, s2: np.uint64,
     return s0, s1, s2, s3
 
 
-@_inline
+@_part
 def _drawn_block(
     key: np.ndarray, b: int, nb: int, per_run: bool, scale_r: np.ndarray, scale_l: np.ndarray, eps_r: float,
     eps_l: float, nominal: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], track: float, rest: float,
@@ -397,13 +427,16 @@ def _drawn_block(
     the first ``nb``, so that a particle's numbers depend on the key and its index only."""
     v1, dtheta, cos_phi, sin_phi = nominal
     wr, wl, cum, off, x, y, big, offs = work
+    block = wr.shape[0]  # BLOCK, as a variable (a constant argument would compile another copy)
     s0, s1, s2, s3 = block_state(key, b)
     start = start_sqrt.shape[0] > 0
-    for q in range(BLOCK):
-        if start:  # offset = A z, z ~ N(0, I₃)
-            z0, s0, s1, s2, s3 = normal(s0, s1, s2, s3)
-            z1, s0, s1, s2, s3 = normal(s0, s1, s2, s3)
-            z2, s0, s1, s2, s3 = normal(s0, s1, s2, s3)
+    if start:  # offset = A z, z ~ N(0, I₃), particle by particle
+        flat = offs.reshape(-1)
+        s0, s1, s2, s3 = _draw(flat, flat.shape[0], s0, s1, s2, s3)
+        for q in range(block):
+            z0 = offs[q, 0]
+            z1 = offs[q, 1]
+            z2 = offs[q, 2]
             for j in range(3):
                 offs[q, j] = (start_sqrt[j, 0] * z0 + start_sqrt[j, 1] * z1) + start_sqrt[j, 2] * z2
     for q in range(nb):
@@ -413,15 +446,15 @@ def _drawn_block(
         y[q] = 0.0
         big[q] = 0.0
     if per_run:  # Δs' − Δs = (ε z) Δs
-        s0, s1, s2, s3 = _draw(wr, BLOCK, s0, s1, s2, s3)
-        s0, s1, s2, s3 = _draw(wl, BLOCK, s0, s1, s2, s3)
+        s0, s1, s2, s3 = _draw(wr, block, s0, s1, s2, s3)
+        s0, s1, s2, s3 = _draw(wl, block, s0, s1, s2, s3)
         for q in range(nb):
             wr[q] *= eps_r
             wl[q] *= eps_l
     for i in range(v1.shape[0]):
         if not per_run:  # Δs' − Δs = z √(k|Δs|)
-            s0, s1, s2, s3 = _draw(wr, BLOCK, s0, s1, s2, s3)
-            s0, s1, s2, s3 = _draw(wl, BLOCK, s0, s1, s2, s3)
+            s0, s1, s2, s3 = _draw(wr, block, s0, s1, s2, s3)
+            s0, s1, s2, s3 = _draw(wl, block, s0, s1, s2, s3)
         _step(wr, wl, scale_r[i], scale_l[i], cum, off, x, y, big, nb, v1[i], dtheta[i], cos_phi[i],
               sin_phi[i], track, rest, exact, poly)  # fmt: skip
 
@@ -450,9 +483,9 @@ def end_poses_drawn(
         nb = min(BLOCK, n - p0)
         _drawn_block(key, b, nb, per_run, scale_r, scale_l, eps_r, eps_l, nominal, track, 1.0 - c, exact,
                      poly, start_sqrt, work)  # fmt: skip
-        if poly and big[:nb].max() > REDUCTION_LIMIT:
+        if poly and big[:nb].max() > REDUCTION_LIMIT:  # again with the C library (not poly: False)
             _drawn_block(key, b, nb, per_run, scale_r, scale_l, eps_r, eps_l, nominal, track, 1.0 - c,
-                         exact, False, start_sqrt, work)  # fmt: skip
+                         exact, not poly, start_sqrt, work)  # fmt: skip
         for q in range(nb):
             p = p0 + q
             dx = x[q]
