@@ -26,6 +26,7 @@ from pose_uncertainty.records.reproducibility import relative_tolerance
 
 METHODS = ("midpoint", "exact", "euler", "euler_end")
 DRAWS = mc_kernel.DRAWS  # "per-chunk", "per-block"
+B = mc_kernel.DRAW_BLOCK
 
 
 def _assert_within_contract(a: np.ndarray, b: np.ndarray, n_steps: int) -> None:
@@ -73,7 +74,7 @@ def test_polynomial_sin_cos_within_two_ulp_of_numpy():
 @pytest.mark.parametrize("method", METHODS)
 @pytest.mark.parametrize("regime", ["per_step", "per_run"])
 def test_compiled_equals_numpy_on_the_same_draws(method, regime, draws):
-    # 3001 particles: the last block of the per-block draws holds 25
+    # 3001 particles: the last block of the per-block draws is not full
     traj = tr.s_curve(dt=0.02)
     ref, fast = _both(traj, 5e-4, 3001, 3, draws, method=method, regime=regime)
     _assert_within_contract(ref, fast, traj.n_steps)
@@ -158,15 +159,15 @@ def test_kernels_are_thread_count_free(draws, kernel, monkeypatch):
 
 
 @pytest.mark.parametrize("cov0", [None, np.diag([1e-4, 1e-4, 1e-4])])
-@pytest.mark.parametrize("n", [1, 31, 32, 33, 100])
+@pytest.mark.parametrize("n", [1, B - 1, B, B + 1, 3 * B + 5])
 def test_per_block_draws_of_a_few_particles(n, cov0):
     # fewer particles than a block, exactly one, one more: every particle has its own numbers,
-    # which depend on the seed and its index only (the first n of 100 particles are these n)
+    # which depend on the seed and its index only (the first n of 3B + 5 particles are these n)
     traj = tr.s_curve(dt=0.05)
     ref, fast = _both(traj, 5e-4, n, 12, cov0=cov0)
     _assert_within_contract(ref, fast, traj.n_steps)
     assert np.unique(fast[:, 0]).size == n
-    full = sp.sample_end_poses(traj, 5e-4, 5e-4, 100, np.random.default_rng(12), kernel="compiled",
+    full = sp.sample_end_poses(traj, 5e-4, 5e-4, 3 * B + 5, np.random.default_rng(12), kernel="compiled",
                                draws="per-block", cov0=cov0)  # fmt: skip
     assert_array_equal(fast, full[:n])
 
@@ -246,7 +247,7 @@ def test_block_streams_are_numpys_bit_for_bit(key_words):
     assert_array_equal(got, want)
     assert np.sum(np.abs(want) > 3.6541528853610088) > 100  # the tail was exercised
     for block in (1, 2, 12345, 2**32 - 1):
-        got = np.empty((3, 2, mc_kernel.DRAW_BLOCK))
+        got = np.empty((3, 2, B))
         jit.block_normals(key, block, got)
         assert_array_equal(got, _numpy_block_stream(key, block).standard_normal(got.shape))
 

@@ -17,9 +17,12 @@ import numpy as np
 
 from .mc_kernel import DRAW_BLOCK
 
-#: particles per block: the block's errors (2 × N × BLOCK numbers) stay in the CPU's caches; the
-#: blocks of the ``"per-block"`` draws
-BLOCK = DRAW_BLOCK
+#: particles per block of the kernel on numpy's draws: the block's errors (2 × N × BLOCK numbers)
+#: stay in the CPU's caches
+BLOCK = 32
+#: particles per block of the kernel drawing its own normals: the blocks of the ``"per-block"``
+#: draws (its buffers, 8 × DRAWN_BLOCK numbers, stay in the first-level cache)
+DRAWN_BLOCK = DRAW_BLOCK
 
 # Cody–Waite reduction by π/2 (fdlibm's pio2_1, pio2_2, pio2_3: 33 bits each, so k·pio2_j is
 # exact for |k| < 2²⁰) and fdlibm's __kernel_sin / __kernel_cos (error < 1 ulp on [−π/4, π/4])
@@ -280,7 +283,6 @@ def wheel_step(
 _M32 = np.uint64(0xFFFFFFFF)
 _U1 = np.uint64(1)
 _U3 = np.uint64(3)
-_U8 = np.uint64(8)
 _U9 = np.uint64(9)
 _U11 = np.uint64(11)
 _U16 = np.uint64(16)
@@ -288,6 +290,7 @@ _U24 = np.uint64(24)
 _U32 = np.uint64(32)
 _U40 = np.uint64(40)
 _U255 = np.uint64(0xFF)
+_U511 = np.uint64(0x1FF)
 _MANTISSA = np.uint64(0x000FFFFFFFFFFFFF)
 # numpy.random.SeedSequence's hash constants (bit_generator.pyx: INIT_A, MULT_A, INIT_B, MULT_B,
 # MIX_MULT_L, MIX_MULT_R), its pool of 4 words
@@ -300,6 +303,7 @@ _MIX_R = np.uint64(0x4973F715)
 # numpy's ziggurat of 256 layers (numpy/random/src/distributions/ziggurat_constants.h)
 _KI = _zig.ki_double.astype(np.int64)  # below 2⁵²: compared as signed integers
 _WI = np.ascontiguousarray(_zig.wi_double, dtype=np.float64)
+_WI_SIGNED = np.concatenate([_WI, -_WI])  # the layer's width with the sign: rabs·(−w) = −(rabs·w) exactly
 _FI = np.ascontiguousarray(_zig.fi_double, dtype=np.float64)
 _ZIG_R = float(_zig.ziggurat_nor_r)
 _ZIG_INV_R = float(_zig.ziggurat_nor_inv_r)
@@ -376,8 +380,7 @@ def normal(s0: np.uint64, s1: np.uint64, s2: np.uint64, s3: np.uint64) -> tuple:
         r, s0, s1, s2, s3 = _sfc64(s0, s1, s2, s3)
         idx = np.intp(r & _U255)
         rabs = np.int64((r >> _U9) & _MANTISSA)
-        sign = np.int64((r >> _U8) & _U1)
-        x = float(rabs) * _WI[idx] * (1.0 - 2.0 * sign)  # −x for the sign bit, without a branch
+        x = float(rabs) * _WI_SIGNED[np.intp(r & _U511)]  # −x for the sign bit (r's bit 8), no branch
         if rabs < _KI[idx]:
             return x, s0, s1, s2, s3
         if idx == 0:  # the tail beyond r
@@ -422,8 +425,8 @@ def _drawn_block(
     work: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
 ) -> None:  # fmt: skip
     """Block ``b`` with its own draws, in the order of :func:`.mc_kernel.block_draws`: the start
-    offsets (``BLOCK × 3``), then per step (per run: once) the right wheel's ``BLOCK`` normals and
-    the left wheel's. A last block of ``nb < BLOCK`` particles draws a whole block too and moves
+    offsets (``DRAWN_BLOCK × 3``), then per step (per run: once) the right wheel's ``DRAWN_BLOCK``
+    normals and the left wheel's. A last block of ``nb < DRAWN_BLOCK`` particles draws a whole block and moves
     the first ``nb``, so that a particle's numbers depend on the key and its index only."""
     v1, dtheta, cos_phi, sin_phi = nominal
     wr, wl, cum, off, x, y, big, offs = work
@@ -473,14 +476,15 @@ def end_poses_drawn(
     with the C library's ``cos``/``sin``.
     """
     n = out.shape[0]
-    work = (np.empty(BLOCK), np.empty(BLOCK), np.empty(BLOCK), np.empty(BLOCK), np.empty(BLOCK),
-            np.empty(BLOCK), np.empty(BLOCK), np.zeros((BLOCK, 3)))  # fmt: skip
+    B = DRAWN_BLOCK
+    work = (np.empty(B), np.empty(B), np.empty(B), np.empty(B), np.empty(B), np.empty(B), np.empty(B),
+            np.zeros((B, 3)))  # fmt: skip
     nominal = (v1, dtheta, cos_phi, sin_phi)
     cum, x, y, big, offs = work[2], work[4], work[5], work[6], work[7]
     start = start_sqrt.shape[0] > 0
     for b in range(block0, block1):
-        p0 = b * BLOCK
-        nb = min(BLOCK, n - p0)
+        p0 = b * B
+        nb = min(B, n - p0)
         _drawn_block(key, b, nb, per_run, scale_r, scale_l, eps_r, eps_l, nominal, track, 1.0 - c, exact,
                      poly, start_sqrt, work)  # fmt: skip
         if poly and big[:nb].max() > REDUCTION_LIMIT:  # again with the C library (not poly: False)

@@ -80,8 +80,9 @@ MIN_PARTICLE_STEPS = 50_000_000
 DRAWS: tuple[str, ...] = ("per-chunk", "per-block")
 
 #: Particles per block of the ``"per-block"`` draws: part of the draws' definition (a seed's
-#: numbers depend on it), and the compiled kernel's block of particles.
-DRAW_BLOCK = 32
+#: numbers depend on it), and the compiled kernel's block of particles (64 measured ~6 % faster
+#: than 32, longer blocks no faster).
+DRAW_BLOCK = 64
 
 _JIT: list[ModuleType] = []
 _LOCK = threading.Lock()
