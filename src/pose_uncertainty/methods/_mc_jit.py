@@ -1,10 +1,13 @@
 """The loops of :mod:`.mc_kernel`, compiled by numba (imported by it on first use only).
 
-Blocks of :data:`BLOCK` particles: the block's wheel errors are laid out step by step
-(``(N, BLOCK)``, so that the loop over the particles of one step is a loop over contiguous
-numbers, which LLVM turns into AVX2/AVX-512 vector code on any x86-64 CPU), then every step
-moves the block's particles in registers. The sine and cosine are :func:`sin_cos`: branch-free
-polynomials, so that they vectorise too.
+Blocks of particles: on numpy's draws (:func:`end_poses`), blocks of :data:`BLOCK` whose wheel
+errors are laid out step by step (``(N, BLOCK)``); drawing their own normals
+(:func:`end_poses_drawn`), blocks of :data:`DRAWN_BLOCK` that draw each step's normals from the
+block's stream (SFC64 and numpy's ziggurat, :func:`normal`) into two small buffers. Either way the
+loop over the particles of one step is a loop over contiguous numbers, which LLVM turns into
+AVX2/AVX-512 vector code on any x86-64 CPU, and every step moves the block's particles in
+registers. The sine and cosine are :func:`sin_cos`: branch-free polynomials, so that they
+vectorise too.
 """
 
 from __future__ import annotations

@@ -4,9 +4,11 @@ Each particle's measurements are the path's plus errors drawn by
 :func:`.drive_noise.sample_errors` (``per_step`` or ``per_run``, biases
 included, the skid-steer's ICR drawn too). The particles run in the chunks of
 :func:`.particles.chunk_streams` (one random stream per chunk), so a seed gives
-bit-identical clouds for any number of threads. The differential drive of a
-trajectory's wheel travels is one drive among the others: :func:`.sampling.sample_end_poses`
-is its front door.
+bit-identical clouds for any number of threads. For the differential drive with the travel
+noise ``k`` the normals may instead come per block of particles, each block from its own
+stream (``draws="per-block"``, :mod:`.mc_kernel`: drawn inside the compiled kernel), equally
+fixed by the seed. The differential drive of a trajectory's wheel travels is one drive among
+the others: :func:`.sampling.sample_end_poses` is its front door.
 
 End poses: the nominal path plus a small heading perturbation
 --------------------------------------------------------------

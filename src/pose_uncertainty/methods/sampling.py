@@ -19,9 +19,10 @@ Two named regimes of odometry error:
 The differential drive is one drive among the others: :func:`sample_end_poses` is the
 front door that runs the trajectory's wheel travels (:func:`~pose_uncertainty.core.drives.wheel_path`)
 with the error model ``k = (k_r, k_l)`` through the Monte Carlo of every drive
-(:func:`.drive_sampling.sample_poses`: chunks of particles with one random stream each,
-so the same seed gives bit-identical output on any machine and for any number of
-threads; the end poses as the nominal path plus a small heading perturbation).
+(:func:`.drive_sampling.sample_poses`: chunks of particles with one random stream each, or
+for the compiled kernel blocks of particles with one stream each, so the same seed gives
+bit-identical output on any machine and for any number of threads; the end poses as the
+nominal path plus a small heading perturbation).
 """
 
 from __future__ import annotations
@@ -68,7 +69,7 @@ def sample_end_poses(
     k_r, k_l : float [m] — error constants, ≥ 0 (wheel-travel variance per metre)
     n : int ≥ 1 — number of particles
     rng : numpy.random.Generator — the only source of randomness: one SFC64
-        stream per chunk of particles is spawned from its seed sequence
+        stream per chunk of particles (or per block, ``draws``) is spawned from its seed sequence
     regime : {"per_step", "per_run"} — see the module docstring
     method : {"exact", "euler", "euler_end", "midpoint"} — integration of each step
     checkpoints : sequence of int in [0, N], optional — step indices at which
