@@ -303,6 +303,7 @@ def _moment_tolerance(a: np.ndarray, z: float = 5.0) -> tuple[np.ndarray, np.nda
     return z * np.sqrt(np.diag(S) / n), z * np.sqrt(np.maximum(m4 - S**2, 0.0) / n)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("regime", ["per_step", "per_run"])
 def test_per_block_cloud_has_the_moments_of_numpys_draws(regime):
     # two independent samples of one distribution: the compiled kernel's per-block cloud and the
@@ -319,6 +320,7 @@ def test_per_block_cloud_has_the_moments_of_numpys_draws(regime):
     assert np.all(np.abs(np.cov(blocks.T) - np.cov(chunks.T)) <= math.sqrt(2) * tol_cov)
 
 
+@pytest.mark.slow
 def test_per_block_cloud_matches_method_a_and_the_closed_form_heading():
     # Method A's covariance (first order; small k keeps the linearisation error ~σθ² ≈ 10⁻⁴
     # relative, far below the sampling error) and, on a straight line, the exact heading variance
