@@ -429,11 +429,12 @@ def _drawn_block(
 ) -> None:  # fmt: skip
     """Block ``b`` with its own draws, in the order of :func:`.mc_kernel.block_draws`: the start
     offsets (``DRAWN_BLOCK × 3``), then per step (per run: once) the right wheel's ``DRAWN_BLOCK``
-    normals and the left wheel's. A last block of ``nb < DRAWN_BLOCK`` particles draws a whole block and moves
-    the first ``nb``, so that a particle's numbers depend on the key and its index only."""
+    normals and the left wheel's. A last block of ``nb < DRAWN_BLOCK`` particles draws a whole
+    block and moves the first ``nb``, so that a particle's numbers depend on the key and its
+    index only."""
     v1, dtheta, cos_phi, sin_phi = nominal
     wr, wl, cum, off, x, y, big, offs = work
-    block = wr.shape[0]  # BLOCK, as a variable (a constant argument would compile another copy)
+    block = wr.shape[0]  # DRAWN_BLOCK, as a variable (a constant argument would compile another copy)
     s0, s1, s2, s3 = block_state(key, b)
     start = start_sqrt.shape[0] > 0
     if start:  # offset = A z, z ~ N(0, I₃), particle by particle
