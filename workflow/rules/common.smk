@@ -109,6 +109,7 @@ def chunk_timings(set_name, i, localization=False):
 
 # each chunked run's chunk
 RUN_CHUNK = {(s, r.id): i for s, parts in CHUNKS.items() for i, part in enumerate(parts) for r in part}
+gc.freeze()  # the expanded sweeps live to the end: out of the cyclic collector's walks (see the Snakefile)
 
 
 def runs_made(set_name, timings=False, localization=False):
