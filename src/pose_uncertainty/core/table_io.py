@@ -41,15 +41,12 @@ def jsonable(value: Any) -> Any:
 def plain_copy(value: Any) -> Any:
     """A deep copy of configuration data (dicts, lists, scalars): what ``copy.deepcopy`` gives, several
     times faster on it (no memo; a sweep copies its base once per run); any other object by ``deepcopy``."""
-    if type(value) in _SCALARS:
-        return value
-    if isinstance(value, dict):
+    kind = type(value)
+    if kind is dict:
         return {k: plain_copy(v) for k, v in value.items()}
-    if isinstance(value, list):
+    if kind is list:
         return [plain_copy(v) for v in value]
-    if isinstance(value, _SCALARS):
-        return value
-    return copy.deepcopy(value)
+    return value if isinstance(value, _SCALARS) else copy.deepcopy(value)
 
 
 def _cell(value: Any) -> Any:

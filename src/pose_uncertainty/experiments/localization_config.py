@@ -51,7 +51,6 @@ import copy
 import dataclasses
 import functools
 import hashlib
-import json
 import math
 import warnings
 from collections.abc import Callable, Mapping
@@ -74,7 +73,7 @@ from ..localization.result import ASSOCIATIONS, SCENARIOS, Start
 from ..localization.sensors import BeamSensor, RangeBearingSensor
 from ..localization.world import World, world_from_dict
 from ..methods.sampling import REGIMES
-from .config import MAX_PARTICLES, MAX_SEED, TRAJECTORY_KEYS
+from .config import MAX_PARTICLES, MAX_SEED, TRAJECTORY_KEYS, _by_json
 from .config_checks import ConfigWarning, builder_keywords
 from .config_checks import check_keys as _check_keys
 from .config_checks import fail as _fail
@@ -512,7 +511,7 @@ def _check_world(w: World, tr: trajectories.Trajectory, sensors: Mapping[str, An
 #: The worlds checked while configurations are read, by their JSON text (a sweep's runs share one world:
 #: building it once, not once per run, is most of the time the workflow takes to read a localization set).
 #: Used to check a configuration only; a run builds its own (:meth:`LocalizationConfig.build_world`).
-_CHECKED_WORLDS: dict[str, World] = {}
+_CHECKED_WORLDS: dict[bool, dict[str, Any]] = {}
 
 
 def _validated_world(data: Mapping[str, Any], build: bool = False) -> World:
@@ -521,13 +520,7 @@ def _validated_world(data: Mapping[str, Any], build: bool = False) -> World:
     make = build_world if build else world_from_dict
     if "image" in data:
         return make(data)
-    key = json.dumps([build, data], sort_keys=True, default=repr)
-    hit = _CHECKED_WORLDS.get(key)
-    if hit is None:
-        if len(_CHECKED_WORLDS) >= 64:
-            _CHECKED_WORLDS.clear()
-        hit = _CHECKED_WORLDS[key] = make(data)
-    return hit
+    return _by_json(_CHECKED_WORLDS.setdefault(build, {}), data, make)  # type: ignore[no-any-return]
 
 
 def build_world(spec: Mapping[str, Any]) -> World:

@@ -76,7 +76,7 @@ def _leaves(value: Mapping[str, Any], path: tuple[str, ...], out: _Leaves) -> _L
     return out
 
 
-def _delta(a: _Leaves, b: _Leaves) -> list[list[Any]] | None:
+def _leaf_delta(a: _Leaves, b: _Leaves) -> list[list[Any]] | None:
     if a.keys() != b.keys():
         return None
     return [[*p, v] for p, v in b.items() if a[p] != v or type(a[p]) is not type(v)]
@@ -88,7 +88,7 @@ def config_delta(base: Mapping[str, Any], config: Mapping[str, Any]) -> list[lis
     A leaf is a value that is not a non-empty mapping (a number, a string, a list, ``{}``).
     ``None`` when the two configurations do not have the same leaves (then the run is given in full).
     """
-    return _delta(_leaves(base, (), {}), _leaves(config, (), {}))
+    return _leaf_delta(_leaves(base, (), {}), _leaves(config, (), {}))
 
 
 def chunk_spec(configs: Sequence[Mapping[str, Any]], logs: Sequence[str], timings: Sequence[str] | None,
@@ -120,7 +120,7 @@ def chunk_spec(configs: Sequence[Mapping[str, Any]], logs: Sequence[str], timing
     runs: list[dict[str, Any]] = []
     for i, (config, log) in enumerate(zip(configs, logs, strict=True)):
         leaves = _leaves(config, (), {})
-        found = next(((b, d) for b, d in ((b, _delta(a, leaves)) for b, a in enumerate(base_leaves)) if d is not None),
+        found = next(((b, d) for b, d in ((b, _leaf_delta(a, leaves)) for b, a in enumerate(base_leaves)) if d is not None),
                      None)  # fmt: skip
         if found is None:
             found = (len(bases), [])
@@ -147,7 +147,7 @@ def read_timings(path: str | os.PathLike[str] | None, log: str | os.PathLike[str
     if path is None or not Path(path).is_file():
         return None
     st = os.stat(path)
-    data = _read_json(os.fspath(path), st.st_mtime_ns, st.st_size)
+    data = _read_json_cached(os.fspath(path), st.st_mtime_ns, st.st_size)
     if isinstance(data.get("runs"), dict):
         try:
             return dict(data["runs"][timings_key(log)])
@@ -157,7 +157,7 @@ def read_timings(path: str | os.PathLike[str] | None, log: str | os.PathLike[str
 
 
 @functools.lru_cache(maxsize=64)
-def _read_json(path: str, mtime_ns: int, size: int) -> dict[str, Any]:
+def _read_json_cached(path: str, mtime_ns: int, size: int) -> dict[str, Any]:
     return json.loads(Path(path).read_text(encoding="utf-8"))  # type: ignore[no-any-return]
 
 
