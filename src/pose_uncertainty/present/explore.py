@@ -125,32 +125,32 @@ def drive_geometry(kind: str) -> str:
     return ", ".join(f"{k}: {v}" for k, v in d.items() if k not in ("type", "errors") and v is not None)
 
 
-def _geometry(text: str) -> dict[str, Any]:
-    """The geometry field ``key: value, …`` as a mapping (the run configuration validates it)."""
+def _field(text: str, brackets: str, kind: type, message: str) -> Any:
+    """A page field parsed as the YAML flow collection ``brackets[0] text brackets[1]`` of type ``kind``;
+    ``ValueError(message)`` when it is not one (the run configuration validates its contents)."""
     import yaml
 
-    if not text.strip():
-        return {}
     try:
-        out = yaml.safe_load("{" + text + "}")
+        out = yaml.safe_load(brackets[0] + text + brackets[1])
     except yaml.YAMLError:
         out = None
-    if isinstance(out, dict):
+    if isinstance(out, kind):
         return out
-    raise ValueError(f"drive geometry {text!r} is not a list of 'key: value' (e.g. 'wheelbase: 0.3')")
+    raise ValueError(message)
+
+
+def _geometry(text: str) -> dict[str, Any]:
+    """The geometry field ``key: value, …`` as a mapping (the run configuration validates it)."""
+    if not text.strip():
+        return {}
+    return _field(text, "{}", dict,  # type: ignore[no-any-return]
+                  f"drive geometry {text!r} is not a list of 'key: value' (e.g. 'wheelbase: 0.3')")  # fmt: skip
 
 
 def _alphas(text: str) -> Any:
     """The map-alphas field ``a, b, …`` as a list (the run configuration validates its count and values)."""
-    import yaml
-
-    try:
-        out = yaml.safe_load("[" + text + "]")
-    except yaml.YAMLError:
-        out = None
-    if isinstance(out, list):
-        return out
-    raise ValueError(f"map alphas {text!r} is not a list of numbers separated by commas (e.g. '0.05, 0.05, 0.05, 0.05')")
+    return _field(text, "[]", list, f"map alphas {text!r} is not a list of numbers separated by commas "
+                                    "(e.g. '0.05, 0.05, 0.05, 0.05')")  # fmt: skip
 
 
 def run_config(
