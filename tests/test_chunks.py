@@ -120,18 +120,24 @@ def _workflow(base: Path, name: str, cfg: dict) -> Path:
     return work
 
 
-def _logs(work: Path) -> dict[str, bytes]:
-    return {str(p.relative_to(work)): p.read_bytes() for p in sorted((work / "data/runs").rglob("*.mcap"))}
+def _logs(work: Path, folder: str = "data/runs") -> dict[str, bytes]:
+    return {str(p.relative_to(work)): p.read_bytes() for p in sorted((work / folder).rglob("*.mcap"))}
+
+
+def _built_both_ways(tmp_path: Path, cfg: dict, table: str, runs_per_job: int) -> tuple[Path, Path]:
+    """``table`` built in two copies of the workflow: one run per job, and ``runs_per_job`` runs a job."""
+    single = _workflow(tmp_path, "single", cfg)
+    batched = _workflow(tmp_path, "batched", cfg)
+    for work, size in ((single, 1), (batched, runs_per_job)):
+        proc = snakemake(work, table, "--configfile", "config/tiny.yaml", "--config", f"runs_per_job={size}")
+        assert proc.returncode == 0, proc.stderr[-3000:]
+    return single, batched
 
 
 @pytest.mark.slow
 def test_chunked_logs_equal_one_run_per_job_and_a_change_reruns_only_its_chunk(tmp_path: Path) -> None:
-    single = _workflow(tmp_path, "single", TINY)
-    batched = _workflow(tmp_path, "batched", TINY)
     table = "reports/tables/S.csv"
-    for work, size in ((single, 1), (batched, 3)):
-        proc = snakemake(work, table, "--configfile", "config/tiny.yaml", "--config", f"runs_per_job={size}")
-        assert proc.returncode == 0, proc.stderr[-3000:]
+    single, batched = _built_both_ways(tmp_path, TINY, table, 3)
     logs = _logs(single)
     assert len(logs) == 6
     assert _logs(batched) == logs  # the same bytes through either layout
@@ -195,21 +201,13 @@ LOC_TINY = {
 }  # fmt: skip
 
 
-def _localization_logs(work: Path) -> dict[str, bytes]:
-    return {str(p.relative_to(work)): p.read_bytes() for p in sorted((work / "data/localization").rglob("*.mcap"))}
-
-
 @pytest.mark.slow
 def test_chunked_localization_logs_equal_one_run_per_job_and_a_change_reruns_only_its_chunk(tmp_path: Path) -> None:
-    single = _workflow(tmp_path, "single", LOC_TINY)
-    batched = _workflow(tmp_path, "batched", LOC_TINY)
     table = "reports/tables/localization/LOC.csv"
-    for work, size in ((single, 1), (batched, 2)):
-        proc = snakemake(work, table, "--configfile", "config/tiny.yaml", "--config", f"runs_per_job={size}")
-        assert proc.returncode == 0, proc.stderr[-3000:]
-    logs = _localization_logs(single)
+    single, batched = _built_both_ways(tmp_path, LOC_TINY, table, 2)
+    logs = _logs(single, "data/localization")
     assert sorted(Path(p).name for p in logs) == ["p.mcap", "q.mcap", "r.mcap"]
-    assert _localization_logs(batched) == logs  # the same bytes through either layout
+    assert _logs(batched, "data/localization") == logs  # the same bytes through either layout
     names = sorted(p.name for p in (batched / "data/benchmarks/simulate_localization_chunk/LOC").iterdir())
     assert names == ["0.tsv", "1.tsv"]
     held = [json.loads((batched / f"data/localization/LOC/chunks/{i}.timings.json").read_text(encoding="utf-8"))["runs"]
