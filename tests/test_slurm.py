@@ -176,10 +176,33 @@ def _minutes(text: str) -> float:
     return (int(days or 0) * 24 + h) * 60 + mi + s / 60
 
 
+#: what the cluster computes again of the local build: the dead-reckoning and localization runs (their
+#: logs, their timings, their benchmark records); the tables, figures and report are made again from them
+RERUN_ON_THE_CLUSTER = ("data/runs", "data/localization", "data/benchmarks/simulate_run",
+                        "data/benchmarks/simulate_localization")  # fmt: skip
+
+
+def _with_the_local_build_but_its_runs(local: Path, work: Path) -> Path:
+    """``work`` given the local build's data and Snakemake's records of them (``.snakemake/metadata``:
+    the code, parameters and inputs each was made from), less :data:`RERUN_ON_THE_CLUSTER`.
+
+    The studies and the robot's jobs are then up to date and not submitted: they go through the same
+    executor as the runs, which is what this test is about, and would double its time. (The benchmark
+    folders of chunk rules are named after the rule, ``simulate_chunk_<set>_<i>``.)"""
+    for d in ("data", ".snakemake/metadata"):  # not reports/: Snakemake makes no missing input a present output does not ask for
+        shutil.copytree(local / d, work / d, symlinks=True)
+    for d in (work / "data/benchmarks").iterdir():
+        if d.name.startswith(("simulate_chunk", "simulate_localization_chunk")):
+            shutil.rmtree(d)
+    for d in RERUN_ON_THE_CLUSTER:
+        shutil.rmtree(work / d, ignore_errors=True)
+    return work
+
+
 @pytest.mark.slow
 def test_quick_pipeline_through_slurm(slurm_cluster: object, tmp_path_factory: pytest.TempPathFactory) -> None:
     local = quick_pipeline(tmp_path_factory.getbasetemp())
-    work = copy_workflow(tmp_path_factory.mktemp("slurm"))
+    work = _with_the_local_build_but_its_runs(local, copy_workflow(tmp_path_factory.mktemp("slurm")))
     env = dict(os.environ, PATH=f"{VENV_BIN}{os.pathsep}{os.environ.get('PATH', '')}")
     stop = threading.Event()
     canceller = Canceller(stop)
