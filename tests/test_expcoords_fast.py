@@ -179,3 +179,19 @@ def test_density_quantiles_bad_input():
     pts = ec.sample(mu, S, 200, np.random.default_rng(1))[:, :2]
     pts[7] = np.nan  # as np.quantile of the densities: NaN
     assert np.isnan(ec.density_quantiles(pts, mu, S, [0.1, 0.5])).all()
+
+
+@pytest.mark.parametrize(("traj", "k"), [(tr.straight(2.5, dt=0.01, track=0.2), 7e-4),
+                                         (tr.arc(1.0, 2.0, dt=0.01, track=0.2), 2e-3),
+                                         (tr.straight(0.5, dt=0.05, track=0.2), 0.05)])  # the dense sum
+def test_at_least_equals_the_comparison_of_every_density(traj, k):
+    """at_least (brackets, the exact density where they straddle) against pdf_xy at every point."""
+    mu, S = banana(traj, k)
+    pts = ec.sample(mu, S, 3000, np.random.default_rng(2))[:, :2]
+    dens = ec.pdf_xy(pts, mu, S)
+    levels = np.quantile(dens, [0.011, 0.1, 0.5])
+    levels = np.concatenate([levels, dens[:3]])  # a level equal to a point's density: ">=" holds there
+    got = ec.at_least(pts, mu, S, levels)
+    assert got.shape == (levels.size, pts.shape[0])
+    assert np.array_equal(got, dens[None, :] >= levels[:, None])
+    assert got[3:, :3].diagonal().all()

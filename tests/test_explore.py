@@ -233,8 +233,9 @@ def test_server_binds_loopback_by_default() -> None:
 
 
 def test_light_run_keeps_every_number_of_the_full_run(view: explore.View) -> None:
-    """``execute(distances=False)`` (each move of a control) leaves out the density distances only:
-    every measure it keeps equals the full run's to the bit (the generator is drawn from alike)."""
+    """``execute(distances=False, coverage_only=True)`` (each move of a control) leaves out the
+    accuracy comparison's entries the page does not show: every measure it keeps equals the full
+    run's to the bit (the generator is drawn from alike), every region's planar coverage among them."""
     from pose_uncertainty.experiments.run import execute
 
     full = execute(view.config).metrics
@@ -242,8 +243,12 @@ def test_light_run_keeps_every_number_of_the_full_run(view: explore.View) -> Non
     left_out = set(full) - set(light)
     assert set(light) <= set(full)
     assert left_out
-    assert all(k.endswith(("hellinger", "kl", "model_mass_on_grid", "_floor")) for k in left_out)
+    assert all(k.startswith("accuracy_") and "_coverage_xy_" not in k for k in left_out)
+    assert {k for k in full if "_coverage_xy_" in k} <= set(light)
     assert {k: light[k] for k in light} == {k: full[k] for k in light}
+    # without coverage_only every entry but the density distances is kept, as before
+    no_distances = execute(view.config, distances=False).metrics
+    assert all(k.endswith(("hellinger", "kl", "model_mass_on_grid", "_floor")) for k in set(full) - set(no_distances))
     # the banana's level is the one its coverage used: the share of the cloud at or above it
     from pose_uncertainty.methods import expcoords
 

@@ -106,10 +106,16 @@ CLICK_SAVE = (
 )
 
 
-def set_field(cdp: CDP, name: str, value: str | float) -> None:
+def set_field(cdp: CDP, name: str, value: str | float, prop: str = "value") -> None:
     """Set a control's value in the page (the widget's model, as a user's edit does)."""
     cdp.call("Runtime.evaluate",
-             expression=f"Bokeh.documents[0].get_model_by_name({json.dumps(name)}).value = {json.dumps(value)}")  # fmt: skip
+             expression=f"Bokeh.documents[0].get_model_by_name({json.dumps(name)}).{prop} = {json.dumps(value)}")  # fmt: skip
+
+
+def release_slider(cdp: CDP, name: str, value: float) -> None:
+    """Move a slider and let go: its value, then its ``value_throttled`` (what the release sets)."""
+    set_field(cdp, name, value)
+    set_field(cdp, name, value, "value_throttled")
 
 
 #: JavaScript: set field-k_r to a value and resolve with the milliseconds until the status line
@@ -176,7 +182,7 @@ def test_explorer_in_chromium(chromium: str, tmp_path: Path) -> None:
         xs = _evaluate(cdp, "Array.from(Bokeh.documents[0].get_model_by_name('source-a').data.xs[0])")
         np.testing.assert_allclose(xs, moved.regions["a"][0][:, 0], rtol=1e-12, atol=1e-15)
         # the slider (log10 k_r) writes the field, and the page redraws
-        set_field(cdp, "slider-k_r", -2.5)
+        release_slider(cdp, "slider-k_r", -2.5)
         _wait_status(cdp, "k_r 0.00316,")
         slid = explore.compute(explore.run_config({**explore.DEFAULTS, "k_r": "0.00316"}))
         assert _text(cdp, "coverage-a") == _shown(slid, "a")

@@ -120,6 +120,7 @@ def execute(
     progress: Callable[[str], Callable[[int, int], None]] | None = None,
     kernel: str = "auto",
     cache: DrawCache | None = None,
+    coverage_only: bool = False,
 ) -> RunResult:
     """Compute one run: trajectory, covariance, Monte Carlo, maps and every measure.
 
@@ -144,6 +145,10 @@ def execute(
         Keeps the Monte Carlo's standard normals for the next run of the same seed,
         particles and steps (:class:`pose_uncertainty.methods.particles.DrawCache`; the result
         is the same with or without it).
+    coverage_only : bool
+        True (with ``distances=False``): the accuracy comparison keeps each region's planar
+        coverage (and the banana's levels) only, the same numbers
+        (:func:`pose_uncertainty.analysis.accuracy.compare_methods`); what the explorer shows.
 
     Returns
     -------
@@ -188,7 +193,8 @@ def execute(
             maps.append(_compute_map(mcfg, traj, bar(f"map {mcfg.name}")))
             samplers[mcfg.name] = _map_sampler(config, mcfg, traj, i)
     with _timed(timings, "measures_s"):
-        metrics = _measures(config, traj, poses, covs, end_poses, maps, samplers, c_end, ds, distances)
+        metrics = _measures(config, traj, poses, covs, end_poses, maps, samplers, c_end, ds, distances,
+                            coverage_only)  # fmt: skip
         if ds is not None:  # the growth laws and the skid-steer's turn bias
             metrics.update(drive_measures(ds, poses, covs, config.monte_carlo.checkpoints,
                                           checkpoints, end_poses))  # fmt: skip
@@ -311,6 +317,7 @@ def _measures(
     c_end: tuple[NDArray[np.float64], NDArray[np.float64]] | None,
     ds: DriveSetup | None = None,
     distances: bool = True,
+    coverage_only: bool = False,
 ) -> dict[str, float]:
     """Every measure of the run (:mod:`pose_uncertainty.analysis.measures`), computed once here.
 
@@ -328,7 +335,7 @@ def _measures(
     for mp in maps_:
         out.update(measures.map_measures(mp, config.pr, samplers.get(mp.name)))
     if end_poses is not None and end_poses.shape[0] >= 10:
-        out.update(_accuracy_metrics(config, traj, poses, covs, end_poses, c_end, ds, distances))
+        out.update(_accuracy_metrics(config, traj, poses, covs, end_poses, c_end, ds, distances, coverage_only))
     return out
 
 
@@ -341,6 +348,7 @@ def _accuracy_metrics(
     c_end: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
     ds: DriveSetup | None = None,
     distances: bool = True,
+    coverage_only: bool = False,
 ) -> dict[str, float]:
     """How wrong each Gaussian method is against this run's Monte Carlo cloud.
 
@@ -368,7 +376,7 @@ def _accuracy_metrics(
     res = accuracy.compare_methods(
         end_poses, (poses[-1], covs[-1]), (E.poses[-1], E.covs[-1]),
         np.random.default_rng([config.seed, 1]), n_threshold=50_000, unscented=c_end,
-        distances=distances, levels=True,
+        distances=distances, levels=True, coverage_only=coverage_only,
     )  # fmt: skip
     return accuracy.flatten(res)
 

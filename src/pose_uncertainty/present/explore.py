@@ -331,7 +331,8 @@ def compute(
     """
     config = RunConfig.from_dict(data)
     cost.check(config)
-    res = execute(config, distances=False, progress=progress or (lambda label: _silent), cache=_DRAWS)
+    res = execute(config, distances=False, coverage_only=True, progress=progress or (lambda label: _silent),
+                  cache=_DRAWS)  # fmt: skip
     m, pr, n_end = res.metrics, config.pr, res.n_steps
     regions: dict[str, list[NDArray[np.float64]]] = {
         "a": [covariance.ellipse_polyline(res.covs[n_end, :2, :2], pr, res.poses[n_end, :2])]
@@ -776,8 +777,8 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
         if k != "drive":
             w.on_change("value", update)
     fields["drive"].on_change("value", on_drive)
-    for k, sl in sliders.items():
-        sl.on_change("value", partial(on_slider, k))
+    for k, sl in sliders.items():  # on release (a drag does not queue a computation per pixel)
+        sl.on_change("value_throttled", partial(on_slider, k))
     shown.on_change("active", show)
 
     save_path = TextInput(title="save as run config (YAML file)", value="", name="save-path")
