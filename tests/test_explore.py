@@ -56,7 +56,13 @@ def test_compute_equals_the_library_called_directly(view: explore.View) -> None:
     c = unscented.propagate(traj, cfg.k_r, cfg.k_l)
     cloud = sampling.sample_end_poses(traj, cfg.k_r, cfg.k_l, 400, np.random.default_rng(cfg.seed),
                                       regime=cfg.monte_carlo.regime, method=cfg.monte_carlo.method)  # fmt: skip
-    np.testing.assert_array_equal(view.result.end_poses, cloud)
+    # the explorer's loops are the compiled ones: the same draws, equal to numpy's up to rounding
+    compiled = sampling.sample_end_poses(traj, cfg.k_r, cfg.k_l, 400, np.random.default_rng(cfg.seed),
+                                         regime=cfg.monte_carlo.regime, method=cfg.monte_carlo.method,
+                                         kernel="compiled")  # fmt: skip
+    np.testing.assert_array_equal(view.result.end_poses, compiled)
+    np.testing.assert_allclose(view.result.end_poses, cloud, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(view.result.unscented_covs, c.covs, rtol=1e-12, atol=1e-18)
     np.testing.assert_allclose(view.result.covs[-1], a.covs[-1], rtol=1e-12, atol=0)
     pr = cfg.pr
     label = pr_label(pr)
@@ -238,7 +244,7 @@ def test_light_run_keeps_every_number_of_the_full_run(view: explore.View) -> Non
     run's to the bit (the generator is drawn from alike), every region's planar coverage among them."""
     from pose_uncertainty.experiments.run import execute
 
-    full = execute(view.config).metrics
+    full = execute(view.config, kernel="compiled").metrics  # the explorer's loops
     light = view.result.metrics
     left_out = set(full) - set(light)
     assert set(light) <= set(full)
@@ -247,8 +253,13 @@ def test_light_run_keeps_every_number_of_the_full_run(view: explore.View) -> Non
     assert {k for k in full if "_coverage_xy_" in k} <= set(light)
     assert {k: light[k] for k in light} == {k: full[k] for k in light}
     # without coverage_only every entry but the density distances is kept, as before
-    no_distances = execute(view.config, distances=False).metrics
+    no_distances = execute(view.config, distances=False, kernel="compiled").metrics
     assert all(k.endswith(("hellinger", "kl", "model_mass_on_grid", "_floor")) for k in set(full) - set(no_distances))
+    # against the numpy loops a run logs: every coverage (a count) the same, the rest up to rounding
+    logged = execute(view.config).metrics
+    assert {k: light[k] for k in light if "coverage" in k} == {k: logged[k] for k in light if "coverage" in k}
+    for k in light:
+        assert light[k] == pytest.approx(logged[k], rel=1e-9, abs=1e-12, nan_ok=True), k
     # the banana's level is the one its coverage used: the share of the cloud at or above it
     from pose_uncertainty.methods import expcoords
 

@@ -141,6 +141,8 @@ def execute(
         The Monte Carlo's end poses by numpy or by the compiled kernel
         (:func:`pose_uncertainty.methods.sampling.sample_end_poses`: the same draws, equal up to
         rounding, within the reproducibility contract); ``"auto"`` (default) as a run logs them.
+        ``"compiled"`` also runs Method C's loop over the steps compiled
+        (:func:`pose_uncertainty.methods.unscented.propagate`, equal up to rounding).
     cache : DrawCache, optional
         Keeps the Monte Carlo's standard normals for the next run of the same seed,
         particles and steps (:class:`pose_uncertainty.methods.particles.DrawCache`; the result
@@ -178,7 +180,8 @@ def execute(
     ures: CovarianceResult | None = None
     if ds is None:  # Method C, on the differential drive's wheel-noise model
         with _timed(timings, "unscented_s"):
-            ures = unscented.propagate(traj, config.k_r, config.k_l, cov0=_cov0(config))
+            ures = unscented.propagate(traj, config.k_r, config.k_l, cov0=_cov0(config),
+                                       kernel="compiled" if kernel == "compiled" else "numpy")  # fmt: skip
         c_end = (np.asarray(ures.poses[-1], dtype=np.float64), np.asarray(ures.covs[-1], dtype=np.float64))
     poses = np.ascontiguousarray(cres.poses, dtype=np.float64)
     covs = np.ascontiguousarray(cres.covs, dtype=np.float64)

@@ -215,3 +215,100 @@ def wheel_step(
     scale = (scale_r, scale_l)
     if _wheel_lanes(P, z, travel, scale, inv_track, out, True) > REDUCTION_LIMIT:
         _wheel_lanes(P, z, travel, scale, inv_track, out, False)
+
+
+@_jit
+def _wrap(a: float) -> float:
+    """:func:`pose_uncertainty.core.kinematics.wrap_angle` of one angle: (−π, π]."""
+    t = a + math.pi
+    w = t - 2.0 * math.pi * math.floor(t / (2.0 * math.pi)) if not (0.0 <= t < 2.0 * math.pi) else t
+    w -= math.pi
+    return math.pi if w == -math.pi else w
+
+
+@_jit
+def ut_march(
+    ds_r: np.ndarray, ds_l: np.ndarray, k_r: float, k_l: float, track: float, Wm: np.ndarray,
+    Wc: np.ndarray, spread: float, poses: np.ndarray, covs: np.ndarray,
+) -> None:  # fmt: skip
+    """Method C's loop (:func:`.unscented.ut_step` of one set, step after step), in place.
+
+    ``poses[0]`` (3,) and ``covs[0]`` (3, 3) hold the start; step ``i`` fills ``poses[i + 1]``,
+    ``covs[i + 1]``: the PSD Cholesky factor of the covariance (a pivot ≤ 1e-14·max|P| gives a
+    zero column), the 11 sigma points of the pose and the two wheel travels, the midpoint step
+    of each, and the weighted mean (circular for the heading) and covariance of the moved points.
+    """
+    n_pts = Wm.size
+    L = np.zeros((3, 3))
+    pts = np.empty((n_pts, 3))
+    r = np.empty(n_pts)
+    lw = np.empty(n_pts)
+    d = np.empty((n_pts, 3))
+    for i in range(ds_r.size):
+        P = covs[i]
+        tol = 0.0
+        for a in range(3):
+            for b in range(3):
+                tol = max(tol, abs(P[a, b]))
+        tol *= 1e-14
+        for j in range(3):
+            acc = 0.0
+            for k in range(j):
+                acc += L[j, k] * L[j, k]
+            dj = P[j, j] - acc
+            ok = dj > tol
+            root = math.sqrt(dj) if ok else 1.0
+            L[j, j] = root if ok else 0.0
+            for a in range(j + 1, 3):
+                acc = 0.0
+                for k in range(j):
+                    acc += L[a, k] * L[j, k]
+                L[a, j] = (P[a, j] - acc) / root if ok else 0.0
+        for q in range(n_pts):
+            for a in range(3):
+                pts[q, a] = poses[i, a]
+            r[q] = ds_r[i]
+            lw[q] = ds_l[i]
+        for j in range(3):
+            for a in range(3):
+                pts[1 + j, a] += spread * L[a, j]
+                pts[6 + j, a] -= spread * L[a, j]
+        dev_r = spread * math.sqrt(k_r * abs(ds_r[i]))
+        dev_l = spread * math.sqrt(k_l * abs(ds_l[i]))
+        r[4] += dev_r
+        r[9] -= dev_r
+        lw[5] += dev_l
+        lw[10] -= dev_l
+        mx = 0.0
+        my = 0.0
+        ss = 0.0
+        sc = 0.0
+        for q in range(n_pts):
+            ds = (r[q] + lw[q]) / 2.0
+            dth = (r[q] - lw[q]) / track
+            th = pts[q, 2]
+            phi = th + 0.5 * dth
+            pts[q, 0] += ds * math.cos(phi)
+            pts[q, 1] += ds * math.sin(phi)
+            pts[q, 2] = th + dth
+        for q in range(n_pts):
+            mx += Wm[q] * pts[q, 0]
+            my += Wm[q] * pts[q, 1]
+            dq = _wrap(pts[q, 2] - pts[0, 2])
+            ss += Wm[q] * math.sin(dq)
+            sc += Wm[q] * math.cos(dq)
+        mth = pts[0, 2] + math.atan2(ss, sc)
+        poses[i + 1, 0] = mx
+        poses[i + 1, 1] = my
+        poses[i + 1, 2] = mth
+        for q in range(n_pts):
+            d[q, 0] = pts[q, 0] - mx
+            d[q, 1] = pts[q, 1] - my
+            d[q, 2] = _wrap(pts[q, 2] - mth)
+        for a in range(3):
+            for b in range(a, 3):
+                s = 0.0
+                for q in range(n_pts):
+                    s += Wc[q] * d[q, a] * d[q, b]
+                covs[i + 1, a, b] = s
+                covs[i + 1, b, a] = s

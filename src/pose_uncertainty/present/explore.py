@@ -332,7 +332,7 @@ def compute(
     config = RunConfig.from_dict(data)
     cost.check(config)
     res = execute(config, distances=False, coverage_only=True, progress=progress or (lambda label: _silent),
-                  cache=_DRAWS)  # fmt: skip
+                  kernel="compiled", cache=_DRAWS)  # fmt: skip
     m, pr, n_end = res.metrics, config.pr, res.n_steps
     regions: dict[str, list[NDArray[np.float64]]] = {
         "a": [covariance.ellipse_polyline(res.covs[n_end, :2, :2], pr, res.poses[n_end, :2])]
