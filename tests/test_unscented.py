@@ -298,7 +298,8 @@ def test_compiled_loop_equals_the_numpy_loop_up_to_rounding(traj, cov0):
     in another order, equal within a relative 1e-12 of the covariance's scale at every step."""
     ref = ut.propagate(traj, 3e-4, 5e-4, cov0=cov0)
     got = ut.propagate(traj, 3e-4, 5e-4, cov0=cov0, kernel="compiled")
-    assert got.covs.shape == ref.covs.shape and got.poses.shape == ref.poses.shape
+    assert got.covs.shape == ref.covs.shape
+    assert got.poses.shape == ref.poses.shape
     scale = np.abs(ref.covs).max(axis=(-1, -2), keepdims=True) + 1e-300
     assert np.max(np.abs(got.covs - ref.covs) / scale) < 1e-12
     assert_allclose(got.poses, ref.poses, rtol=0, atol=1e-12)
