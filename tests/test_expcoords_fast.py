@@ -128,6 +128,12 @@ def test_density_quantiles_equal_the_quantiles_of_every_density(traj, k, n):
     for seed in range(3):
         pts = ec.sample(mu, S, n, np.random.default_rng(seed))[:, :2]
         assert np.array_equal(ec.density_quantiles(pts, mu, S, q), np.quantile(ec.pdf_xy(pts, mu, S), q))
+    # the same with either route to the brackets (numpy's, or the compiled loop's once loaded)
+    from pose_uncertainty.methods import mc_kernel
+
+    mc_kernel.jit_module()
+    assert ec._compiled_loaded()
+    assert np.array_equal(ec.density_quantiles(pts, mu, S, q), np.quantile(ec.pdf_xy(pts, mu, S), q))
     # scalar q, a handful of points, ties
     assert ec.density_quantiles(pts[:3], mu, S, 0.5) == np.quantile(ec.pdf_xy(pts[:3], mu, S), 0.5)
     twice = np.concatenate([pts[:500], pts[:500]])
@@ -147,10 +153,11 @@ def test_density_brackets_hold_the_density(traj, k):
     cond = ec._conditional(mu, S, 64)
     assert cond.nodes.size > ec._DENSE_NODES
     exact = ec.pdf_xy(pts, mu, S)
-    lo, hi = ec._density_brackets(pts, cond)
-    assert np.all(lo <= exact)
-    assert np.all(exact <= hi)
-    assert np.mean(lo < exact) > 0.25  # it does leave terms out
+    for compiled in (False, True):  # numpy's single-precision sum, the compiled loop's
+        lo, hi = ec._density_brackets(pts, cond, compiled=compiled)
+        assert np.all(lo <= exact), compiled
+        assert np.all(exact <= hi), compiled
+        assert np.mean(lo < exact) > 0.25  # it does leave terms out
     # the single-precision sum against the double one of the same terms
     double = ec._pdf_xy_pruned(pts, cond, ec._BOUND_TRUNC)
     single = ec._pdf_xy_pruned(pts, cond, ec._BOUND_TRUNC, single=True)

@@ -785,11 +785,40 @@ _BOUND_TRUNC = 5.0
 _SINGLE_MARGIN = 1e-4
 
 
-def _density_brackets(pts: NDArray, cond: _Conditional) -> tuple[NDArray, NDArray]:
-    """Lower and upper bounds (n,) of :func:`pdf_xy` at points (n, 2) (:func:`density_quantiles`)."""
-    kept = _pdf_xy_pruned(pts, cond, _BOUND_TRUNC, single=True)
+def _compiled_loaded() -> bool:
+    """Whether this process has loaded the compiled loops (numba) of :mod:`.mc_kernel` already."""
+    from . import mc_kernel
+
+    return bool(mc_kernel._JIT)
+
+
+def _density_brackets(pts: NDArray, cond: _Conditional, compiled: bool | None = None) -> tuple[NDArray, NDArray]:
+    """Lower and upper bounds (n,) of :func:`pdf_xy` at points (n, 2) (:func:`density_quantiles`).
+
+    The sum over the terms kept at the truncation :data:`_BOUND_TRUNC`, by numpy in single precision,
+    or (``compiled``; default: when the process has loaded the compiled loops already, so that a
+    run does not import numba for it) by the compiled loop ``_mc_jit.truncated_density`` in double
+    precision, its terms from each node's own Mahalanobis distance. Either sum holds only terms of
+    :func:`pdf_xy` and leaves out only terms below ``e^-T/n`` of the largest node peak; the margins
+    cover both roundings. What :func:`density_quantiles` returns does not depend on the route.
+    """
     with np.errstate(divide="ignore"):
-        la_max = float(np.max(np.log(cond.weights) + cond.log_norm))
+        la = np.log(cond.weights) + cond.log_norm
+        la_max = float(np.max(la))
+    if compiled is None:
+        compiled = _compiled_loaded()
+    if compiled:
+        from .mc_kernel import jit_module
+
+        tree = _range_tree(cond, _BOUND_TRUNC)
+        kept = np.empty(pts.shape[0])
+        jit_module().truncated_density(
+            np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1]), np.ascontiguousarray(cond.means),
+            np.ascontiguousarray(cond.prec), np.ascontiguousarray(la), tree.log_floor, tree.cx[-1], tree.cy[-1],
+            tree.m00[-1], tree.m01[-1], tree.m11[-1], tree.bound[-1], _BLOCK, kept,
+        )  # fmt: skip
+    else:
+        kept = _pdf_xy_pruned(pts, cond, _BOUND_TRUNC, single=True)
     lo = kept * (1.0 - _SINGLE_MARGIN)
     hi = kept * (1.0 + _SINGLE_MARGIN) + math.exp(la_max - _BOUND_TRUNC) * (1.0 + 1e-6)
     return lo, hi
