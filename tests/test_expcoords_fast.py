@@ -202,3 +202,23 @@ def test_at_least_equals_the_comparison_of_every_density(traj, k):
     assert got.shape == (levels.size, pts.shape[0])
     assert np.array_equal(got, dens[None, :] >= levels[:, None])
     assert got[3:, :3].diagonal().all()
+
+
+@pytest.mark.parametrize(("traj", "k"), [(tr.straight(2.5, dt=0.01, track=0.2), 7e-4),
+                                         (tr.arc(1.0, 2.0, dt=0.01, track=0.2), 2e-3)])
+def test_region_contour_is_the_exact_grids_line_for_line(traj, k):
+    """region_xy_at reads the exact density only at the corners of cells the brackets leave open:
+    its lines are those of the contour of marginal_xy_grid, point for point."""
+    import contourpy
+
+    mu, S = banana(traj, k)
+    pts = ec.sample(mu, S, 4000, np.random.default_rng(4))[:, :2]
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    x, y = (np.linspace(lo[a] - 0.1 * (hi[a] - lo[a]), hi[a] + 0.1 * (hi[a] - lo[a]), 40) for a in (0, 1))
+    for pr in (0.5, 0.98889):
+        level = float(ec.hdr_threshold(mu, S, pr, np.random.default_rng(5), n=5000))
+        want = contourpy.contour_generator(x, y, ec.marginal_xy_grid(x, y, mu, S).T).lines(level)
+        got = ec.region_xy_at(x, y, mu, S, level)
+        assert len(got) == len(want) >= 1
+        for a, b in zip(got, want, strict=True):
+            np.testing.assert_array_equal(a, b)

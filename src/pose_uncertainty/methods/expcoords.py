@@ -970,6 +970,40 @@ def pr_region_xy(
     return region_xy_at(x, y, mu, S, level)
 
 
+def _grid_for_contour(x: NDArray, y: NDArray, mean_pose: ArrayLike, cov: ArrayLike, level: float) -> NDArray:
+    """The density on the grid ``x × y`` (nx, ny) as its contour at ``level`` reads it.
+
+    Marching squares draws a line through a cell only where its corners lie on both sides of
+    the level, interpolating between those corners' values. A point whose brackets
+    (:func:`density_quantiles`) put it strictly above or below the level keeps its bracket; the
+    corners of every cell not certainly all on one side get :func:`marginal_xy_grid`'s exact
+    values. The contour is the one of the exact grid, line for line.
+    """
+    mu = check_last_axis("mean_pose", mean_pose, 3)
+    S = _check_cov3(cov)
+    cond = _conditional(mu, S, 64)
+    if cond.nodes.size <= _DENSE_NODES or not math.isfinite(level) or x.size < 2 or y.size < 2:
+        return marginal_xy_grid(x, y, mu, S)
+    X, Y = np.meshgrid(x, y, indexing="ij")
+    pts = np.stack([X.ravel(), Y.ravel()], axis=-1)
+    lo, hi = _density_brackets(pts, cond)
+    above, below = (lo > level).reshape(X.shape), (hi < level).reshape(X.shape)
+    Z = np.where(above, lo.reshape(X.shape), hi.reshape(X.shape))
+
+    def all4(m: NDArray) -> NDArray:  # per cell: all four corners
+        return m[:-1, :-1] & m[1:, :-1] & m[:-1, 1:] & m[1:, 1:]
+
+    open_cell = ~(all4(above) | all4(below))
+    need = np.zeros(X.shape, dtype=bool)
+    for di in (0, 1):
+        for dj in (0, 1):
+            need[di : di + open_cell.shape[0], dj : dj + open_cell.shape[1]] |= open_cell
+    idx = np.flatnonzero(need.ravel())
+    if idx.size:
+        Z.ravel()[idx] = _pdf_xy_pruned(pts[idx], cond)
+    return Z
+
+
 def region_xy_at(
     x: ArrayLike, y: ArrayLike, mean_pose: ArrayLike, cov: ArrayLike, level: float
 ) -> list[NDArray[np.float64]]:
@@ -990,7 +1024,7 @@ def region_xy_at(
     list of ndarray, each shape (m, 2) [m] — polylines (closed unless cut by the grid's edge)
     """
     xx, yy = check_finite("x", x), check_finite("y", y)
-    Z = marginal_xy_grid(xx, yy, mean_pose, cov)
+    Z = _grid_for_contour(xx, yy, mean_pose, cov, float(level))
     import contourpy  # imported where used: only these contours need it
 
     gen = contourpy.contour_generator(xx, yy, Z.T)
