@@ -310,3 +310,66 @@ def test_page_draws_the_map_region_and_its_coverage_of_each_new_cloud() -> None:
     again = coverage_gridded(mp, moved.result.end_poses[:, :2], [view.config.pr])[label]
     assert re.search(r'id="coverage-map">([0-9.]+)<', status.text).group(1) == f"{100 * again:.2f}"
     assert again != want
+
+
+TOUR = {**SMALL, "path": "tour", "segments": "[[line, 0.5], [turn, 1.5708], [arc, 0.4, 1.0]]", "profile": "ramp"}
+SOURCES = {**SMALL, "error_sources": "pulses_per_rev: 200, surface_rel_std: 0.02"}
+
+
+def test_segments_profile_and_error_sources_are_the_run_configs(tmp_path: Path) -> None:
+    """The path as a list of segments, the speed profile and the wheel-noise model's error sources:
+    page fields that become the run configuration's keys, change the picture, and round-trip
+    through a saved config, ``pose-uncertainty run`` and "Open a log"."""
+    base = explore.compute(explore.run_config(SMALL))
+    cfg = RunConfig.from_dict(explore.run_config(TOUR))
+    assert cfg.trajectory["segments"] == [["line", 0.5], ["turn", 1.5708], ["arc", 0.4, 1.0]]
+    assert cfg.trajectory["profile"] == "ramp"
+    want = trajectories.tour([["line", 0.5], ["turn", 1.5708], ["arc", 0.4, 1.0]], profile="ramp",
+                             speed=0.5, dt=0.02, track=0.2)  # fmt: skip
+    src = RunConfig.from_dict(explore.run_config(SOURCES))
+    assert src.drive is not None
+    assert src.drive.type == "differential"
+    assert src.drive.errors.encoder["pulses_per_rev"] == 200
+    assert src.drive.errors.encoder["surface_rel_std"] == 0.02
+    for settings in (TOUR, SOURCES):
+        view = explore.compute(explore.run_config(settings))
+        assert view.coverage["a"] != base.coverage["a"] or view.regions["a"][0].shape != base.regions["a"][0].shape
+        assert not np.array_equal(view.result.covs[-1], base.result.covs[-1])
+        if settings is TOUR:
+            assert view.result.n_steps == want.n_steps
+            a = covariance.propagate(want, 2e-3, 5e-4)  # Method A on the tour built directly
+            np.testing.assert_array_equal(view.result.poses, a.poses)
+            np.testing.assert_allclose(view.result.covs, a.covs, rtol=1e-12, atol=0)
+        path = explore.save_run_config(tmp_path / "explored.yaml", explore.run_config(settings))
+        out = tmp_path / "explored.mcap"
+        assert main(["run", str(path), "-o", str(out)]) == 0
+        logged = open_run(out).metrics
+        for key, name in (("a", "cartesian"), ("c", "unscented"), ("e", "expcoords")):
+            if key in view.coverage:
+                assert view.coverage[key]["fraction"] == logged[f"accuracy_{name}_coverage_xy_98_89"], key
+        assert ("c" in view.coverage) == (settings is TOUR)  # Method C is the two-wheel k model's
+        opened, cfg_map = explore.load_log_settings(out)
+        for k in ("path", "profile", "segments", "error_sources"):
+            assert RunConfig.from_dict(explore.run_config(opened, cfg_map)).to_dict() == RunConfig.from_dict(
+                explore.run_config(settings)).to_dict(), k  # fmt: skip
+        out.unlink()
+
+
+def test_a_bad_segment_list_shows_its_one_line_error_and_keeps_the_picture() -> None:
+    pytest.importorskip("bokeh")
+    from bokeh.document import Document
+
+    doc = Document()
+    explore.make_document(doc, TOUR, background=False)
+    segs, err, cov, src = (doc.select_one({"name": n}) for n in ("field-segments", "error", "coverage", "source-a"))
+    good, ring = cov.text, list(src.data["xs"][0])
+    assert err.text == ""
+    for bad, words in (("[[line]]", "segments[0]"), ("[[jump, 1.0]]", "jump"), ("[[line, 1", "not a list")):
+        segs.value = bad
+        assert words in err.text
+        assert "\n" not in err.text
+        assert cov.text == good
+        assert list(src.data["xs"][0]) == ring
+    segs.value = "[[line, 0.8]]"  # a good list again: a new picture
+    assert err.text == ""
+    assert cov.text != good
