@@ -373,3 +373,35 @@ def test_a_bad_segment_list_shows_its_one_line_error_and_keeps_the_picture() -> 
     segs.value = "[[line, 0.8]]"  # a good list again: a new picture
     assert err.text == ""
     assert cov.text != good
+
+
+def test_a_change_of_the_map_fields_or_back_to_the_picture_computes_no_move(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Only what a control invalidates is computed: the map's own fields start its background
+    computation only, and a bad value typed back to the shown one clears the error, no move."""
+    pytest.importorskip("bokeh")
+    from bokeh.document import Document
+
+    doc = Document()
+    explore.make_document(doc, SMALL, background=False)
+    calls: list[str] = []
+    real = explore.compute
+
+    def counted(data: object, progress: object = None) -> explore.View:
+        calls.append("map" if data["maps"] else "move")  # type: ignore[index]
+        return real(data, progress)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(explore, "compute", counted)
+    cov, err = doc.select_one({"name": "coverage"}), doc.select_one({"name": "error"})
+    shown = cov.text
+    doc.select_one({"name": "field-map_resolution"}).value = "0.05"  # no map: nothing at all
+    assert calls == []
+    k_l = doc.select_one({"name": "field-k_l"})
+    k_l.value = "-1"
+    assert "k_l" in err.text
+    k_l.value = SMALL.get("k_l", explore.DEFAULTS["k_l"])  # back to the picture shown
+    assert err.text == ""
+    assert cov.text == shown
+    assert calls == ["move"]  # the bad value's validation only
+    doc.select_one({"name": "field-k_r"}).value = "3e-3"
+    assert calls == ["move", "move"]
+    assert cov.text != shown

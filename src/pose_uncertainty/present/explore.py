@@ -345,9 +345,11 @@ def compute(
     """Validate a run configuration mapping as ``pose-uncertainty run`` does, execute it, and
     collect what the page draws.
 
-    The run is executed without the accuracy comparison's density distances
-    (``execute(config, distances=False)``): every number shown is the one a run of the same
-    configuration logs. The Monte Carlo's standard normals are kept between calls
+    The run is executed with the accuracy comparison's planar coverages only (``execute(config,
+    distances=False, coverage_only=True)``, the same numbers a run logs) and with the compiled
+    loops (``kernel="compiled"``: Method C and the Monte Carlo equal a logged run's up to rounding,
+    within the reproducibility contract; the coverages shown are counts, the run's). The Monte
+    Carlo's standard normals are kept between calls
     (:class:`~pose_uncertainty.methods.particles.DrawCache`): a move of a control other than the
     seed, the particles or the path's steps draws none, and the cloud is the same.
 
@@ -704,6 +706,7 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
 
     def finish(view: View, seconds: float, s: dict[str, str]) -> None:
         error.text = ""
+        state["drawn"] = _move_settings(s)
         state["cloud"] = view.result.end_poses
         draw(view)
         draw_map()
@@ -805,6 +808,11 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
         s = settings_now()
         state["requested"] = s
         start_map(s)
+        with lock:  # a change of the map's fields only (or back to the picture shown): nothing to recompute
+            same = not state["busy"] and _move_settings(s) == state.get("drawn")
+        if same:
+            error.text = ""
+            return
         if moves is None:
             view, msg, seconds = one(s)
             if view is None:
@@ -858,6 +866,7 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
             error.text = html.escape(str(exc).splitlines()[0])
             return
         state["base"] = cfg
+        state["drawn"] = None  # the log's other keys may differ: recompute
         for k, v in new_settings.items():
             if k in fields:
                 handler = on_drive if k == "drive" else update
@@ -883,6 +892,11 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
     doc.add_root(row(controls, views))
     doc.title = "pose-uncertainty explorer"
     update(None, None, None)
+
+
+def _move_settings(s: Mapping[str, str]) -> dict[str, str]:
+    """The settings a move computes (the map's own fields drive the background map only)."""
+    return {k: v for k, v in s.items() if k not in ("map", "map_resolution", "map_alphas")}
 
 
 def _log10_or(text: str, default: float) -> float:
