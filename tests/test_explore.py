@@ -405,3 +405,27 @@ def test_a_change_of_the_map_fields_or_back_to_the_picture_computes_no_move(monk
     doc.select_one({"name": "field-k_r"}).value = "3e-3"
     assert calls == ["move", "move"]
     assert cov.text != shown
+
+
+def test_a_move_of_the_probability_level_reuses_the_clouds_and_gives_the_same_numbers() -> None:
+    """``execute(reuse=…)`` of a result that differs in pr only: the same metrics as a fresh run
+    (every level's coverage was measured at once), the same cloud object, no Monte Carlo."""
+    from pose_uncertainty.analysis.accuracy import PRS
+    from pose_uncertainty.experiments.run import execute
+
+    first = RunConfig.from_dict(explore.run_config({**SMALL, "pr": pr_label(PRS[-1])}))
+    other = RunConfig.from_dict(explore.run_config({**SMALL, "pr": pr_label(PRS[0])}))
+    kw = {"distances": False, "coverage_only": True, "kernel": "compiled"}
+    old = execute(first, **kw)
+    fresh = execute(other, **kw)
+    reused = execute(other, reuse=old, **kw)
+    assert reused.metrics == fresh.metrics
+    assert reused.expcoords_levels == fresh.expcoords_levels
+    assert reused.end_poses is old.end_poses
+    assert "monte_carlo_s" not in reused.timings
+    np.testing.assert_array_equal(reused.unscented_covs, fresh.unscented_covs)
+    with pytest.raises(ValueError, match="differs in pr only"):
+        execute(RunConfig.from_dict(explore.run_config({**SMALL, "k_r": "1e-3"})), reuse=old, **kw)
+    # in the explorer: a level change draws the same cloud's coverage at the new level
+    view = explore.compute(explore.run_config({**SMALL, "pr": pr_label(PRS[0])}))
+    assert view.coverage["a"]["fraction"] == fresh.metrics[f"accuracy_cartesian_coverage_xy_{pr_label(PRS[0])}"]

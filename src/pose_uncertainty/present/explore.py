@@ -19,9 +19,10 @@ from __future__ import annotations
 import html
 import math
 import socket
+import threading
 import time
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -281,6 +282,11 @@ class View:
 #: cloud, drawn once per seed, particles and steps).
 _DRAWS = DrawCache()
 
+#: The last computed result: a move of the probability level alone reuses its clouds, maps and
+#: accuracy comparison (``execute(..., reuse=…)``, the same numbers).
+_LAST: list[RunResult] = []
+_LOCK = threading.Lock()
+
 #: Method key → the prefix of its coverage in the run's accuracy measures.
 _ACCURACY = {"a": "accuracy_cartesian", "c": "accuracy_unscented", "e": "accuracy_expcoords"}
 
@@ -348,10 +354,11 @@ def compute(
     The run is executed with the accuracy comparison's planar coverages only (``execute(config,
     distances=False, coverage_only=True)``, the same numbers a run logs) and with the compiled
     loops (``kernel="compiled"``: Method C and the Monte Carlo equal a logged run's up to rounding,
-    within the reproducibility contract; the coverages shown are counts, the run's). The Monte
-    Carlo's standard normals are kept between calls
-    (:class:`~pose_uncertainty.methods.particles.DrawCache`): a move of a control other than the
-    seed, the particles or the path's steps draws none, and the cloud is the same.
+    within the reproducibility contract; the coverages shown are counts, the run's). A change of
+    the probability level alone reuses the last result's clouds, maps and accuracy comparison
+    (``execute``'s ``reuse``, the same numbers). The Monte Carlo's standard normals are kept
+    between calls (:class:`~pose_uncertainty.methods.particles.DrawCache`): a move of a control
+    other than the seed, the particles or the path's steps draws none, and the cloud is the same.
 
     Parameters
     ----------
@@ -367,8 +374,13 @@ def compute(
     """
     config = RunConfig.from_dict(data)
     cost.check(config)
+    with _LOCK:
+        last = _LAST[0] if _LAST else None
+    same_but_pr = last is not None and last.config == replace(config, pr=last.config.pr)
     res = execute(config, distances=False, coverage_only=True, progress=progress or (lambda label: _silent),
-                  kernel="compiled", cache=_DRAWS)  # fmt: skip
+                  kernel="compiled", cache=_DRAWS, reuse=last if same_but_pr else None)  # fmt: skip
+    with _LOCK:
+        _LAST[:] = [res]
     m, pr, n_end = res.metrics, config.pr, res.n_steps
     regions: dict[str, list[NDArray[np.float64]]] = {
         "a": [covariance.ellipse_polyline(res.covs[n_end, :2, :2], pr, res.poses[n_end, :2])]
