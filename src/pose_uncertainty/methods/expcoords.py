@@ -811,10 +811,18 @@ def _density_brackets(pts: NDArray, cond: _Conditional, compiled: bool | None = 
         from .mc_kernel import jit_module
 
         tree = _range_tree(cond, _BOUND_TRUNC)
+        n, padded = la.size, tree.cx[-1].size * _BLOCK
+
+        def pad(v: NDArray, fill: float) -> NDArray:
+            out = np.full(padded, fill)
+            out[:n] = v
+            return out
+
         kept = np.empty(pts.shape[0])
         jit_module().truncated_density(
-            np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1]), np.ascontiguousarray(cond.means),
-            np.ascontiguousarray(cond.prec), np.ascontiguousarray(la), tree.log_floor, tree.cx[-1], tree.cy[-1],
+            np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1]), pad(cond.means[:, 0], 0.0),
+            pad(cond.means[:, 1], 0.0), pad(cond.prec[:, 0, 0], 0.0), pad(cond.prec[:, 0, 1], 0.0),
+            pad(cond.prec[:, 1, 1], 0.0), pad(la, -np.inf), tree.log_floor, tree.cx[-1], tree.cy[-1],
             tree.m00[-1], tree.m01[-1], tree.m11[-1], tree.bound[-1], _BLOCK, kept,
         )  # fmt: skip
     else:

@@ -713,8 +713,10 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
         for i, k in enumerate(METHODS):
             glyphs[k].visible = i in shown.active
 
-    def shown_error(msg: str) -> None:
+    def shown_error(msg: str, s: dict[str, str] | None = None) -> None:
         error.text = html.escape(msg)
+        newer = s is not None and s != state.get("requested")
+        status.text = state.get("status", "") + ("; computing the newest setting…" if newer else "")
 
     def finish(view: View, seconds: float, s: dict[str, str]) -> None:
         error.text = ""
@@ -724,10 +726,10 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
         draw_map()
         m = view.result.metrics
         newer = s != state.get("requested")  # a newer setting is being computed: this one is not the last
-        status.text = (f"{view.result.n_steps} steps, path {m['path_length']:.3g} m, "
-                       f"{int(m.get('MC_n', 0))} particles, k_r {html.escape(s['k_r'])}, "
-                       f"k_l {html.escape(s['k_l'])}; computed in {1000 * seconds:.0f} ms"
-                       + ("; computing the newest setting…" if newer else ""))  # fmt: skip
+        state["status"] = (f"{view.result.n_steps} steps, path {m['path_length']:.3g} m, "
+                           f"{int(m.get('MC_n', 0))} particles, k_r {html.escape(s['k_r'])}, "
+                           f"k_l {html.escape(s['k_l'])}; computed in {1000 * seconds:.0f} ms")  # fmt: skip
+        status.text = state["status"] + ("; computing the newest setting…" if newer else "")
 
     def one(s: dict[str, str]) -> tuple[View | None, str, float]:
         t0 = time.perf_counter()
@@ -746,7 +748,7 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
                     return
             view, msg, seconds = one(s)
             if view is None:
-                doc.add_next_tick_callback(partial(shown_error, msg))
+                doc.add_next_tick_callback(partial(shown_error, msg, s))
             else:
                 doc.add_next_tick_callback(partial(finish, view, seconds, s))
 
@@ -824,6 +826,7 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
             same = not state["busy"] and _move_settings(s) == state.get("drawn")
         if same:
             error.text = ""
+            status.text = state.get("status", "")
             return
         if moves is None:
             view, msg, seconds = one(s)
