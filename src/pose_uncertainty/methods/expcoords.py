@@ -60,6 +60,8 @@ Gauss–Hermite quadrature (:func:`pdf_xy`) — no grid over θ is needed.
 from __future__ import annotations
 
 import math
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -403,6 +405,29 @@ class SingularConditionalError(ValueError):
 
 
 def _conditional(mean_pose: NDArray, S: NDArray, n_quad: int) -> _Conditional:
+    """:func:`_build_conditional`, kept for the next call with the same numbers (a run and the
+    explorer ask for one banana's several times: its levels, coverage and contour)."""
+    key = (np.asarray(mean_pose, dtype=np.float64).tobytes(), np.asarray(S, dtype=np.float64).tobytes(), int(n_quad))
+    with _KEPT_LOCK:
+        got = _KEPT_CONDITIONALS.get(key)
+    if got is None:
+        got = _build_conditional(mean_pose, S, n_quad)
+        with _KEPT_LOCK:
+            _KEPT_CONDITIONALS[key] = got
+            while len(_KEPT_CONDITIONALS) > _KEPT:
+                _KEPT_CONDITIONALS.popitem(last=False)
+    return got
+
+
+#: How many conditionals and range trees are kept (the last few bananas).
+_KEPT = 8
+_KEPT_LOCK = threading.Lock()
+_KEPT_CONDITIONALS: OrderedDict[tuple[bytes, bytes, int], _Conditional] = OrderedDict()
+#: range trees by (id of their conditional, truncation), with the conditional (so its id stays its own)
+_KEPT_TREES: OrderedDict[tuple[int, float], tuple[_Conditional, _RangeTree]] = OrderedDict()
+
+
+def _build_conditional(mean_pose: NDArray, S: NDArray, n_quad: int) -> _Conditional:
     """(x, y) | ε_θ = w: Gaussian with mean t_μ + R V(w) m(w), cov R V(w) C Vᵀ Rᵀ.
 
     Quadrature in w: the trapezoid rule on a uniform grid over ±8.5 σ_θ with
@@ -504,6 +529,21 @@ def _gen_eig_min(A: NDArray, B: NDArray) -> NDArray:
 
 
 def _range_tree(cond: _Conditional, prune: float = _TRUNC) -> _RangeTree:
+    """:func:`_build_range_tree`, kept for the next call on the same conditional and truncation."""
+    key = (id(cond), float(prune))
+    with _KEPT_LOCK:
+        got = _KEPT_TREES.get(key)
+    if got is not None and got[0] is cond:
+        return got[1]
+    tree = _build_range_tree(cond, prune)
+    with _KEPT_LOCK:
+        _KEPT_TREES[key] = (cond, tree)
+        while len(_KEPT_TREES) > 2 * _KEPT:
+            _KEPT_TREES.popitem(last=False)
+    return tree
+
+
+def _build_range_tree(cond: _Conditional, prune: float = _TRUNC) -> _RangeTree:
     """The :class:`_RangeTree` of the quadrature nodes of ``cond`` (see :func:`_pdf_xy_pruned`).
 
     Each node's term gets a truncation threshold ``r2_q`` on its Mahalanobis distance
