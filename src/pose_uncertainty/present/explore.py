@@ -943,6 +943,10 @@ def serve(host: str = "127.0.0.1", port: int = 0, announce: Callable[[str], None
     from bokeh.server.server import Server
 
     port = port or free_port(host)
+    from ..methods import mc_kernel
+
+    # numba's import and the load of the compiled loops (~1.5 CPU-s), before the first page asks
+    threading.Thread(target=mc_kernel.jit_module, name="explore-jit", daemon=True).start()
     shown_host = f"[{host}]" if ":" in host else host
     server = Server({"/": Application(FunctionHandler(make_document))}, address=host, port=port,
                     allow_websocket_origin=[f"{shown_host}:{port}", f"localhost:{port}"],
