@@ -128,6 +128,12 @@ def test_density_quantiles_equal_the_quantiles_of_every_density(traj, k, n):
     for seed in range(3):
         pts = ec.sample(mu, S, n, np.random.default_rng(seed))[:, :2]
         assert np.array_equal(ec.density_quantiles(pts, mu, S, q), np.quantile(ec.pdf_xy(pts, mu, S), q))
+    # the same with either route to the brackets (numpy's, or the compiled loop's once loaded)
+    from pose_uncertainty.methods import mc_kernel
+
+    mc_kernel.jit_module()
+    assert ec._compiled_loaded()
+    assert np.array_equal(ec.density_quantiles(pts, mu, S, q), np.quantile(ec.pdf_xy(pts, mu, S), q))
     # scalar q, a handful of points, ties
     assert ec.density_quantiles(pts[:3], mu, S, 0.5) == np.quantile(ec.pdf_xy(pts[:3], mu, S), 0.5)
     twice = np.concatenate([pts[:500], pts[:500]])
@@ -147,10 +153,11 @@ def test_density_brackets_hold_the_density(traj, k):
     cond = ec._conditional(mu, S, 64)
     assert cond.nodes.size > ec._DENSE_NODES
     exact = ec.pdf_xy(pts, mu, S)
-    lo, hi = ec._density_brackets(pts, cond)
-    assert np.all(lo <= exact)
-    assert np.all(exact <= hi)
-    assert np.mean(lo < exact) > 0.25  # it does leave terms out
+    for compiled in (False, True):  # numpy's single-precision sum, the compiled loop's
+        lo, hi = ec._density_brackets(pts, cond, compiled=compiled)
+        assert np.all(lo <= exact), compiled
+        assert np.all(exact <= hi), compiled
+        assert np.mean(lo < exact) > 0.25  # it does leave terms out
     # the single-precision sum against the double one of the same terms
     double = ec._pdf_xy_pruned(pts, cond, ec._BOUND_TRUNC)
     single = ec._pdf_xy_pruned(pts, cond, ec._BOUND_TRUNC, single=True)
@@ -179,3 +186,39 @@ def test_density_quantiles_bad_input():
     pts = ec.sample(mu, S, 200, np.random.default_rng(1))[:, :2]
     pts[7] = np.nan  # as np.quantile of the densities: NaN
     assert np.isnan(ec.density_quantiles(pts, mu, S, [0.1, 0.5])).all()
+
+
+@pytest.mark.parametrize(("traj", "k"), [(tr.straight(2.5, dt=0.01, track=0.2), 7e-4),
+                                         (tr.arc(1.0, 2.0, dt=0.01, track=0.2), 2e-3),
+                                         (tr.straight(0.5, dt=0.05, track=0.2), 0.05)])  # the dense sum
+def test_at_least_equals_the_comparison_of_every_density(traj, k):
+    """at_least (brackets, the exact density where they straddle) against pdf_xy at every point."""
+    mu, S = banana(traj, k)
+    pts = ec.sample(mu, S, 3000, np.random.default_rng(2))[:, :2]
+    dens = ec.pdf_xy(pts, mu, S)
+    levels = np.quantile(dens, [0.011, 0.1, 0.5])
+    levels = np.concatenate([levels, dens[:3]])  # a level equal to a point's density: ">=" holds there
+    got = ec.at_least(pts, mu, S, levels)
+    assert got.shape == (levels.size, pts.shape[0])
+    assert np.array_equal(got, dens[None, :] >= levels[:, None])
+    assert got[3:, :3].diagonal().all()
+
+
+@pytest.mark.parametrize(("traj", "k"), [(tr.straight(2.5, dt=0.01, track=0.2), 7e-4),
+                                         (tr.arc(1.0, 2.0, dt=0.01, track=0.2), 2e-3)])
+def test_region_contour_is_the_exact_grids_line_for_line(traj, k):
+    """region_xy_at reads the exact density only at the corners of cells the brackets leave open:
+    its lines are those of the contour of marginal_xy_grid, point for point."""
+    import contourpy
+
+    mu, S = banana(traj, k)
+    pts = ec.sample(mu, S, 4000, np.random.default_rng(4))[:, :2]
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    x, y = (np.linspace(lo[a] - 0.1 * (hi[a] - lo[a]), hi[a] + 0.1 * (hi[a] - lo[a]), 40) for a in (0, 1))
+    for pr in (0.5, 0.98889):
+        level = float(ec.hdr_threshold(mu, S, pr, np.random.default_rng(5), n=5000))
+        want = contourpy.contour_generator(x, y, ec.marginal_xy_grid(x, y, mu, S).T).lines(level)
+        got = ec.region_xy_at(x, y, mu, S, level)
+        assert len(got) == len(want) >= 1
+        for a, b in zip(got, want, strict=True):
+            np.testing.assert_array_equal(a, b)

@@ -56,7 +56,13 @@ def test_compute_equals_the_library_called_directly(view: explore.View) -> None:
     c = unscented.propagate(traj, cfg.k_r, cfg.k_l)
     cloud = sampling.sample_end_poses(traj, cfg.k_r, cfg.k_l, 400, np.random.default_rng(cfg.seed),
                                       regime=cfg.monte_carlo.regime, method=cfg.monte_carlo.method)  # fmt: skip
-    np.testing.assert_array_equal(view.result.end_poses, cloud)
+    # the explorer's loops are the compiled ones: the same draws, equal to numpy's up to rounding
+    compiled = sampling.sample_end_poses(traj, cfg.k_r, cfg.k_l, 400, np.random.default_rng(cfg.seed),
+                                         regime=cfg.monte_carlo.regime, method=cfg.monte_carlo.method,
+                                         kernel="compiled")  # fmt: skip
+    np.testing.assert_array_equal(view.result.end_poses, compiled)
+    np.testing.assert_allclose(view.result.end_poses, cloud, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(view.result.unscented_covs, c.covs, rtol=1e-12, atol=1e-18)
     np.testing.assert_allclose(view.result.covs[-1], a.covs[-1], rtol=1e-12, atol=0)
     pr = cfg.pr
     label = pr_label(pr)
@@ -233,17 +239,27 @@ def test_server_binds_loopback_by_default() -> None:
 
 
 def test_light_run_keeps_every_number_of_the_full_run(view: explore.View) -> None:
-    """``execute(distances=False)`` (each move of a control) leaves out the density distances only:
-    every measure it keeps equals the full run's to the bit (the generator is drawn from alike)."""
+    """``execute(distances=False, coverage_only=True)`` (each move of a control) leaves out the
+    accuracy comparison's entries the page does not show: every measure it keeps equals the full
+    run's to the bit (the generator is drawn from alike), every region's planar coverage among them."""
     from pose_uncertainty.experiments.run import execute
 
-    full = execute(view.config).metrics
+    full = execute(view.config, kernel="compiled").metrics  # the explorer's loops
     light = view.result.metrics
     left_out = set(full) - set(light)
     assert set(light) <= set(full)
     assert left_out
-    assert all(k.endswith(("hellinger", "kl", "model_mass_on_grid", "_floor")) for k in left_out)
+    assert all(k.startswith("accuracy_") and "_coverage_xy_" not in k for k in left_out)
+    assert {k for k in full if "_coverage_xy_" in k} <= set(light)
     assert {k: light[k] for k in light} == {k: full[k] for k in light}
+    # without coverage_only every entry but the density distances is kept, as before
+    no_distances = execute(view.config, distances=False, kernel="compiled").metrics
+    assert all(k.endswith(("hellinger", "kl", "model_mass_on_grid", "_floor")) for k in set(full) - set(no_distances))
+    # against the numpy loops a run logs: every coverage (a count) the same, the rest up to rounding
+    logged = execute(view.config).metrics
+    assert {k: light[k] for k in light if "coverage" in k} == {k: logged[k] for k in light if "coverage" in k}
+    for k in light:
+        assert light[k] == pytest.approx(logged[k], rel=1e-9, abs=1e-12, nan_ok=True), k
     # the banana's level is the one its coverage used: the share of the cloud at or above it
     from pose_uncertainty.methods import expcoords
 
@@ -294,3 +310,122 @@ def test_page_draws_the_map_region_and_its_coverage_of_each_new_cloud() -> None:
     again = coverage_gridded(mp, moved.result.end_poses[:, :2], [view.config.pr])[label]
     assert re.search(r'id="coverage-map">([0-9.]+)<', status.text).group(1) == f"{100 * again:.2f}"
     assert again != want
+
+
+TOUR = {**SMALL, "path": "tour", "segments": "[[line, 0.5], [turn, 1.5708], [arc, 0.4, 1.0]]", "profile": "ramp"}
+SOURCES = {**SMALL, "error_sources": "pulses_per_rev: 200, surface_rel_std: 0.02"}
+
+
+def test_segments_profile_and_error_sources_are_the_run_configs(tmp_path: Path) -> None:
+    """The path as a list of segments, the speed profile and the wheel-noise model's error sources:
+    page fields that become the run configuration's keys, change the picture, and round-trip
+    through a saved config, ``pose-uncertainty run`` and "Open a log"."""
+    base = explore.compute(explore.run_config(SMALL))
+    cfg = RunConfig.from_dict(explore.run_config(TOUR))
+    assert cfg.trajectory["segments"] == [["line", 0.5], ["turn", 1.5708], ["arc", 0.4, 1.0]]
+    assert cfg.trajectory["profile"] == "ramp"
+    want = trajectories.tour([["line", 0.5], ["turn", 1.5708], ["arc", 0.4, 1.0]], profile="ramp",
+                             speed=0.5, dt=0.02, track=0.2)  # fmt: skip
+    src = RunConfig.from_dict(explore.run_config(SOURCES))
+    assert src.drive is not None
+    assert src.drive.type == "differential"
+    assert src.drive.errors.encoder["pulses_per_rev"] == 200
+    assert src.drive.errors.encoder["surface_rel_std"] == 0.02
+    for settings in (TOUR, SOURCES):
+        view = explore.compute(explore.run_config(settings))
+        assert view.coverage["a"] != base.coverage["a"] or view.regions["a"][0].shape != base.regions["a"][0].shape
+        assert not np.array_equal(view.result.covs[-1], base.result.covs[-1])
+        if settings is TOUR:
+            assert view.result.n_steps == want.n_steps
+            a = covariance.propagate(want, 2e-3, 5e-4)  # Method A on the tour built directly
+            np.testing.assert_array_equal(view.result.poses, a.poses)
+            np.testing.assert_allclose(view.result.covs, a.covs, rtol=1e-12, atol=0)
+        path = explore.save_run_config(tmp_path / "explored.yaml", explore.run_config(settings))
+        out = tmp_path / "explored.mcap"
+        assert main(["run", str(path), "-o", str(out)]) == 0
+        logged = open_run(out).metrics
+        for key, name in (("a", "cartesian"), ("c", "unscented"), ("e", "expcoords")):
+            if key in view.coverage:
+                assert view.coverage[key]["fraction"] == logged[f"accuracy_{name}_coverage_xy_98_89"], key
+        assert ("c" in view.coverage) == (settings is TOUR)  # Method C is the two-wheel k model's
+        opened, cfg_map = explore.load_log_settings(out)
+        for k in ("path", "profile", "segments", "error_sources"):
+            assert RunConfig.from_dict(explore.run_config(opened, cfg_map)).to_dict() == RunConfig.from_dict(
+                explore.run_config(settings)).to_dict(), k  # fmt: skip
+        out.unlink()
+
+
+def test_a_bad_segment_list_shows_its_one_line_error_and_keeps_the_picture() -> None:
+    pytest.importorskip("bokeh")
+    from bokeh.document import Document
+
+    doc = Document()
+    explore.make_document(doc, TOUR, background=False)
+    segs, err, cov, src = (doc.select_one({"name": n}) for n in ("field-segments", "error", "coverage", "source-a"))
+    good, ring = cov.text, list(src.data["xs"][0])
+    assert err.text == ""
+    for bad, words in (("[[line]]", "segments[0]"), ("[[jump, 1.0]]", "jump"), ("[[line, 1", "not a list")):
+        segs.value = bad
+        assert words in err.text
+        assert "\n" not in err.text
+        assert cov.text == good
+        assert list(src.data["xs"][0]) == ring
+    segs.value = "[[line, 0.8]]"  # a good list again: a new picture
+    assert err.text == ""
+    assert cov.text != good
+
+
+def test_a_change_of_the_map_fields_or_back_to_the_picture_computes_no_move(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Only what a control invalidates is computed: the map's own fields start its background
+    computation only, and a bad value typed back to the shown one clears the error, no move."""
+    pytest.importorskip("bokeh")
+    from bokeh.document import Document
+
+    doc = Document()
+    explore.make_document(doc, SMALL, background=False)
+    calls: list[str] = []
+    real = explore.compute
+
+    def counted(data: object, progress: object = None) -> explore.View:
+        calls.append("map" if data["maps"] else "move")  # type: ignore[index]
+        return real(data, progress)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(explore, "compute", counted)
+    cov, err = doc.select_one({"name": "coverage"}), doc.select_one({"name": "error"})
+    shown = cov.text
+    doc.select_one({"name": "field-map_resolution"}).value = "0.05"  # no map: nothing at all
+    assert calls == []
+    k_l = doc.select_one({"name": "field-k_l"})
+    k_l.value = "-1"
+    assert "k_l" in err.text
+    k_l.value = SMALL.get("k_l", explore.DEFAULTS["k_l"])  # back to the picture shown
+    assert err.text == ""
+    assert cov.text == shown
+    assert calls == ["move"]  # the bad value's validation only
+    doc.select_one({"name": "field-k_r"}).value = "3e-3"
+    assert calls == ["move", "move"]
+    assert cov.text != shown
+
+
+def test_a_move_of_the_probability_level_reuses_the_clouds_and_gives_the_same_numbers() -> None:
+    """``execute(reuse=…)`` of a result that differs in pr only: the same metrics as a fresh run
+    (every level's coverage was measured at once), the same cloud object, no Monte Carlo."""
+    from pose_uncertainty.analysis.accuracy import PRS
+    from pose_uncertainty.experiments.run import execute
+
+    first = RunConfig.from_dict(explore.run_config({**SMALL, "pr": pr_label(PRS[-1])}))
+    other = RunConfig.from_dict(explore.run_config({**SMALL, "pr": pr_label(PRS[0])}))
+    kw = {"distances": False, "coverage_only": True, "kernel": "compiled"}
+    old = execute(first, **kw)
+    fresh = execute(other, **kw)
+    reused = execute(other, reuse=old, **kw)
+    assert reused.metrics == fresh.metrics
+    assert reused.expcoords_levels == fresh.expcoords_levels
+    assert reused.end_poses is old.end_poses
+    assert "monte_carlo_s" not in reused.timings
+    np.testing.assert_array_equal(reused.unscented_covs, fresh.unscented_covs)
+    with pytest.raises(ValueError, match="differs in pr only"):
+        execute(RunConfig.from_dict(explore.run_config({**SMALL, "k_r": "1e-3"})), reuse=old, **kw)
+    # in the explorer: a level change draws the same cloud's coverage at the new level
+    view = explore.compute(explore.run_config({**SMALL, "pr": pr_label(PRS[0])}))
+    assert view.coverage["a"]["fraction"] == fresh.metrics[f"accuracy_cartesian_coverage_xy_{pr_label(PRS[0])}"]

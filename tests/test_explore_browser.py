@@ -106,10 +106,16 @@ CLICK_SAVE = (
 )
 
 
-def set_field(cdp: CDP, name: str, value: str | float) -> None:
+def set_field(cdp: CDP, name: str, value: str | float, prop: str = "value") -> None:
     """Set a control's value in the page (the widget's model, as a user's edit does)."""
     cdp.call("Runtime.evaluate",
-             expression=f"Bokeh.documents[0].get_model_by_name({json.dumps(name)}).value = {json.dumps(value)}")  # fmt: skip
+             expression=f"Bokeh.documents[0].get_model_by_name({json.dumps(name)}).{prop} = {json.dumps(value)}")  # fmt: skip
+
+
+def release_slider(cdp: CDP, name: str, value: float) -> None:
+    """Move a slider and let go: its value, then its ``value_throttled`` (what the release sets)."""
+    set_field(cdp, name, value)
+    set_field(cdp, name, value, "value_throttled")
 
 
 #: JavaScript: set field-k_r to a value and resolve with the milliseconds until the status line
@@ -176,7 +182,7 @@ def test_explorer_in_chromium(chromium: str, tmp_path: Path) -> None:
         xs = _evaluate(cdp, "Array.from(Bokeh.documents[0].get_model_by_name('source-a').data.xs[0])")
         np.testing.assert_allclose(xs, moved.regions["a"][0][:, 0], rtol=1e-12, atol=1e-15)
         # the slider (log10 k_r) writes the field, and the page redraws
-        set_field(cdp, "slider-k_r", -2.5)
+        release_slider(cdp, "slider-k_r", -2.5)
         _wait_status(cdp, "k_r 0.00316,")
         slid = explore.compute(explore.run_config({**explore.DEFAULTS, "k_r": "0.00316"}))
         assert _text(cdp, "coverage-a") == _shown(slid, "a")
@@ -243,4 +249,66 @@ def test_map_is_computed_in_the_background_while_the_controls_stay_live(
         assert n_lines["result"]["value"] >= 1
         view = explore.compute(explore.run_config({**explore.DEFAULTS, **MAP_SETTING, "k_r": "0.002"}))
         assert _text(cdp, "coverage-map") == _shown(view, "map")
+    assert _console_errors(cdp.events) == []
+
+
+#: A quick setting for the new controls' browser test (100 steps, 1000 particles).
+QUICK = {"size": "1.0", "dt": "0.02", "n_particles": "1000"}
+
+
+@pytest.mark.slow
+def test_segments_profile_and_error_sources_in_chromium(chromium: str, tmp_path: Path) -> None:
+    """The path as a list of segments, the speed profile and the wheel-noise model's error sources,
+    typed into the page: the page's numbers are the library's; a bad segment list shows its one-line
+    error and keeps the last good picture; the saved config runs unchanged and logs the same numbers."""
+    with explorer_page(chromium, tmp_path) as (cdp, _url):
+        _wait_text(cdp, "coverage-a", None, timeout=120)
+        for k, v in QUICK.items():
+            set_field(cdp, f"field-{k}", v)
+        _wait_status(cdp, "100 steps", "1000 particles")
+        segments = "[[line, 0.5], [turn, 1.5708], [arc, 0.4, 1.0]]"
+        set_field(cdp, "field-segments", segments)
+        set_field(cdp, "field-profile", "ramp")
+        before = _text(cdp, "coverage-a")
+        set_field(cdp, "field-path", "tour")
+        tour = {**explore.DEFAULTS, **QUICK, "path": "tour", "segments": segments, "profile": "ramp"}
+        want = explore.compute(explore.run_config(tour))
+        _wait_status(cdp, f"{want.result.n_steps} steps")
+        for key in ("a", "c", "e"):
+            assert _text(cdp, f"coverage-{key}") == _shown(want, key), key
+        assert _text(cdp, "coverage-a") != before
+        xs = _evaluate(cdp, "Array.from(Bokeh.documents[0].get_model_by_name('source-a').data.xs[0])")
+        np.testing.assert_allclose(xs, want.regions["a"][0][:, 0], rtol=1e-12, atol=1e-15)
+        # a bad segment list: its one-line error, the last good picture kept
+        set_field(cdp, "field-segments", "[[line, 0.5], [jump, 1.0]]")
+        deadline = time.monotonic() + 120
+        while "segments[1]" not in str(_evaluate(cdp, "Bokeh.documents[0].get_model_by_name('error').text")):
+            assert time.monotonic() < deadline, "no error shown for a bad segment"
+            time.sleep(0.25)
+        assert "\n" not in str(_evaluate(cdp, "Bokeh.documents[0].get_model_by_name('error').text"))
+        assert _text(cdp, "coverage-a") == _shown(want, "a")
+        xs_kept = _evaluate(cdp, "Array.from(Bokeh.documents[0].get_model_by_name('source-a').data.xs[0])")
+        assert xs_kept == xs
+        set_field(cdp, "field-segments", segments)
+        _wait_status(cdp, f"{want.result.n_steps} steps")
+        # the wheel-noise model's error sources in place of k_r, k_l
+        sources = "pulses_per_rev: 100, surface_rel_std: 0.03"
+        set_field(cdp, "field-error_sources", sources)
+        moved = explore.compute(explore.run_config({**tour, "error_sources": sources}))
+        _wait_text(cdp, "coverage-a", _shown(want, "a"), timeout=120)
+        assert _text(cdp, "coverage-a") == _shown(moved, "a")
+        assert _text(cdp, "coverage-e") == _shown(moved, "e")
+        # saved and run unchanged: the log holds the numbers the page shows
+        saved = tmp_path / "explored.yaml"
+        set_field(cdp, "save-path", str(saved))
+        assert _evaluate(cdp, CLICK_SAVE) == 1
+        _wait_status(cdp, "wrote")
+        assert main(["run", str(saved), "-o", str(tmp_path / "explored.mcap")]) == 0
+        log = open_run(tmp_path / "explored.mcap")
+        assert log.config.trajectory["segments"] == [["line", 0.5], ["turn", 1.5708], ["arc", 0.4, 1.0]]
+        assert log.config.trajectory["profile"] == "ramp"
+        assert log.config.drive is not None
+        assert log.config.drive.errors.encoder["pulses_per_rev"] == 100
+        for key, name in (("a", "cartesian"), ("e", "expcoords")):
+            assert _text(cdp, f"coverage-{key}") == f"{100 * log.metrics[f'accuracy_{name}_coverage_xy_98_89']:.2f}"
     assert _console_errors(cdp.events) == []

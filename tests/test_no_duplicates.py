@@ -47,9 +47,6 @@ _PAIR = "two variants of one algorithm side by side"
 ALLOWED: dict[str, str] = {
     "core/se2.py:adjoint ~ methods/expcoords.py:to_cartesian_cov": "different maps, alike in shape",
     "core/se2.py:exp ~ core/se2.py:log": "a map and its inverse, alike in shape",
-    "methods/unscented.py:propagate ~ methods/unscented.py:propagate_se2":
-        "two front doors with the same inputs (trajectory, k, track, Σ0, UT parameters) and a step each; "
-        "their loop is one (_march)",
 }  # fmt: skip
 
 

@@ -309,6 +309,7 @@ def evaluate_expcoords(
     n_threshold: int = 200_000,
     distances: bool = True,
     levels: bool = False,
+    coverage_only: bool = False,
 ) -> dict[str, float]:
     """All accuracy measures of the exponential-coordinates Gaussian ``μ exp(N(0, cov))``.
 
@@ -319,13 +320,17 @@ def evaluate_expcoords(
 
     Parameters and returned keys as :func:`evaluate_cartesian` (``cov`` is Σ of ε); with
     ``levels`` also ``level_xy_<pr>`` [1/m²]: the density level ``c`` of each planar region
-    (what its boundary is drawn at).
+    (what its boundary is drawn at). With ``coverage_only`` only ``coverage_xy_<pr>`` (and the
+    levels): the same numbers, each point's density computed only where its brackets do not
+    decide it (:func:`pose_uncertainty.methods.expcoords.at_least`).
     """
     s = _check_samples(samples)
     mu = check_last_axis("pose", pose, 3)
     C = check_finite("cov", cov)
-    g = Grid.covering(s[:, :2]) if grid is None else grid
     out: dict[str, float] = {}
+    if coverage_only:
+        return _expcoords_coverage(s, mu, C, rng, prs, n_threshold, levels)
+    g = Grid.covering(s[:, :2]) if grid is None else grid
     try:
         dens: NDArray | None = ec.pdf_xy(s[:, :2], mu, C)
     except ec.SingularConditionalError:
@@ -351,6 +356,26 @@ def evaluate_expcoords(
     # NEES in the method's own coordinates: εᵀΣ⁻¹ε (3 if consistent), planar block of ε (2)
     out["nees_pose"] = float(np.mean(mahalanobis_sq(eps, np.zeros(3), C)))
     out["nees_xy"] = float(np.mean(mahalanobis_sq(eps[:, :2], np.zeros(2), C[:2, :2])))
+    return out
+
+
+def _expcoords_coverage(
+    s: NDArray, mu: NDArray, C: NDArray, rng: np.random.Generator, prs: Sequence[float], n_threshold: int,
+    levels: bool,
+) -> dict[str, float]:
+    """The planar coverages (and levels) of :func:`evaluate_expcoords`, from the same draws."""
+    try:
+        ec.pdf_xy(mu[None, :2], mu, C)  # a singular Σ given θ raises here, as the full route does
+    except ec.SingularConditionalError:
+        thresholds = None
+    else:
+        thresholds = ec.hdr_threshold(mu, C, np.asarray(prs), rng, n=n_threshold)
+    inside = ec.at_least(s[:, :2], mu, C, thresholds) if thresholds is not None else None
+    out: dict[str, float] = {}
+    for i, pr in enumerate(prs):
+        out[f"coverage_xy_{pr_label(pr)}"] = float(np.mean(inside[i])) if inside is not None else math.nan
+        if levels:
+            out[f"level_xy_{pr_label(pr)}"] = float(thresholds[i]) if thresholds is not None else math.nan
     return out
 
 
@@ -415,6 +440,7 @@ def compare_methods(
     unscented: tuple[ArrayLike, ArrayLike] | None = None,
     distances: bool = True,
     levels: bool = False,
+    coverage_only: bool = False,
 ) -> dict[str, dict[str, float]]:
     """Every method against one Monte Carlo cloud, on one grid.
 
@@ -435,6 +461,9 @@ def compare_methods(
         as with True (the generator is drawn from alike)
     levels : bool — True: the banana's entry also holds its regions' density levels
         ``level_xy_<pr>`` (:func:`evaluate_expcoords`)
+    coverage_only : bool — True (with ``distances=False``): each method's entry holds its planar
+        coverages ``coverage_xy_<pr>`` only (and the banana's levels), the same numbers as
+        with False (what the explorer shows on each move)
 
     Returns
     -------
@@ -451,14 +480,21 @@ def compare_methods(
     for pr in prs:
         mc[f"coverage_se_{pr_label(pr)}"] = math.sqrt(pr * (1 - pr) / len(s))
     res["monte_carlo"] = mc
-    res["cartesian"] = evaluate_cartesian(s, pose_a, cov_a, grid, prs, distances=distances)
+    if coverage_only and distances:
+        raise ValueError("coverage_only needs distances=False (allowed: coverage_only with distances=False)")
+
+    def cartesian_entry(pose: NDArray, cov: NDArray) -> dict[str, float]:
+        if coverage_only:
+            return {f"coverage_xy_{k}": v for k, v in coverage_ellipse(s[:, :2], pose[:2], cov[:2, :2], prs).items()}
+        return evaluate_cartesian(s, pose, cov, grid, prs, distances=distances)
+
+    res["cartesian"] = cartesian_entry(pose_a, cov_a)
     if expcoords is not None:
         pose_e, cov_e = (np.asarray(v, dtype=float) for v in expcoords)
         res["expcoords"] = evaluate_expcoords(s, pose_e, cov_e, rng, grid, prs, n_threshold=n_threshold,
-                                              distances=distances, levels=levels)
+                                              distances=distances, levels=levels, coverage_only=coverage_only)
     if unscented is not None:  # Method C
-        pose_c, cov_c = (np.asarray(v, dtype=float) for v in unscented)
-        res["unscented"] = evaluate_cartesian(s, pose_c, cov_c, grid, prs, distances=distances)
+        res["unscented"] = cartesian_entry(*(np.asarray(v, dtype=float) for v in unscented))
     for name, dens in (densities or {}).items():
         res[name] = evaluate_gridded(dens, s, grid, prs)
     return res

@@ -443,16 +443,15 @@ def square(side: float = 4.0, direction: int = 1, laps: int = 1, **kw: Any) -> T
     )
 
 
-def tour(segments: Sequence[Sequence[Any]] = (("line", 1.0),), laps: int = 1, **kw: Any) -> Trajectory:
-    """A path of segments written as lists: ``["line", L]``, ``["arc", r, angle]``, ``["turn", angle]``.
-
-    The configuration form of :func:`from_segments` (lengths and radii [m], angles [rad],
-    positive = left), driven ``laps`` times, e.g. a lap of a room:
-    ``[["line", 5], ["arc", 0.5, 1.5708], ...]``. Keywords as :func:`from_segments`. (Not in
-    :data:`BUILDERS`: the localization runs offer it, the dead-reckoning runs do not.)
-    """
+def _tour(segments: Sequence[Sequence[Any]] = (("line", 1.0),), laps: int = 1) -> list[Segment]:
+    """The segments of :func:`tour`, validated (one-line errors naming the bad item)."""
     if isinstance(laps, bool) or not isinstance(laps, int | np.integer) or laps < 1:
         raise ValueError(f"laps must be an integer >= 1 (allowed: 1, 2, 3, ...), got {laps!r}")
+    if isinstance(segments, str) or not isinstance(segments, Sequence):
+        raise ValueError(  # noqa: TRY004 (a configuration's one-line error is a ValueError)
+            "segments must be a list of [kind, numbers...] (allowed: [['line', L], ['arc', r, angle], "
+            f"['turn', angle]]), got {segments!r}"
+        )
     kinds = {"line": (Line, 1), "arc": (Arc, 2), "turn": (Turn, 1)}
     segs: list[Segment] = []
     for i, item in enumerate(segments):
@@ -466,7 +465,19 @@ def tour(segments: Sequence[Sequence[Any]] = (("line", 1.0),), laps: int = 1, **
         if len(args) != n_args or any(isinstance(a, bool) or not isinstance(a, int | float) for a in args):
             raise ValueError(f"segments[{i}] ({item[0]}) must have {n_args} number(s) after the kind, got {item!r}")
         segs.append(cls(*(float(a) for a in args)))
-    return from_segments(segs * int(laps), name=kw.pop("name", "tour"), **kw)
+    return segs * int(laps)
+
+
+def tour(segments: Sequence[Sequence[Any]] = (("line", 1.0),), laps: int = 1, **kw: Any) -> Trajectory:
+    """A path of segments written as lists: ``["line", L]``, ``["arc", r, angle]``, ``["turn", angle]``.
+
+    The configuration form of :func:`from_segments` (lengths and radii [m], angles [rad],
+    positive = left), driven ``laps`` times, e.g. a lap of a room:
+    ``[["line", 5], ["arc", 0.5, 1.5708], ...]`` (in a run configuration
+    ``trajectory: {name: tour, segments: [[line, 1.0], [turn, 1.5708]]}``). Keywords as
+    :func:`from_segments`.
+    """
+    return from_segments(_tour(segments, laps), name=kw.pop("name", "tour"), **kw)
 
 
 BUILDERS: dict[str, Callable[..., Trajectory]] = {
@@ -477,6 +488,7 @@ BUILDERS: dict[str, Callable[..., Trajectory]] = {
     "s_curve": s_curve,
     "right_angles": right_angles,
     "direct": direct,
+    "tour": tour,
 }
 
 #: the segments of each builder, from its geometric parameters
@@ -488,6 +500,7 @@ _SEGMENTS: dict[str, Callable[..., list[Segment]]] = {
     "s_curve": _s_curve,
     "right_angles": _right_angles,
     "direct": _direct,
+    "tour": _tour,
 }
 
 

@@ -176,9 +176,6 @@ WORLD_KEYS: tuple[Key, ...] = (
 LOC_TRAJECTORY_KEYS: tuple[Key, ...] = (
     Key("name", "choice", "-", "Path builder (required): a dead-reckoning builder, square or tour.",
         allowed=tuple(TRAJECTORY_BUILDERS)),
-    Key("segments", "array", "[kind, m or rad ...]",
-        "Segments of a tour: [line, L], [turn, angle], [arc, radius, angle] (m, rad).", FROM_CODE,
-        extra={"maxItems": 100_000}),
     Key("side", "number", "m", "Side of a square [m].", FROM_CODE, lo=0.0, lo_open=True),
     *TRAJECTORY_KEYS[1:],
 )

@@ -120,6 +120,8 @@ def execute(
     progress: Callable[[str], Callable[[int, int], None]] | None = None,
     kernel: str = "auto",
     cache: DrawCache | None = None,
+    coverage_only: bool = False,
+    reuse: RunResult | None = None,
 ) -> RunResult:
     """Compute one run: trajectory, covariance, Monte Carlo, maps and every measure.
 
@@ -140,10 +142,22 @@ def execute(
         The Monte Carlo's end poses by numpy or by the compiled kernel
         (:func:`pose_uncertainty.methods.sampling.sample_end_poses`: the same draws, equal up to
         rounding, within the reproducibility contract); ``"auto"`` (default) as a run logs them.
+        ``"compiled"`` also runs Method C's loop over the steps compiled
+        (:func:`pose_uncertainty.methods.unscented.propagate`, equal up to rounding).
     cache : DrawCache, optional
         Keeps the Monte Carlo's standard normals for the next run of the same seed,
         particles and steps (:class:`pose_uncertainty.methods.particles.DrawCache`; the result
         is the same with or without it).
+    coverage_only : bool
+        True (with ``distances=False``): the accuracy comparison keeps each region's planar
+        coverage (and the banana's levels) only, the same numbers
+        (:func:`pose_uncertainty.analysis.accuracy.compare_methods`); what the explorer shows.
+    reuse : RunResult, optional
+        The result of this configuration but for its probability level ``pr``, computed with
+        the same ``distances``, ``kernel`` and ``coverage_only``: its Monte Carlo clouds, maps
+        and accuracy comparison (which measures every level of
+        :data:`pose_uncertainty.analysis.accuracy.PRS` at once) are taken over, the rest is
+        computed; the same metrics as without it (the explorer's move of the level).
 
     Returns
     -------
@@ -158,6 +172,9 @@ def execute(
         exceeds the limits (``POSE_UNCERTAINTY_MAX_MEMORY``, ``POSE_UNCERTAINTY_MAX_SECONDS``).
     """
     cost.check(config)  # the guard: one line naming the estimate, the limit and the drivers
+    if reuse is not None and reuse.config != dataclasses.replace(config, pr=reuse.config.pr):
+        raise ValueError("execute: reuse holds the result of another configuration "
+                         "(allowed: one that differs in pr only)")  # fmt: skip
     bar = progress or (lambda label: Progress(f"{config.name}: {label}"))
     timings: dict[str, float] = {}
     t_all = time.perf_counter()
@@ -173,22 +190,30 @@ def execute(
     ures: CovarianceResult | None = None
     if ds is None:  # Method C, on the differential drive's wheel-noise model
         with _timed(timings, "unscented_s"):
-            ures = unscented.propagate(traj, config.k_r, config.k_l, cov0=_cov0(config))
+            ures = unscented.propagate(traj, config.k_r, config.k_l, cov0=_cov0(config),
+                                       kernel="compiled" if kernel == "compiled" else "numpy")  # fmt: skip
         c_end = (np.asarray(ures.poses[-1], dtype=np.float64), np.asarray(ures.covs[-1], dtype=np.float64))
     poses = np.ascontiguousarray(cres.poses, dtype=np.float64)
     covs = np.ascontiguousarray(cres.covs, dtype=np.float64)
     end_poses: NDArray[np.float64] | None = None
     checkpoints: dict[int, NDArray[np.float64]] = {}
-    if config.monte_carlo.n_particles > 0:
+    if reuse is not None:
+        end_poses, checkpoints = reuse.end_poses, dict(reuse.checkpoints)
+    elif config.monte_carlo.n_particles > 0:
         with _timed(timings, "monte_carlo_s"):
             end_poses, checkpoints = _monte_carlo(config, traj, ds, bar("Monte Carlo"), kernel, cache)
-    maps, samplers = [], {}
-    for i, mcfg in enumerate(config.maps):
+    maps, samplers = ([], {}) if reuse is None else (list(reuse.maps), dict(reuse.map_samplers))
+    for i, mcfg in enumerate(config.maps if reuse is None else ()):
         with _timed(timings, f"map_{mcfg.name}_s"):
             maps.append(_compute_map(mcfg, traj, bar(f"map {mcfg.name}")))
             samplers[mcfg.name] = _map_sampler(config, mcfg, traj, i)
     with _timed(timings, "measures_s"):
-        metrics = _measures(config, traj, poses, covs, end_poses, maps, samplers, c_end, ds, distances)
+        accuracy = None if reuse is None else {
+            **{k: v for k, v in reuse.metrics.items() if k.startswith("accuracy_")},
+            **{_LEVEL + k: v for k, v in reuse.expcoords_levels.items()},
+        }
+        metrics = _measures(config, traj, poses, covs, end_poses, maps, samplers, c_end, ds, distances,
+                            coverage_only, accuracy)  # fmt: skip
         if ds is not None:  # the growth laws and the skid-steer's turn bias
             metrics.update(drive_measures(ds, poses, covs, config.monte_carlo.checkpoints,
                                           checkpoints, end_poses))  # fmt: skip
@@ -311,11 +336,14 @@ def _measures(
     c_end: tuple[NDArray[np.float64], NDArray[np.float64]] | None,
     ds: DriveSetup | None = None,
     distances: bool = True,
+    coverage_only: bool = False,
+    accuracy: dict[str, float] | None = None,
 ) -> dict[str, float]:
     """Every measure of the run (:mod:`pose_uncertainty.analysis.measures`), computed once here.
 
     ``c_end`` is Method C's (mean, covariance) at the end of the path (None with a drive:
-    Method C is the differential drive's); ``ds`` the drive following the path, if any.
+    Method C is the differential drive's); ``ds`` the drive following the path, if any;
+    ``accuracy`` the accuracy comparison's entries when known already (``execute``'s ``reuse``).
     """
     out = measures.run_measures(traj.length, traj.duration, poses[-1])
     out.update(measures.gaussian_measures(poses[-1], covs[-1], config.pr))
@@ -328,7 +356,8 @@ def _measures(
     for mp in maps_:
         out.update(measures.map_measures(mp, config.pr, samplers.get(mp.name)))
     if end_poses is not None and end_poses.shape[0] >= 10:
-        out.update(_accuracy_metrics(config, traj, poses, covs, end_poses, c_end, ds, distances))
+        out.update(accuracy if accuracy is not None else
+                   _accuracy_metrics(config, traj, poses, covs, end_poses, c_end, ds, distances, coverage_only))
     return out
 
 
@@ -341,6 +370,7 @@ def _accuracy_metrics(
     c_end: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
     ds: DriveSetup | None = None,
     distances: bool = True,
+    coverage_only: bool = False,
 ) -> dict[str, float]:
     """How wrong each Gaussian method is against this run's Monte Carlo cloud.
 
@@ -368,7 +398,7 @@ def _accuracy_metrics(
     res = accuracy.compare_methods(
         end_poses, (poses[-1], covs[-1]), (E.poses[-1], E.covs[-1]),
         np.random.default_rng([config.seed, 1]), n_threshold=50_000, unscented=c_end,
-        distances=distances, levels=True,
+        distances=distances, levels=True, coverage_only=coverage_only,
     )  # fmt: skip
     return accuracy.flatten(res)
 

@@ -215,3 +215,174 @@ def wheel_step(
     scale = (scale_r, scale_l)
     if _wheel_lanes(P, z, travel, scale, inv_track, out, True) > REDUCTION_LIMIT:
         _wheel_lanes(P, z, travel, scale, inv_track, out, False)
+
+
+@_jit
+def _wrap(a: float) -> float:
+    """:func:`pose_uncertainty.core.kinematics.wrap_angle` of one angle: (−π, π]."""
+    t = a + math.pi
+    w = t - 2.0 * math.pi * math.floor(t / (2.0 * math.pi)) if not (0.0 <= t < 2.0 * math.pi) else t
+    w -= math.pi
+    return math.pi if w == -math.pi else w
+
+
+@_jit
+def ut_march(
+    ds_r: np.ndarray, ds_l: np.ndarray, k_r: float, k_l: float, track: float, Wm: np.ndarray,
+    Wc: np.ndarray, spread: float, poses: np.ndarray, covs: np.ndarray,
+) -> None:  # fmt: skip
+    """Method C's loop (:func:`.unscented.ut_step` of one set, step after step), in place.
+
+    ``poses[0]`` (3,) and ``covs[0]`` (3, 3) hold the start; step ``i`` fills ``poses[i + 1]``,
+    ``covs[i + 1]``: the PSD Cholesky factor of the covariance (a pivot ≤ 1e-14·max|P| gives a
+    zero column), the 11 sigma points of the pose and the two wheel travels, the midpoint step
+    of each, and the weighted mean (circular for the heading) and covariance of the moved points.
+    """
+    n_pts = Wm.size
+    L = np.zeros((3, 3))
+    pts = np.empty((n_pts, 3))
+    r = np.empty(n_pts)
+    lw = np.empty(n_pts)
+    d = np.empty((n_pts, 3))
+    for i in range(ds_r.size):
+        P = covs[i]
+        tol = 0.0
+        for a in range(3):
+            for b in range(3):
+                tol = max(tol, abs(P[a, b]))
+        tol *= 1e-14
+        for j in range(3):
+            acc = 0.0
+            for k in range(j):
+                acc += L[j, k] * L[j, k]
+            dj = P[j, j] - acc
+            ok = dj > tol
+            root = math.sqrt(dj) if ok else 1.0
+            L[j, j] = root if ok else 0.0
+            for a in range(j + 1, 3):
+                acc = 0.0
+                for k in range(j):
+                    acc += L[a, k] * L[j, k]
+                L[a, j] = (P[a, j] - acc) / root if ok else 0.0
+        for q in range(n_pts):
+            for a in range(3):
+                pts[q, a] = poses[i, a]
+            r[q] = ds_r[i]
+            lw[q] = ds_l[i]
+        for j in range(3):
+            for a in range(3):
+                pts[1 + j, a] += spread * L[a, j]
+                pts[6 + j, a] -= spread * L[a, j]
+        dev_r = spread * math.sqrt(k_r * abs(ds_r[i]))
+        dev_l = spread * math.sqrt(k_l * abs(ds_l[i]))
+        r[4] += dev_r
+        r[9] -= dev_r
+        lw[5] += dev_l
+        lw[10] -= dev_l
+        mx = 0.0
+        my = 0.0
+        ss = 0.0
+        sc = 0.0
+        for q in range(n_pts):
+            ds = (r[q] + lw[q]) / 2.0
+            dth = (r[q] - lw[q]) / track
+            th = pts[q, 2]
+            phi = th + 0.5 * dth
+            pts[q, 0] += ds * math.cos(phi)
+            pts[q, 1] += ds * math.sin(phi)
+            pts[q, 2] = th + dth
+        for q in range(n_pts):
+            mx += Wm[q] * pts[q, 0]
+            my += Wm[q] * pts[q, 1]
+            dq = _wrap(pts[q, 2] - pts[0, 2])
+            ss += Wm[q] * math.sin(dq)
+            sc += Wm[q] * math.cos(dq)
+        mth = pts[0, 2] + math.atan2(ss, sc)
+        poses[i + 1, 0] = mx
+        poses[i + 1, 1] = my
+        poses[i + 1, 2] = mth
+        for q in range(n_pts):
+            d[q, 0] = pts[q, 0] - mx
+            d[q, 1] = pts[q, 1] - my
+            d[q, 2] = _wrap(pts[q, 2] - mth)
+        for a in range(3):
+            for b in range(a, 3):
+                s = 0.0
+                for q in range(n_pts):
+                    s += Wc[q] * d[q, a] * d[q, b]
+                covs[i + 1, a, b] = s
+                covs[i + 1, b, a] = s
+
+
+#: :func:`exp_small`'s argument range: ``[-EXP_RANGE, 0]``
+EXP_RANGE = 16.0
+_INV_FACT = (1.0, 1.0, 1.0 / 2, 1.0 / 6, 1.0 / 24, 1.0 / 120, 1.0 / 720, 1.0 / 5040, 1.0 / 40320, 1.0 / 362880)
+
+
+@_inline
+def exp_small(x: float) -> float:
+    """``exp(x)`` for ``x`` in ``[-16, 0]`` within a relative 1.2e-5, branch-free (it vectorises).
+
+    ``exp(x) = exp(u)^16``, ``u = x/16`` in ``[-1, 0]``: ``exp(u)`` by its Taylor polynomial of
+    degree 9 (remainder ``≤ |u|^10/10! ≤ 2.8e-7``, relative to ``exp(u) ≥ e^-1``: ``≤ 7.5e-7``),
+    then four squarings (the relative error times 16), rounding adding ~1e-15.
+    """
+    u = x * (1.0 / 16.0)
+    p = _INV_FACT[9]
+    p = p * u + _INV_FACT[8]
+    p = p * u + _INV_FACT[7]
+    p = p * u + _INV_FACT[6]
+    p = p * u + _INV_FACT[5]
+    p = p * u + _INV_FACT[4]
+    p = p * u + _INV_FACT[3]
+    p = p * u + _INV_FACT[2]
+    p = p * u + _INV_FACT[1]
+    p = p * u + _INV_FACT[0]
+    p = p * p
+    p = p * p
+    p = p * p
+    return p * p
+
+
+@_jit
+def truncated_density(
+    x: np.ndarray, y: np.ndarray, mx: np.ndarray, my: np.ndarray, p00: np.ndarray, p01: np.ndarray,
+    p11: np.ndarray, log_peak: np.ndarray, log_floor: float, cx: np.ndarray, cy: np.ndarray, m00: np.ndarray,
+    m01: np.ndarray, m11: np.ndarray, bound: np.ndarray, block: int, out: np.ndarray,
+) -> None:  # fmt: skip
+    """The planar density's quadrature sum at points, over the terms above ``e^log_floor`` only.
+
+    Per point, a block of ``block`` consecutive nodes is skipped where its bound proves every
+    term of it below the floor (``m00 dx² + 2 m01 dx dy + m11 dy² > bound``, ``d`` from the block's
+    centre ``(cx, cy)``; ``bound < 0``: no node kept); in the others each node's term
+    ``exp(log_peak_q − ½ (p − μ_q)ᵀ P_q (p − μ_q))`` (node ``q``: mean ``(mx, my)``, precision
+    ``(p00, p01, p11)``) is added where its exponent is at least ``log_floor``, by
+    :func:`exp_small` about the largest peak (within a relative 1e-5: the brackets of
+    ``expcoords.density_quantiles`` allow 1e-4). The arrays are padded to whole blocks (padding:
+    ``log_peak = -inf``).
+    """
+    top = log_floor
+    for q in range(log_peak.size):
+        top = max(top, log_peak[q])
+    low = log_floor - top  # ≥ −(T + log n) > −EXP_RANGE
+    terms = np.empty(block)
+    for i in range(x.size):
+        s = 0.0
+        for b in range(cx.size):
+            if bound[b] < 0.0:
+                continue
+            dx = x[i] - cx[b]
+            dy = y[i] - cy[b]
+            if m00[b] * dx * dx + 2.0 * m01[b] * dx * dy + m11[b] * dy * dy > bound[b]:
+                continue
+            o = b * block
+            for k in range(block):  # elementwise: vectorised
+                ex = x[i] - mx[o + k]
+                ey = y[i] - my[o + k]
+                e = log_peak[o + k] - top - 0.5 * (p00[o + k] * ex * ex + 2.0 * p01[o + k] * ex * ey
+                                                   + p11[o + k] * ey * ey)  # fmt: skip
+                keep = e >= low
+                terms[k] = exp_small(e if keep else low) if keep else 0.0
+            for k in range(block):
+                s += terms[k]
+        out[i] = s * math.exp(top)

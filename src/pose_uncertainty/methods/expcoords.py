@@ -60,6 +60,8 @@ Gauss–Hermite quadrature (:func:`pdf_xy`) — no grid over θ is needed.
 from __future__ import annotations
 
 import math
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -82,6 +84,7 @@ from ..core.validation import (
 __all__ = [
     "ExpGaussian",
     "SingularConditionalError",
+    "at_least",
     "coordinates",
     "density_quantiles",
     "hdr_threshold",
@@ -402,6 +405,29 @@ class SingularConditionalError(ValueError):
 
 
 def _conditional(mean_pose: NDArray, S: NDArray, n_quad: int) -> _Conditional:
+    """:func:`_build_conditional`, kept for the next call with the same numbers (a run and the
+    explorer ask for one banana's several times: its levels, coverage and contour)."""
+    key = (np.asarray(mean_pose, dtype=np.float64).tobytes(), np.asarray(S, dtype=np.float64).tobytes(), int(n_quad))
+    with _KEPT_LOCK:
+        got = _KEPT_CONDITIONALS.get(key)
+    if got is None:
+        got = _build_conditional(mean_pose, S, n_quad)
+        with _KEPT_LOCK:
+            _KEPT_CONDITIONALS[key] = got
+            while len(_KEPT_CONDITIONALS) > _KEPT:
+                _KEPT_CONDITIONALS.popitem(last=False)
+    return got
+
+
+#: How many conditionals and range trees are kept (the last few bananas).
+_KEPT = 8
+_KEPT_LOCK = threading.Lock()
+_KEPT_CONDITIONALS: OrderedDict[tuple[bytes, bytes, int], _Conditional] = OrderedDict()
+#: range trees by (id of their conditional, truncation), with the conditional (so its id stays its own)
+_KEPT_TREES: OrderedDict[tuple[int, float], tuple[_Conditional, _RangeTree]] = OrderedDict()
+
+
+def _build_conditional(mean_pose: NDArray, S: NDArray, n_quad: int) -> _Conditional:
     """(x, y) | ε_θ = w: Gaussian with mean t_μ + R V(w) m(w), cov R V(w) C Vᵀ Rᵀ.
 
     Quadrature in w: the trapezoid rule on a uniform grid over ±8.5 σ_θ with
@@ -503,6 +529,21 @@ def _gen_eig_min(A: NDArray, B: NDArray) -> NDArray:
 
 
 def _range_tree(cond: _Conditional, prune: float = _TRUNC) -> _RangeTree:
+    """:func:`_build_range_tree`, kept for the next call on the same conditional and truncation."""
+    key = (id(cond), float(prune))
+    with _KEPT_LOCK:
+        got = _KEPT_TREES.get(key)
+    if got is not None and got[0] is cond:
+        return got[1]
+    tree = _build_range_tree(cond, prune)
+    with _KEPT_LOCK:
+        _KEPT_TREES[key] = (cond, tree)
+        while len(_KEPT_TREES) > 2 * _KEPT:
+            _KEPT_TREES.popitem(last=False)
+    return tree
+
+
+def _build_range_tree(cond: _Conditional, prune: float = _TRUNC) -> _RangeTree:
     """The :class:`_RangeTree` of the quadrature nodes of ``cond`` (see :func:`_pdf_xy_pruned`).
 
     Each node's term gets a truncation threshold ``r2_q`` on its Mahalanobis distance
@@ -784,11 +825,48 @@ _BOUND_TRUNC = 5.0
 _SINGLE_MARGIN = 1e-4
 
 
-def _density_brackets(pts: NDArray, cond: _Conditional) -> tuple[NDArray, NDArray]:
-    """Lower and upper bounds (n,) of :func:`pdf_xy` at points (n, 2) (:func:`density_quantiles`)."""
-    kept = _pdf_xy_pruned(pts, cond, _BOUND_TRUNC, single=True)
+def _compiled_loaded() -> bool:
+    """Whether this process has loaded the compiled loops (numba) of :mod:`.mc_kernel` already."""
+    from . import mc_kernel
+
+    return bool(mc_kernel._JIT)
+
+
+def _density_brackets(pts: NDArray, cond: _Conditional, compiled: bool | None = None) -> tuple[NDArray, NDArray]:
+    """Lower and upper bounds (n,) of :func:`pdf_xy` at points (n, 2) (:func:`density_quantiles`).
+
+    The sum over the terms kept at the truncation :data:`_BOUND_TRUNC`, by numpy in single precision,
+    or (``compiled``; default: when the process has loaded the compiled loops already, so that a
+    run does not import numba for it) by the compiled loop ``_mc_jit.truncated_density`` in double
+    precision, its terms from each node's own Mahalanobis distance. Either sum holds only terms of
+    :func:`pdf_xy` and leaves out only terms below ``e^-T/n`` of the largest node peak; the margins
+    cover both roundings. What :func:`density_quantiles` returns does not depend on the route.
+    """
     with np.errstate(divide="ignore"):
-        la_max = float(np.max(np.log(cond.weights) + cond.log_norm))
+        la = np.log(cond.weights) + cond.log_norm
+        la_max = float(np.max(la))
+    if compiled is None:
+        compiled = _compiled_loaded()
+    if compiled:
+        from .mc_kernel import jit_module
+
+        tree = _range_tree(cond, _BOUND_TRUNC)
+        n, padded = la.size, tree.cx[-1].size * _BLOCK
+
+        def pad(v: NDArray, fill: float) -> NDArray:
+            out = np.full(padded, fill)
+            out[:n] = v
+            return out
+
+        kept = np.empty(pts.shape[0])
+        jit_module().truncated_density(
+            np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1]), pad(cond.means[:, 0], 0.0),
+            pad(cond.means[:, 1], 0.0), pad(cond.prec[:, 0, 0], 0.0), pad(cond.prec[:, 0, 1], 0.0),
+            pad(cond.prec[:, 1, 1], 0.0), pad(la, -np.inf), tree.log_floor, tree.cx[-1], tree.cy[-1],
+            tree.m00[-1], tree.m01[-1], tree.m11[-1], tree.bound[-1], _BLOCK, kept,
+        )  # fmt: skip
+    else:
+        kept = _pdf_xy_pruned(pts, cond, _BOUND_TRUNC, single=True)
     lo = kept * (1.0 - _SINGLE_MARGIN)
     hi = kept * (1.0 + _SINGLE_MARGIN) + math.exp(la_max - _BOUND_TRUNC) * (1.0 + 1e-6)
     return lo, hi
@@ -861,6 +939,47 @@ def density_quantiles(
     return np.quantile(filled, qq)
 
 
+def at_least(
+    xy: ArrayLike, mean_pose: ArrayLike, cov: ArrayLike, levels: ArrayLike, n_quad: int = 64
+) -> NDArray[np.bool_]:
+    """``pdf_xy(xy, …) >= level`` for each level, the same booleans, with the density of few points.
+
+    Whether a point is in the region ``{p ≥ c}`` needs its exact density only where the
+    brackets of :func:`density_quantiles` (``lo ≤ pdf_xy ≤ hi``) straddle ``c``: ``lo ≥ c``
+    proves it in, ``hi < c`` proves it out; the others get :func:`pdf_xy`'s own value (every
+    value depends on its own point only). The coverage of a region, ``np.mean(at_least(…)[i])``,
+    is then the same number as ``np.mean(pdf_xy(xy, …) >= c)``, bit for bit.
+
+    Parameters
+    ----------
+    xy : array_like, shape (n, 2) [m]
+    mean_pose : array_like, shape (3,); cov : array_like, shape (3, 3)
+    levels : array_like, shape (k,) — density levels [1/m²]
+    n_quad : int — see :func:`pdf_xy`
+
+    Returns
+    -------
+    ndarray of bool, shape (k, n)
+    """
+    pts = check_last_axis("xy", xy, 2)
+    if pts.ndim != 2:
+        raise ValueError(f"xy must have shape (n, 2), got shape {pts.shape}")
+    c = np.atleast_1d(np.asarray(levels, dtype=np.float64))
+    mu = check_last_axis("mean_pose", mean_pose, 3)
+    S = _check_cov3(cov)
+    cond = _conditional(mu, S, check_positive_int("n_quad", n_quad))
+    if cond.nodes.size <= _DENSE_NODES or not np.isfinite(pts).all() or pts.shape[0] == 0:
+        return pdf_xy(pts, mu, S, n_quad=n_quad)[None, :] >= c[:, None]
+    lo, hi = _density_brackets(pts, cond)
+    inside = lo[None, :] >= c[:, None]
+    unsure = ~inside & (hi[None, :] >= c[:, None])
+    idx = np.flatnonzero(unsure.any(axis=0))
+    if idx.size:
+        exact = _pdf_xy_pruned(pts[idx], cond)
+        inside[:, idx] = exact[None, :] >= c[:, None]
+    return inside
+
+
 def pr_region_xy(
     mean_pose: ArrayLike,
     cov: ArrayLike,
@@ -899,6 +1018,40 @@ def pr_region_xy(
     return region_xy_at(x, y, mu, S, level)
 
 
+def _grid_for_contour(x: NDArray, y: NDArray, mean_pose: ArrayLike, cov: ArrayLike, level: float) -> NDArray:
+    """The density on the grid ``x × y`` (nx, ny) as its contour at ``level`` reads it.
+
+    Marching squares draws a line through a cell only where its corners lie on both sides of
+    the level, interpolating between those corners' values. A point whose brackets
+    (:func:`density_quantiles`) put it strictly above or below the level keeps its bracket; the
+    corners of every cell not certainly all on one side get :func:`marginal_xy_grid`'s exact
+    values. The contour is the one of the exact grid, line for line.
+    """
+    mu = check_last_axis("mean_pose", mean_pose, 3)
+    S = _check_cov3(cov)
+    cond = _conditional(mu, S, 64)
+    if cond.nodes.size <= _DENSE_NODES or not math.isfinite(level) or x.size < 2 or y.size < 2:
+        return marginal_xy_grid(x, y, mu, S)
+    X, Y = np.meshgrid(x, y, indexing="ij")
+    pts = np.stack([X.ravel(), Y.ravel()], axis=-1)
+    lo, hi = _density_brackets(pts, cond)
+    above, below = (lo > level).reshape(X.shape), (hi < level).reshape(X.shape)
+    Z = np.where(above, lo.reshape(X.shape), hi.reshape(X.shape))
+
+    def all4(m: NDArray) -> NDArray:  # per cell: all four corners
+        return m[:-1, :-1] & m[1:, :-1] & m[:-1, 1:] & m[1:, 1:]
+
+    open_cell = ~(all4(above) | all4(below))
+    need = np.zeros(X.shape, dtype=bool)
+    for di in (0, 1):
+        for dj in (0, 1):
+            need[di : di + open_cell.shape[0], dj : dj + open_cell.shape[1]] |= open_cell
+    idx = np.flatnonzero(need.ravel())
+    if idx.size:
+        Z.ravel()[idx] = _pdf_xy_pruned(pts[idx], cond)
+    return Z
+
+
 def region_xy_at(
     x: ArrayLike, y: ArrayLike, mean_pose: ArrayLike, cov: ArrayLike, level: float
 ) -> list[NDArray[np.float64]]:
@@ -919,7 +1072,7 @@ def region_xy_at(
     list of ndarray, each shape (m, 2) [m] — polylines (closed unless cut by the grid's edge)
     """
     xx, yy = check_finite("x", x), check_finite("y", y)
-    Z = marginal_xy_grid(xx, yy, mean_pose, cov)
+    Z = _grid_for_contour(xx, yy, mean_pose, cov, float(level))
     import contourpy  # imported where used: only these contours need it
 
     gen = contourpy.contour_generator(xx, yy, Z.T)

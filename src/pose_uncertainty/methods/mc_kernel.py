@@ -11,6 +11,10 @@ perturbation ``δv₁ = (δs_r + δs_l)/2``, ``e = (δs_r − δs_l)/b``, the he
 ``δ_i = Σ_{j<i} e_j + c·e_i`` of the step and adds ``v₁'·(cos(φ̄_i + δ_i), sin(φ̄_i + δ_i))``
 to the position, all in registers: no temporaries of the size of the cloud.
 
+The same private module holds Method C's loop over the steps for one set
+(``_mc_jit.ut_march``, :func:`.unscented.propagate` with ``kernel="compiled"``): the numpy
+step's arithmetic per sigma point, in registers, summed in another order (equal up to rounding).
+
 Why compiled
 ------------
 numpy's float64 ``sin``/``cos`` are vector kernels only on a CPU with AVX-512; elsewhere each

@@ -353,6 +353,7 @@ def propagate(
     alpha: float = 1.0,
     beta: float = 0.0,
     kappa: float = 0.0,
+    kernel: str = "numpy",
 ) -> CovarianceResult:
     """Method C, Cartesian: the unscented transform of the midpoint step along a trajectory.
 
@@ -365,12 +366,30 @@ def propagate(
     cov0 : array_like, shape (B..., 3, 3), optional — initial covariance (default 0)
     alpha, beta, kappa : float — scaled-UT parameters (module docstring; defaults
         keep every weight ≥ 0)
+    kernel : {"numpy", "compiled"} — the loop over the steps by numpy (the reference, batched) or,
+        for one set (scalar k_r, k_l, track), by the compiled loop of :mod:`.mc_kernel` (the same
+        arithmetic in another order: equal up to rounding, within the reproducibility contract)
 
     Returns
     -------
     CovarianceResult with poses (B..., N+1, 3) — UT means, heading unwrapped —
     and covs (B..., N+1, 3, 3)
     """
+    check_choice("kernel", kernel, ("numpy", "compiled"))
+    if kernel == "compiled":
+        kr, kl, b_, S0, batch = _check_batch(trajectory, k_r, k_l, track, cov0)
+        if batch:
+            raise ValueError(f"kernel 'compiled' takes one set (scalar k_r, k_l, track, cov0), got batch shape {batch}")
+        from .mc_kernel import jit_module
+
+        w = sigma_weights(_N_AUG, alpha, beta, kappa)
+        n = trajectory.n_steps
+        poses, covs = np.empty((n + 1, 3)), np.empty((n + 1, 3, 3))
+        poses[0], covs[0] = trajectory.start, S0
+        jit_module().ut_march(np.ascontiguousarray(trajectory.ds_r, dtype=np.float64),
+                              np.ascontiguousarray(trajectory.ds_l, dtype=np.float64), float(kr), float(kl),
+                              float(b_), w.Wm, w.Wc, float(np.sqrt(_N_AUG + w.lam)), poses, covs)  # fmt: skip
+        return CovarianceResult(poses=poses, covs=covs, times=trajectory.times)
     def start(S0: NDArray, b: NDArray, batch: tuple[int, ...], n: int) -> tuple[NDArray, ...]:
         poses = np.empty((n + 1, *batch, 3))
         poses[0] = trajectory.start

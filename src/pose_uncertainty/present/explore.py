@@ -19,9 +19,10 @@ from __future__ import annotations
 import html
 import math
 import socket
+import threading
 import time
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +32,7 @@ from numpy.typing import NDArray
 from ..analysis.accuracy import PRS, coverage_gridded, pr_label
 from ..core.drives import DRIVES as _DRIVES
 from ..core.stats import fit_growth, path_spreads, wilson_interval
+from ..core.trajectories import PROFILES
 from ..experiments import cost
 from ..experiments.config import RunConfig
 from ..experiments.drive_config import DriveConfig
@@ -64,6 +66,7 @@ PATHS: tuple[str, ...] = (
     "right_angles",
     "direct",
     "rotation",
+    "tour",
 )
 
 #: The methods that can be shown: key → label.
@@ -88,8 +91,11 @@ DEFAULTS: dict[str, str] = {
     "geometry": "",
     "k_r": "5e-4",
     "k_l": "5e-4",
+    "error_sources": "",
     "track": "0.2",
     "path": "straight",
+    "segments": "[[line, 1.0], [turn, 1.5708], [arc, 0.5, 1.5708], [line, 0.5]]",
+    "profile": "constant",
     "size": "2.5",
     "speed": "0.5",
     "dt": "0.01",
@@ -147,6 +153,29 @@ def _geometry(text: str) -> dict[str, Any]:
                   f"drive geometry {text!r} is not a list of 'key: value' (e.g. 'wheelbase: 0.3')")  # fmt: skip
 
 
+def _segments(text: str) -> Any:
+    """The segments field: a YAML flow list ``[[line, L], [arc, r, angle], [turn, angle]]`` as the
+    run configuration's ``trajectory.segments`` (the run configuration validates its items)."""
+    import yaml
+
+    try:
+        out = yaml.safe_load(text)
+    except yaml.YAMLError:
+        out = None
+    if isinstance(out, list):
+        return out
+    raise ValueError(f"segments {text!r} is not a list of segments "
+                     "(e.g. '[[line, 1.0], [turn, 1.5708], [arc, 0.5, 1.5708]]')")  # fmt: skip
+
+
+def _error_sources(text: str) -> dict[str, Any]:
+    """The error-sources field ``key: value, …`` (the wheel-noise model's sources, Šafránek 2022) as
+    the mapping of ``drive.errors.encoder`` (the run configuration validates it)."""
+    return _field(text, "{}", dict,  # type: ignore[no-any-return]
+                  f"error sources {text!r} is not a list of 'key: value' (e.g. 'pulses_per_rev: 400, "
+                  "wheel_diameter: 0.065')")  # fmt: skip
+
+
 def _alphas(text: str) -> Any:
     """The map-alphas field ``a, b, …`` as a list (the run configuration validates its count and values)."""
     return _field(text, "[]", list, f"map alphas {text!r} is not a list of numbers separated by commas "
@@ -164,7 +193,12 @@ def run_config(
         The fields of :data:`DEFAULTS`, as typed (numbers as text: the run configuration
         reads ``"5e-4"`` as a number). ``size`` is the path's length [m] (straight), radius
         [m] (arc, circle, S-curve), target offset ``dx = dy`` [m] (right angles, direct) or
-        angle [rad] (rotation: turning in place). ``drive`` (one of :data:`DRIVES`) with its
+        angle [rad] (rotation: turning in place); ``tour`` drives ``segments`` (the YAML flow list
+        ``[[line, L], [arc, r, angle], [turn, angle]]``), with the speed ``profile``
+        (:data:`pose_uncertainty.core.trajectories.PROFILES`). ``error_sources`` (``key: value, …``
+        of :class:`pose_uncertainty.methods.wheel_noise.WheelErrorSources`; empty: ``k_r``, ``k_l``)
+        puts the wheel-noise model's error sources in place of k (a ``drive`` section's
+        ``errors.encoder``, on the differential drive too). ``drive`` (one of :data:`DRIVES`) with its
         ``geometry`` (``key: value, …``; empty = the drive's defaults); ``map`` (one of
         :data:`MAP_MODELS`) with its cell ``map_resolution`` [m] and its motion model's error
         constants ``map_alphas`` (``a, b, …``: 6 velocity, 4 odometry; empty = the model's defaults).
@@ -188,15 +222,14 @@ def run_config(
         "direct": ("dx", "dy"),
         "rotation": ("angle",),
     }.get(path, ())
-    traj: dict[str, Any] = {"name": path, "dt": s["dt"], "track": s["track"]}
+    traj: dict[str, Any] = {"name": path, "dt": s["dt"], "track": s["track"], "profile": s["profile"]}
     traj["angular_speed" if path == "rotation" else "speed"] = s["speed"]
     traj.update({k: s["size"] for k in size_key})
+    if path == "tour":
+        traj["segments"] = _segments(s["segments"])
     old = (base or {}).get("trajectory")
     if isinstance(old, Mapping) and old.get("name") == path:
-        traj = {
-            **{k: v for k, v in old.items() if k in ("start", "profile", "laps", "direction")},
-            **traj,
-        }
+        traj = {**{k: v for k, v in old.items() if k in ("start", "laps", "direction")}, **traj}
     out.update({
         "name": str(out.get("name", "explore")),
         "seed": s["seed"],
@@ -207,8 +240,10 @@ def run_config(
         "monte_carlo": {"n_particles": s["n_particles"], "regime": s["regime"]},
         "maps": [],
     })  # fmt: skip
-    if s["drive"] != "differential":
+    if s["drive"] != "differential" or s["error_sources"].strip():
         out["drive"] = {"type": s["drive"], **_geometry(s["geometry"])}
+        if s["error_sources"].strip():
+            out["drive"]["errors"] = {"encoder": _error_sources(s["error_sources"])}
     if s["map"] != "none":
         out["maps"] = [{"name": s["map"], "model": s["map"], "resolution": s["map_resolution"]}]
         if s["map_alphas"].strip():
@@ -246,6 +281,11 @@ class View:
 #: The Monte Carlo's standard normals, kept from one move of a control to the next (the same
 #: cloud, drawn once per seed, particles and steps).
 _DRAWS = DrawCache()
+
+#: The last computed result: a move of the probability level alone reuses its clouds, maps and
+#: accuracy comparison (``execute(..., reuse=…)``, the same numbers).
+_LAST: list[RunResult] = []
+_LOCK = threading.Lock()
 
 #: Method key → the prefix of its coverage in the run's accuracy measures.
 _ACCURACY = {"a": "accuracy_cartesian", "c": "accuracy_unscented", "e": "accuracy_expcoords"}
@@ -311,11 +351,14 @@ def compute(
     """Validate a run configuration mapping as ``pose-uncertainty run`` does, execute it, and
     collect what the page draws.
 
-    The run is executed without the accuracy comparison's density distances
-    (``execute(config, distances=False)``): every number shown is the one a run of the same
-    configuration logs. The Monte Carlo's standard normals are kept between calls
-    (:class:`~pose_uncertainty.methods.particles.DrawCache`): a move of a control other than the
-    seed, the particles or the path's steps draws none, and the cloud is the same.
+    The run is executed with the accuracy comparison's planar coverages only (``execute(config,
+    distances=False, coverage_only=True)``, the same numbers a run logs) and with the compiled
+    loops (``kernel="compiled"``: Method C and the Monte Carlo equal a logged run's up to rounding,
+    within the reproducibility contract; the coverages shown are counts, the run's). A change of
+    the probability level alone reuses the last result's clouds, maps and accuracy comparison
+    (``execute``'s ``reuse``, the same numbers). The Monte Carlo's standard normals are kept
+    between calls (:class:`~pose_uncertainty.methods.particles.DrawCache`): a move of a control
+    other than the seed, the particles or the path's steps draws none, and the cloud is the same.
 
     Parameters
     ----------
@@ -331,7 +374,13 @@ def compute(
     """
     config = RunConfig.from_dict(data)
     cost.check(config)
-    res = execute(config, distances=False, progress=progress or (lambda label: _silent), cache=_DRAWS)
+    with _LOCK:
+        last = _LAST[0] if _LAST else None
+    same_but_pr = last is not None and last.config == replace(config, pr=last.config.pr)
+    res = execute(config, distances=False, coverage_only=True, progress=progress or (lambda label: _silent),
+                  kernel="compiled", cache=_DRAWS, reuse=last if same_but_pr else None)  # fmt: skip
+    with _LOCK:
+        _LAST[:] = [res]
     m, pr, n_end = res.metrics, config.pr, res.n_steps
     regions: dict[str, list[NDArray[np.float64]]] = {
         "a": [covariance.ellipse_polyline(res.covs[n_end, :2, :2], pr, res.poses[n_end, :2])]
@@ -394,6 +443,13 @@ def save_run_config(path: str | Path, data: Mapping[str, Any]) -> Path:
     return Path(atomic_write_text(dest, text))
 
 
+def _flow(value: Any) -> str:
+    """A value as YAML flow text on one line (``[[line, 1.0], [turn, 1.5708]]``)."""
+    import yaml
+
+    return str(yaml.safe_dump(value, default_flow_style=True, width=1 << 30)).strip().removesuffix("...").strip()
+
+
 def load_log_settings(path: str | Path) -> tuple[dict[str, str], dict[str, Any]]:
     """The explorer's settings and the full configuration of a logged run (``.mcap``).
 
@@ -413,6 +469,7 @@ def load_log_settings(path: str | Path) -> tuple[dict[str, str], dict[str, Any]]
     labels = [pr_label(p) for p in PRS]
     pr = pr_label(cfg["pr"]) if pr_label(cfg["pr"]) in labels else DEFAULTS["pr"]
     drive = cfg.get("drive") or {}
+    encoder = (drive.get("errors") or {}).get("encoder") or {}
     maps = [m for m in cfg.get("maps") or [] if m.get("model") in MAP_MODELS]
     settings = {
         "k_r": repr(cfg["k_r"]), "k_l": repr(cfg["k_l"]), "track": repr(t.get("track")),
@@ -421,6 +478,9 @@ def load_log_settings(path: str | Path) -> tuple[dict[str, str], dict[str, Any]]
         "dt": repr(t.get("dt")), "pr": pr, "n_particles": str(cfg["monte_carlo"]["n_particles"]),
         "regime": str(cfg["monte_carlo"]["regime"]), "seed": str(cfg["seed"]),
         "drive": str(drive.get("type", "differential")),
+        "profile": str(t.get("profile", DEFAULTS["profile"])),
+        "segments": _flow(t["segments"]) if name == "tour" else DEFAULTS["segments"],
+        "error_sources": ", ".join(f"{k}: {_flow(v)}" for k, v in encoder.items()),
         "geometry": ", ".join(f"{k}: {v}" for k, v in drive.items() if k not in ("type", "errors") and v is not None),
         "map": str(maps[0]["model"]) if maps else "none",
         "map_resolution": repr(maps[0].get("resolution")) if maps else DEFAULTS["map_resolution"],
@@ -544,7 +604,15 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
                        ("speed", "speed [m/s] (rotation: [rad/s])"), ("dt", "step dt [s]"),
                        ("n_particles", "Monte Carlo particles"), ("seed", "seed")):  # fmt: skip
         fields[key] = TextInput(title=title, value=settings[key], name=f"field-{key}")
-    fields["path"] = Select(title="path", value=settings["path"], options=_options(PATHS), name="field-path")
+    fields["path"] = Select(title="path (tour: the segments below)", value=settings["path"], options=_options(PATHS),
+                            name="field-path")  # fmt: skip
+    fields["segments"] = TextInput(title="segments of a tour ([line, L], [arc, r, angle], [turn, angle]; m, rad)",
+                                   value=settings["segments"], name="field-segments")  # fmt: skip
+    fields["profile"] = Select(title="speed profile (per segment)", value=settings["profile"],
+                               options=_options(PROFILES), name="field-profile")  # fmt: skip
+    fields["error_sources"] = TextInput(
+        title="wheel error sources instead of k_r, k_l (key: value, …; e.g. pulses_per_rev: 400)",
+        value=settings["error_sources"], name="field-error_sources")  # fmt: skip
     fields["pr"] = Select(title="probability level [%]", value=settings["pr"],
                           options=_options(pr_label(p) for p in PRS), name="field-pr")  # fmt: skip
     fields["regime"] = Select(title="Monte Carlo regime", value=settings["regime"],
@@ -645,20 +713,23 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
         for i, k in enumerate(METHODS):
             glyphs[k].visible = i in shown.active
 
-    def shown_error(msg: str) -> None:
+    def shown_error(msg: str, s: dict[str, str] | None = None) -> None:
         error.text = html.escape(msg)
+        newer = s is not None and s != state.get("requested")
+        status.text = state.get("status", "") + ("; computing the newest setting…" if newer else "")
 
     def finish(view: View, seconds: float, s: dict[str, str]) -> None:
         error.text = ""
+        state["drawn"] = _move_settings(s)
         state["cloud"] = view.result.end_poses
         draw(view)
         draw_map()
         m = view.result.metrics
         newer = s != state.get("requested")  # a newer setting is being computed: this one is not the last
-        status.text = (f"{view.result.n_steps} steps, path {m['path_length']:.3g} m, "
-                       f"{int(m.get('MC_n', 0))} particles, k_r {html.escape(s['k_r'])}, "
-                       f"k_l {html.escape(s['k_l'])}; computed in {1000 * seconds:.0f} ms"
-                       + ("; computing the newest setting…" if newer else ""))  # fmt: skip
+        state["status"] = (f"{view.result.n_steps} steps, path {m['path_length']:.3g} m, "
+                           f"{int(m.get('MC_n', 0))} particles, k_r {html.escape(s['k_r'])}, "
+                           f"k_l {html.escape(s['k_l'])}; computed in {1000 * seconds:.0f} ms")  # fmt: skip
+        status.text = state["status"] + ("; computing the newest setting…" if newer else "")
 
     def one(s: dict[str, str]) -> tuple[View | None, str, float]:
         t0 = time.perf_counter()
@@ -677,7 +748,7 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
                     return
             view, msg, seconds = one(s)
             if view is None:
-                doc.add_next_tick_callback(partial(shown_error, msg))
+                doc.add_next_tick_callback(partial(shown_error, msg, s))
             else:
                 doc.add_next_tick_callback(partial(finish, view, seconds, s))
 
@@ -728,7 +799,10 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
     def start_map(s: dict[str, str]) -> None:
         """Start the map of these settings unless it is the one computed or computing: a map
         depends on the path and its own settings only (its coverage is redrawn on each move)."""
-        key = (repr(run_config(s)["trajectory"]), s["map"], s["map_resolution"], s["map_alphas"])
+        try:
+            key = (repr(run_config(s)["trajectory"]), s["map"], s["map_resolution"], s["map_alphas"])
+        except ValueError:
+            return  # a field that is not even a list or mapping: the move shows its error
         if key == state.get("map_key"):
             return
         state["map_key"] = key
@@ -748,6 +822,12 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
         s = settings_now()
         state["requested"] = s
         start_map(s)
+        with lock:  # a change of the map's fields only (or back to the picture shown): nothing to recompute
+            same = not state["busy"] and _move_settings(s) == state.get("drawn")
+        if same:
+            error.text = ""
+            status.text = state.get("status", "")
+            return
         if moves is None:
             view, msg, seconds = one(s)
             if view is None:
@@ -776,8 +856,8 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
         if k != "drive":
             w.on_change("value", update)
     fields["drive"].on_change("value", on_drive)
-    for k, sl in sliders.items():
-        sl.on_change("value", partial(on_slider, k))
+    for k, sl in sliders.items():  # on release (a drag does not queue a computation per pixel)
+        sl.on_change("value_throttled", partial(on_slider, k))
     shown.on_change("active", show)
 
     save_path = TextInput(title="save as run config (YAML file)", value="", name="save-path")
@@ -801,6 +881,7 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
             error.text = html.escape(str(exc).splitlines()[0])
             return
         state["base"] = cfg
+        state["drawn"] = None  # the log's other keys may differ: recompute
         for k, v in new_settings.items():
             if k in fields:
                 handler = on_drive if k == "drive" else update
@@ -816,8 +897,9 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
         return Div(text=f"<i>{html.escape(STATEMENTS[key])}</i>", name=f"statement-{key}", width=620)
 
     controls = column(fields["drive"], fields["geometry"], sliders["k_r"], fields["k_r"], sliders["k_l"],
-                      fields["k_l"], *(fields[k] for k in ("track", "path", "size", "speed", "dt", "pr",
-                                                           "n_particles", "regime", "seed")),
+                      fields["k_l"], *(fields[k] for k in ("error_sources", "track", "path", "segments", "size",
+                                                           "speed", "profile", "dt", "pr", "n_particles", "regime",
+                                                           "seed")),
                       shown, fields["map"], fields["map_resolution"], fields["map_alphas"], save_path, save_btn,
                       open_path, open_btn,
                       width=300)  # fmt: skip
@@ -825,6 +907,11 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
     doc.add_root(row(controls, views))
     doc.title = "pose-uncertainty explorer"
     update(None, None, None)
+
+
+def _move_settings(s: Mapping[str, str]) -> dict[str, str]:
+    """The settings a move computes (the map's own fields drive the background map only)."""
+    return {k: v for k, v in s.items() if k not in ("map", "map_resolution", "map_alphas")}
 
 
 def _log10_or(text: str, default: float) -> float:
@@ -856,6 +943,10 @@ def serve(host: str = "127.0.0.1", port: int = 0, announce: Callable[[str], None
     from bokeh.server.server import Server
 
     port = port or free_port(host)
+    from ..methods import mc_kernel
+
+    # numba's import and the load of the compiled loops (~1.5 CPU-s), before the first page asks
+    threading.Thread(target=mc_kernel.jit_module, name="explore-jit", daemon=True).start()
     shown_host = f"[{host}]" if ":" in host else host
     server = Server({"/": Application(FunctionHandler(make_document))}, address=host, port=port,
                     allow_websocket_origin=[f"{shown_host}:{port}", f"localhost:{port}"],
