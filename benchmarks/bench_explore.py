@@ -89,9 +89,9 @@ def _parts_cpu(k_values: list[str]) -> dict[str, list[float]]:
         timed("method_c", unscented.propagate, traj, cfg.k_r, cfg.k_l)
         cloud = timed("monte_carlo", sampling.sample_end_poses, *mc, np.random.default_rng(cfg.seed),
                       cache=explore._DRAWS)  # fmt: skip
-        sampling.sample_end_poses(*mc, np.random.default_rng(cfg.seed), kernel="compiled", cache=kept)  # its normals
+        sampling.sample_end_poses(*mc, np.random.default_rng(cfg.seed), kernel="compiled", draws="per-chunk", cache=kept)  # its normals
         timed("option_compiled_monte_carlo", sampling.sample_end_poses, *mc, np.random.default_rng(cfg.seed),
-              kernel="compiled", cache=kept)  # fmt: skip
+              kernel="compiled", draws="per-chunk", cache=kept)  # fmt: skip
         E = expcoords.propagate(traj, cfg.k_r, cfg.k_l)
         mu, cov = E.poses[-1], E.covs[-1]
         timed("banana_levels_50000_draws", expcoords.hdr_threshold, mu, cov, np.array([0.5, 0.9, 0.98889]),
