@@ -268,12 +268,13 @@ def sample_poses(
         then differ only by rounding); ``"per-block"``, each block of
         :data:`.mc_kernel.DRAW_BLOCK` particles has its own stream, which the compiled kernel
         draws itself and the numpy kernel takes from numpy (the same numbers). ``"auto"``:
-        per block where the compiled kernel runs, else per chunk. ``"per-block"`` applies to the
-        differential drive with the travel noise ``k`` only. For every choice a seed gives the
-        same numbers for any number of threads.
+        per block where the compiled kernel runs and no ``cache`` is given, else per chunk.
+        ``"per-block"`` applies to the differential drive with the travel noise ``k`` only. For
+        every choice a seed gives the same numbers for any number of threads.
     cache : DrawCache, optional — keeps the standard normals of the Gaussian channels for the next
         call with the same seed, particles and steps (the output is the same with or without it);
-        per-chunk draws only (the per-block draws are drawn inside the kernel)
+        per-chunk draws only (the per-block draws are drawn inside the kernel): with a cache
+        ``draws="auto"`` is per chunk, and ``"per-block"`` is an error
 
     Returns
     -------
@@ -293,13 +294,16 @@ def sample_poses(
             f"(allowed here: 'auto', 'per-chunk'), got a {type(path.drive).__name__} drive"
             + (" with encoder or slip errors" if isinstance(path.drive, Differential) else "")
         )
+    if draws == "per-block" and cache is not None:
+        raise ValueError("a DrawCache keeps numpy's per-chunk draws (allowed with cache: draws 'auto', 'per-chunk'), "
+                         "got draws 'per-block'")  # fmt: skip
     n_workers = default_workers() if workers is None else check_positive_int("workers", workers)
     N = path.n_steps
     cps = _check_checkpoints(checkpoints, N)
     start_sqrt = start_factor(cov0)
     nom = _nominal(path, method)
     plan = _compiled_plan(path, model, regime, nom, n, kernel, cps)
-    if draws == "per-block" or (draws == "auto" and plan is not None):
+    if draws == "per-block" or (draws == "auto" and plan is not None and cache is None):
         return _sample_per_block(path, model, n, rng, regime, method, cps, start_sqrt, nom, plan, n_workers,
                                  progress)  # fmt: skip
     chunk, starts, children = chunk_streams(rng, n, N)

@@ -88,11 +88,11 @@ def sample_end_poses(
     draws : {"auto", "per-chunk", "per-block"} — the normals drawn by numpy per chunk of particles,
         or per block of :data:`.mc_kernel.DRAW_BLOCK` particles from the block's own stream (inside
         the compiled kernel; the numpy kernel takes the same numbers from numpy); ``"auto"``
-        (default): per block where the compiled kernel runs, else per chunk
-        (:func:`.drive_sampling.sample_poses`)
+        (default): per block where the compiled kernel runs and no ``cache`` is given, else per
+        chunk (:func:`.drive_sampling.sample_poses`)
     cache : DrawCache, optional — the standard normals kept for the next call with
         the same seed (:class:`.particles.DrawCache`; the output does not depend on it); per-chunk
-        draws only
+        draws only (``draws="auto"`` is then per chunk, ``"per-block"`` an error)
 
     Returns
     -------
