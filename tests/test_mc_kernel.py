@@ -130,10 +130,14 @@ def test_libm_trigonometry_is_a_third_route():
     nom = drive_sampling._nominal(wheel_path(traj), "midpoint")
     scale = (np.sqrt(5e-4 * np.abs(traj.ds_r)), np.sqrt(5e-4 * np.abs(traj.ds_l)))
     nominal = tuple(np.ascontiguousarray(a) for a in (nom.v1, nom.dtheta, nom.cos, nom.sin))
-    args = (z[0], z[1], *scale, (1.0, 1.0), nominal, traj.start, traj.track, 0.5, False, None)
+    args = ((z[0], z[1]), *scale, (1.0, 1.0), nominal, traj.start, traj.track, 0.5, False, None)
     poly = mc_kernel.compiled_end_poses(*args, trig="polynomial")
     libm = mc_kernel.compiled_end_poses(*args, trig="libm")
     _assert_within_contract(libm, poly, traj.n_steps)
+    # the drawn blocks write into the caller's rows and draw their own start offsets
+    drawn = mc_kernel.BlockDraws(mc_kernel.block_key(np.random.default_rng(9)), (0, 1), False)
+    with pytest.raises(ValueError, match=r"^BlockDraws draw their own start offsets into a given out"):
+        mc_kernel.compiled_end_poses(drawn, *args[1:])
 
 
 @pytest.mark.parametrize("kernel", ["numpy", "compiled"])

@@ -1,18 +1,18 @@
 """The loops of :mod:`.mc_kernel`, compiled by numba (imported by it on first use only).
 
-Blocks of particles: on numpy's draws (:func:`end_poses`), blocks of :data:`BLOCK` whose wheel
-errors are laid out step by step (``(N, BLOCK)``); drawing their own normals
-(:func:`end_poses_drawn`), blocks of :data:`DRAWN_BLOCK` that draw each step's normals from the
-block's stream (SFC64 and numpy's ziggurat, :func:`normal`) into two small buffers. Either way the
-loop over the particles of one step is a loop over contiguous numbers, which LLVM turns into
-AVX2/AVX-512 vector code on any x86-64 CPU, and every step moves the block's particles in
-registers. The sine and cosine are :func:`sin_cos`: branch-free polynomials, so that they
-vectorise too.
+One loop for both draw schemes (:func:`end_poses`): blocks of :data:`BLOCK` particles, each
+step's normals of a block either taken from numpy's draws (a column of the chunk's ``(m, N)``
+normals, ``"per-chunk"``) or drawn from the block's own stream (SFC64 and numpy's ziggurat,
+:func:`normal`, ``"per-block"``) into two small buffers. Either way the loop over the particles
+of one step is a loop over contiguous numbers, which LLVM turns into AVX2/AVX-512 vector code on
+any x86-64 CPU, and every step moves the block's particles in registers. The sine and cosine
+are :func:`sin_cos`: branch-free polynomials, so that they vectorise too.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numba
 import numba.np.random._constants as _zig  # numpy's ziggurat tables, as numba carries them
@@ -20,12 +20,10 @@ import numpy as np
 
 from .mc_kernel import DRAW_BLOCK
 
-#: particles per block of the kernel on numpy's draws: the block's errors (2 × N × BLOCK numbers)
-#: stay in the CPU's caches
-BLOCK = 32
-#: particles per block of the kernel drawing its own normals: the blocks of the ``"per-block"``
-#: draws (its buffers, 8 × DRAWN_BLOCK numbers, stay in the first-level cache)
-DRAWN_BLOCK = DRAW_BLOCK
+#: particles per block of the kernel: the blocks of the ``"per-block"`` draws (a block's buffers,
+#: 10 × BLOCK numbers, stay in the first-level cache; on numpy's draws a step's column of a block
+#: is 2 × BLOCK rows' cache lines, as few)
+BLOCK = DRAW_BLOCK
 
 # Cody–Waite reduction by π/2 (fdlibm's pio2_1, pio2_2, pio2_3: 33 bits each, so k·pio2_j is
 # exact for |k| < 2²⁰) and fdlibm's __kernel_sin / __kernel_cos (error < 1 ulp on [−π/4, π/4])
@@ -110,34 +108,27 @@ def _lanes(
         y[q] += a * (sd * cos_phi + cd * sin_phi)
 
 
-@_part
-def _lanes_poly(
-    zr: np.ndarray, zl: np.ndarray, sr: float, sl: float, cum: np.ndarray, off: np.ndarray, x: np.ndarray,
-    y: np.ndarray, big: np.ndarray, nb: int, v1: float, dtheta: float, cos_phi: float, sin_phi: float,
-    track: float, rest: float,
-) -> None:  # fmt: skip
-    """:func:`_lanes` with the polynomials (not the exact step)."""
-    _lanes(zr, zl, sr, sl, cum, off, x, y, big, nb, v1, dtheta, cos_phi, sin_phi, track, rest, False, True)
+def _lanes_with(exact: bool, poly: bool) -> Callable[..., None]:
+    """:func:`_lanes` compiled once with ``exact`` and ``poly`` as constants (the closure's, which
+    numba folds): the polynomial loops then vectorise, where with the flags as variables LLVM may
+    keep the C-library calls in the loop and leave it scalar. A function of its own, compiled once
+    and called, not a ``Literal`` argument that would compile a copy of every caller."""
+
+    def lanes(
+        zr: np.ndarray, zl: np.ndarray, sr: float, sl: float, cum: np.ndarray, off: np.ndarray, x: np.ndarray,
+        y: np.ndarray, big: np.ndarray, nb: int, v1: float, dtheta: float, cos_phi: float, sin_phi: float,
+        track: float, rest: float,
+    ) -> None:  # fmt: skip
+        _lanes(zr, zl, sr, sl, cum, off, x, y, big, nb, v1, dtheta, cos_phi, sin_phi, track, rest, exact, poly)
+
+    return _part(lanes)
 
 
-@_part
-def _lanes_poly_exact(
-    zr: np.ndarray, zl: np.ndarray, sr: float, sl: float, cum: np.ndarray, off: np.ndarray, x: np.ndarray,
-    y: np.ndarray, big: np.ndarray, nb: int, v1: float, dtheta: float, cos_phi: float, sin_phi: float,
-    track: float, rest: float,
-) -> None:  # fmt: skip
-    """:func:`_lanes` with the polynomials, the exact step."""
-    _lanes(zr, zl, sr, sl, cum, off, x, y, big, nb, v1, dtheta, cos_phi, sin_phi, track, rest, True, True)
-
-
-@_part
-def _lanes_libm(
-    zr: np.ndarray, zl: np.ndarray, sr: float, sl: float, cum: np.ndarray, off: np.ndarray, x: np.ndarray,
-    y: np.ndarray, big: np.ndarray, nb: int, v1: float, dtheta: float, cos_phi: float, sin_phi: float,
-    track: float, rest: float, exact: bool,
-) -> None:  # fmt: skip
-    """:func:`_lanes` with the C library's ``cos``/``sin``."""
-    _lanes(zr, zl, sr, sl, cum, off, x, y, big, nb, v1, dtheta, cos_phi, sin_phi, track, rest, exact, False)
+#: the compiled lanes of each case: polynomial or C-library trigonometry, exact step or not
+_LANES_POLY = _lanes_with(False, True)
+_LANES_POLY_EXACT = _lanes_with(True, True)
+_LANES_LIBM = _lanes_with(False, False)
+_LANES_LIBM_EXACT = _lanes_with(True, False)
 
 
 @_inline
@@ -146,86 +137,17 @@ def _step(
     y: np.ndarray, big: np.ndarray, nb: int, v1: float, dtheta: float, cos_phi: float, sin_phi: float,
     track: float, rest: float, exact: bool, poly: bool,
 ) -> None:  # fmt: skip
-    """:func:`_lanes` with ``exact`` and ``poly`` as constants, one compiled loop per case: the
-    polynomial ones vectorise (with the flags as variables LLVM may keep the C-library calls in
-    the loop and leave it scalar)."""
-    if poly and exact:
-        _lanes_poly_exact(zr, zl, sr, sl, cum, off, x, y, big, nb, v1, dtheta, cos_phi, sin_phi, track, rest)
-    elif poly:
-        _lanes_poly(zr, zl, sr, sl, cum, off, x, y, big, nb, v1, dtheta, cos_phi, sin_phi, track, rest)
+    """:func:`_lanes` by the compiled loop of its case (:func:`_lanes_with`)."""
+    args = (zr, zl, sr, sl, cum, off, x, y, big, nb, v1, dtheta, cos_phi, sin_phi, track, rest)
+    if poly:
+        if exact:
+            _LANES_POLY_EXACT(*args)
+        else:
+            _LANES_POLY(*args)
+    elif exact:
+        _LANES_LIBM_EXACT(*args)
     else:
-        _lanes_libm(zr, zl, sr, sl, cum, off, x, y, big, nb, v1, dtheta, cos_phi, sin_phi, track, rest, exact)
-
-
-@_part
-def _block(
-    z_r: np.ndarray, z_l: np.ndarray, p0: int, nb: int, scale_r: np.ndarray, scale_l: np.ndarray,
-    eps_r: float, eps_l: float, nominal: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
-    track: float, rest: float, exact: bool, poly: bool, offset: np.ndarray,
-    work: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
-) -> None:  # fmt: skip
-    """Particles ``p0 … p0+nb−1``: their errors step by step, then every step."""
-    v1, dtheta, cos_phi, sin_phi = nominal
-    zr, zl, cum, off, x, y, big = work
-    per_run = z_r.shape[1] == 1
-    for q in range(nb):
-        p = p0 + q
-        w_r = z_r[p, 0] * eps_r
-        w_l = z_l[p, 0] * eps_l
-        for i in range(v1.shape[0]):
-            if per_run:  # Δs' − Δs = (ε z) Δs
-                zr[i, q] = w_r * scale_r[i]
-                zl[i, q] = w_l * scale_l[i]
-            else:  # Δs' − Δs = z √(k|Δs|)
-                zr[i, q] = z_r[p, i] * scale_r[i]
-                zl[i, q] = z_l[p, i] * scale_l[i]
-        cum[q] = 0.0
-        off[q] = offset[p, 2] if offset.shape[0] > 0 else 0.0
-        x[q] = 0.0
-        y[q] = 0.0
-        big[q] = 0.0
-    for i in range(v1.shape[0]):
-        _step(zr[i], zl[i], 1.0, 1.0, cum, off, x, y, big, nb, v1[i], dtheta[i], cos_phi[i], sin_phi[i],
-              track, rest, exact, poly)  # fmt: skip
-
-
-@_jit
-def end_poses(
-    z_r: np.ndarray, z_l: np.ndarray, scale_r: np.ndarray, scale_l: np.ndarray, eps_r: float,
-    eps_l: float, v1: np.ndarray, dtheta: np.ndarray, cos_phi: np.ndarray, sin_phi: np.ndarray,
-    track: float, c: float, exact: bool, poly: bool, offset: np.ndarray, x0: float, y0: float,
-    th_end: float, out: np.ndarray,
-) -> None:  # fmt: skip
-    """End poses of ``m`` particles into ``out`` (m, 3) (:func:`.mc_kernel.compiled_end_poses`).
-
-    A block whose heading perturbation leaves ``REDUCTION_LIMIT`` is recomputed with the C
-    library's ``cos``/``sin``.
-    """
-    m = z_r.shape[0]
-    n_steps = v1.shape[0]
-    work = (np.empty((n_steps, BLOCK)), np.empty((n_steps, BLOCK)), np.empty(BLOCK), np.empty(BLOCK),
-            np.empty(BLOCK), np.empty(BLOCK), np.empty(BLOCK))  # fmt: skip
-    nominal = (v1, dtheta, cos_phi, sin_phi)
-    cum, x, y, big = work[2], work[4], work[5], work[6]
-    for p0 in range(0, m, BLOCK):
-        nb = min(BLOCK, m - p0)
-        _block(z_r, z_l, p0, nb, scale_r, scale_l, eps_r, eps_l, nominal, track, 1.0 - c, exact, poly,
-               offset, work)  # fmt: skip
-        if poly and big[:nb].max() > REDUCTION_LIMIT:  # again with the C library (not poly: False)
-            _block(z_r, z_l, p0, nb, scale_r, scale_l, eps_r, eps_l, nominal, track, 1.0 - c, exact,
-                   not poly, offset, work)  # fmt: skip
-        for q in range(nb):
-            p = p0 + q
-            dx = x[q]
-            dy = y[q]
-            heading = cum[q]
-            if offset.shape[0] > 0:
-                dx += offset[p, 0]
-                dy += offset[p, 1]
-                heading += offset[p, 2]
-            out[p, 0] = x0 + dx
-            out[p, 1] = y0 + dy
-            out[p, 2] = th_end + heading
+        _LANES_LIBM(*args)
 
 
 @_jit
@@ -421,23 +343,50 @@ def _draw(buf: np.ndarray, nb: int, s0: np.uint64, s1: np.uint64, s2: np.uint64,
 
 
 @_part
-def _drawn_block(
-    key: np.ndarray, b: int, nb: int, per_run: bool, scale_r: np.ndarray, scale_l: np.ndarray, eps_r: float,
-    eps_l: float, nominal: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], track: float, rest: float,
-    exact: bool, poly: bool, start_sqrt: np.ndarray,
+def _normals(
+    z_r: np.ndarray, z_l: np.ndarray, i: int, p0: int, nb: int, wr: np.ndarray, wl: np.ndarray, drawn: bool,
+    s0: np.uint64, s1: np.uint64, s2: np.uint64, s3: np.uint64,
+) -> tuple:  # fmt: skip
+    """A block's normals of step ``i`` (per run: of the run) into ``wr``, ``wl``: drawn from the
+    block's stream (a whole block of each wheel, whose state it returns), or taken from column
+    ``i`` of numpy's ``z_r``, ``z_l`` (m, width), rows ``p0 … p0+nb−1``."""
+    if drawn:
+        s0, s1, s2, s3 = _draw(wr, wr.shape[0], s0, s1, s2, s3)
+        return _draw(wl, wl.shape[0], s0, s1, s2, s3)
+    for q in range(nb):
+        wr[q] = z_r[p0 + q, i]
+        wl[q] = z_l[p0 + q, i]
+    return s0, s1, s2, s3
+
+
+@_part
+def _block(
+    key: np.ndarray, z_r: np.ndarray, z_l: np.ndarray, start_in: np.ndarray, b: int, nb: int, per_run: bool,
+    scale_r: np.ndarray, scale_l: np.ndarray, eps_r: float, eps_l: float,
+    nominal: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], track: float, rest: float, exact: bool,
+    poly: bool,
     work: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
 ) -> None:  # fmt: skip
-    """Block ``b`` with its own draws, in the order of :func:`.mc_kernel.block_draws`: the start
-    offsets (``DRAWN_BLOCK × 3``), then per step (per run: once) the right wheel's ``DRAWN_BLOCK``
-    normals and the left wheel's. A last block of ``nb < DRAWN_BLOCK`` particles draws a whole
-    block and moves the first ``nb``, so that a particle's numbers depend on the key and its
-    index only."""
+    """Block ``b`` (particles ``b·BLOCK …``, ``nb`` of them) into ``work``, step by step.
+
+    The normals: with a ``key`` (4 words; empty: numpy's draws) the block's own stream, in the
+    order of :func:`.mc_kernel.block_draws`: the start offsets (``BLOCK × 3``), then per step (per
+    run: once) the right wheel's ``BLOCK`` normals and the left wheel's; a last block of
+    ``nb < BLOCK`` particles draws a whole block and moves the first ``nb``, so that a particle's
+    numbers depend on the key and its index only. ``start_in``: drawn, ``A`` (3, 3) with the start
+    offset ``A z``; else the chunk's offsets (m, 3); (0, 3): none. Without a key, ``z_r``,
+    ``z_l`` (m, width) are numpy's normals of the chunk (its rows ``b·BLOCK …``).
+    """
     v1, dtheta, cos_phi, sin_phi = nominal
     wr, wl, cum, off, x, y, big, offs = work
-    block = wr.shape[0]  # DRAWN_BLOCK, as a variable (a constant argument would compile another copy)
-    s0, s1, s2, s3 = block_state(key, b)
-    start = start_sqrt.shape[0] > 0
-    if start:  # offset = A z, z ~ N(0, I₃), particle by particle
+    block = wr.shape[0]  # BLOCK, as a variable (a constant argument would compile another copy)
+    p0 = b * block
+    drawn = key.shape[0] > 0
+    s0 = s1 = s2 = s3 = _U1
+    if drawn:
+        s0, s1, s2, s3 = block_state(key, b)
+    start = start_in.shape[0] > 0
+    if start and drawn:  # offset = A z, z ~ N(0, I₃), particle by particle
         flat = offs.reshape(-1)
         s0, s1, s2, s3 = _draw(flat, flat.shape[0], s0, s1, s2, s3)
         for q in range(block):
@@ -445,7 +394,11 @@ def _drawn_block(
             z1 = offs[q, 1]
             z2 = offs[q, 2]
             for j in range(3):
-                offs[q, j] = (start_sqrt[j, 0] * z0 + start_sqrt[j, 1] * z1) + start_sqrt[j, 2] * z2
+                offs[q, j] = (start_in[j, 0] * z0 + start_in[j, 1] * z1) + start_in[j, 2] * z2
+    elif start:  # numpy's offsets of the chunk's particles
+        for q in range(nb):
+            for j in range(3):
+                offs[q, j] = start_in[p0 + q, j]
     for q in range(nb):
         cum[q] = 0.0
         off[q] = offs[q, 2] if start else 0.0
@@ -453,47 +406,46 @@ def _drawn_block(
         y[q] = 0.0
         big[q] = 0.0
     if per_run:  # Δs' − Δs = (ε z) Δs
-        s0, s1, s2, s3 = _draw(wr, block, s0, s1, s2, s3)
-        s0, s1, s2, s3 = _draw(wl, block, s0, s1, s2, s3)
+        s0, s1, s2, s3 = _normals(z_r, z_l, 0, p0, nb, wr, wl, drawn, s0, s1, s2, s3)
         for q in range(nb):
             wr[q] *= eps_r
             wl[q] *= eps_l
     for i in range(v1.shape[0]):
         if not per_run:  # Δs' − Δs = z √(k|Δs|)
-            s0, s1, s2, s3 = _draw(wr, block, s0, s1, s2, s3)
-            s0, s1, s2, s3 = _draw(wl, block, s0, s1, s2, s3)
+            s0, s1, s2, s3 = _normals(z_r, z_l, i, p0, nb, wr, wl, drawn, s0, s1, s2, s3)
         _step(wr, wl, scale_r[i], scale_l[i], cum, off, x, y, big, nb, v1[i], dtheta[i], cos_phi[i],
               sin_phi[i], track, rest, exact, poly)  # fmt: skip
 
 
 @_jit
-def end_poses_drawn(
-    key: np.ndarray, block0: int, block1: int, per_run: bool, scale_r: np.ndarray, scale_l: np.ndarray,
-    eps_r: float, eps_l: float, v1: np.ndarray, dtheta: np.ndarray, cos_phi: np.ndarray, sin_phi: np.ndarray,
-    track: float, c: float, exact: bool, poly: bool, start_sqrt: np.ndarray, x0: float, y0: float,
-    th_end: float, out: np.ndarray,
+def end_poses(
+    key: np.ndarray, z_r: np.ndarray, z_l: np.ndarray, start_in: np.ndarray, block0: int, block1: int,
+    per_run: bool, scale_r: np.ndarray, scale_l: np.ndarray, eps_r: float, eps_l: float, v1: np.ndarray,
+    dtheta: np.ndarray, cos_phi: np.ndarray, sin_phi: np.ndarray, track: float, c: float, exact: bool,
+    poly: bool, x0: float, y0: float, th_end: float, out: np.ndarray,
 ) -> None:  # fmt: skip
-    """End poses of the particles of blocks ``block0 … block1−1`` into their rows of ``out`` (n, 3),
-    each block drawing its normals from its own stream (:func:`.mc_kernel.compiled_end_poses_drawn`).
+    """End poses of the particles of blocks ``block0 … block1−1`` into their rows of ``out`` (n, 3)
+    (:func:`.mc_kernel.compiled_end_poses`; the normals and ``start_in`` as :func:`_block` takes
+    them).
 
-    A block whose heading perturbation leaves ``REDUCTION_LIMIT`` is recomputed (the same draws)
-    with the C library's ``cos``/``sin``.
+    A block whose heading perturbation leaves ``REDUCTION_LIMIT`` is recomputed (the same
+    normals) with the C library's ``cos``/``sin``.
     """
     n = out.shape[0]
-    B = DRAWN_BLOCK
+    B = BLOCK
     work = (np.empty(B), np.empty(B), np.empty(B), np.empty(B), np.empty(B), np.empty(B), np.empty(B),
             np.zeros((B, 3)))  # fmt: skip
     nominal = (v1, dtheta, cos_phi, sin_phi)
     cum, x, y, big, offs = work[2], work[4], work[5], work[6], work[7]
-    start = start_sqrt.shape[0] > 0
+    start = start_in.shape[0] > 0
     for b in range(block0, block1):
         p0 = b * B
         nb = min(B, n - p0)
-        _drawn_block(key, b, nb, per_run, scale_r, scale_l, eps_r, eps_l, nominal, track, 1.0 - c, exact,
-                     poly, start_sqrt, work)  # fmt: skip
+        _block(key, z_r, z_l, start_in, b, nb, per_run, scale_r, scale_l, eps_r, eps_l, nominal, track, 1.0 - c,
+               exact, poly, work)  # fmt: skip
         if poly and big[:nb].max() > REDUCTION_LIMIT:  # again with the C library (not poly: False)
-            _drawn_block(key, b, nb, per_run, scale_r, scale_l, eps_r, eps_l, nominal, track, 1.0 - c,
-                         exact, not poly, start_sqrt, work)  # fmt: skip
+            _block(key, z_r, z_l, start_in, b, nb, per_run, scale_r, scale_l, eps_r, eps_l, nominal, track,
+                   1.0 - c, exact, not poly, work)  # fmt: skip
         for q in range(nb):
             p = p0 + q
             dx = x[q]

@@ -321,7 +321,7 @@ def sample_poses(
             g.standard_normal(out=z)  # the draw of drive_noise.sample_errors, number for number
         offset = None if start_sqrt is None else g.standard_normal((m, 3)) @ start_sqrt.T
         return mc_kernel.compiled_end_poses(
-            z[0], z[1], plan.scale_r, plan.scale_l, plan.eps, plan.nominal, path.start,
+            (z[0], z[1]), plan.scale_r, plan.scale_l, plan.eps, plan.nominal, path.start,
             path.drive.track, HEADING_OFFSET[method], method == "exact", offset,  # type: ignore[attr-defined]
         )  # fmt: skip
 
@@ -364,9 +364,10 @@ def _sample_per_block(
         b0 = starts[j] // B
         b1 = min(n_blocks, b0 + per_chunk)
         if plan is not None:
-            mc_kernel.compiled_end_poses_drawn(
-                key, (b0, b1), regime == "per_run", plan.scale_r, plan.scale_l, plan.eps, plan.nominal,
-                path.start, path.drive.track, HEADING_OFFSET[method], method == "exact", start_sqrt, out,  # type: ignore[attr-defined]
+            mc_kernel.compiled_end_poses(
+                mc_kernel.BlockDraws(key, (b0, b1), regime == "per_run", start_sqrt), plan.scale_r, plan.scale_l,
+                plan.eps, plan.nominal, path.start, path.drive.track, HEADING_OFFSET[method], method == "exact",  # type: ignore[attr-defined]
+                out=out,
             )  # fmt: skip
             return
         lo, hi = b0 * B, min(n, b1 * B)

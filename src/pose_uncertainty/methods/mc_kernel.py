@@ -92,13 +92,14 @@ from __future__ import annotations
 
 import threading
 from types import ModuleType
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
 __all__ = [
-    "DRAWS", "DRAW_BLOCK", "MIN_PARTICLE_STEPS", "SIN_COS_ULPS", "TRIG", "block_draws", "block_generator",
-    "block_key", "compiled_end_poses", "compiled_end_poses_drawn", "jit_module",
+    "DRAWS", "DRAW_BLOCK", "MIN_PARTICLE_STEPS", "SIN_COS_ULPS", "TRIG", "BlockDraws", "block_draws",
+    "block_generator", "block_key", "compiled_end_poses", "jit_module",
 ]  # fmt: skip
 
 #: The kernel's trigonometry: branch-free polynomials (vectorised), or a C-library call per step.
@@ -135,40 +136,6 @@ def jit_module() -> ModuleType:
 
             _JIT.append(_mc_jit)
         return _JIT[0]
-
-
-def compiled_end_poses(
-    z_r: NDArray[np.float64], z_l: NDArray[np.float64], scale_r: NDArray[np.float64],
-    scale_l: NDArray[np.float64], eps: tuple[float, float], nominal: tuple[NDArray[np.float64], ...],
-    start: NDArray[np.float64], track: float, c: float, exact: bool, offset: NDArray[np.float64] | None,
-    trig: str = "polynomial",
-) -> NDArray[np.float64]:  # fmt: skip
-    """End poses (m, 3) of a chunk of differential-drive particles by the compiled kernel.
-
-    Parameters
-    ----------
-    z_r, z_l : ndarray, shape (m, N) per step or (m, 1) per run — the standard normals of
-        each wheel, as drawn for :func:`.drive_noise.sample_errors`
-    scale_r, scale_l : ndarray, shape (N,) — per step ``√(k|Δs|)`` [m]; per run the travel ``Δs`` [m]
-    eps : (float, float) — per run the scale errors' standard deviations ``√(k/L)`` [1]; per step 1
-    nominal : (v₁, Δθ̄, cos φ̄, sin φ̄), each shape (N,) — the nominal twists and step headings
-    start : ndarray, shape (3,) — start pose; track : float [m]
-    c : float — heading offset of the method within the step; exact : bool — the exact step's
-        ``sin(Δθ'/2)/(Δθ'/2)`` factor
-    offset : ndarray, shape (m, 3), optional — start offsets of the particles
-    trig : {"polynomial", "libm"} — module docstring
-    """
-    v1, dtheta, cos_phi, sin_phi = nominal
-    m = z_r.shape[0]
-    out = np.empty((m, 3))
-    off = np.zeros((0, 3)) if offset is None else np.ascontiguousarray(offset)
-    th_end = float(start[2] + dtheta.sum())
-    jit_module().end_poses(
-        z_r, z_l, scale_r, scale_l, float(eps[0]), float(eps[1]), v1, dtheta, cos_phi, sin_phi,
-        float(track), float(c), bool(exact), trig == "polynomial", off, float(start[0]),
-        float(start[1]), th_end, out,
-    )  # fmt: skip
-    return out
 
 
 def block_key(rng: np.random.Generator) -> NDArray[np.uint64]:
@@ -241,29 +208,69 @@ def block_draws(
     return z, z0
 
 
-def compiled_end_poses_drawn(
-    key: NDArray[np.uint64], blocks: tuple[int, int], per_run: bool, scale_r: NDArray[np.float64],
+class BlockDraws(NamedTuple):
+    """The ``"per-block"`` draws of blocks ``blocks[0] … blocks[1]−1`` (particles ``b·DRAW_BLOCK …``),
+    which the compiled kernel draws itself (:func:`compiled_end_poses`)."""
+
+    key: NDArray[np.uint64]  # (4,) — block_key
+    blocks: tuple[int, int]  # the first block and one past the last
+    per_run: bool  # one draw per wheel and run (else one per step)
+    start_sqrt: NDArray[np.float64] | None = None  # (3, 3) A with A Aᵀ the start covariance (offset A z)
+
+
+def compiled_end_poses(
+    normals: tuple[NDArray[np.float64], NDArray[np.float64]] | BlockDraws, scale_r: NDArray[np.float64],
     scale_l: NDArray[np.float64], eps: tuple[float, float], nominal: tuple[NDArray[np.float64], ...],
-    start: NDArray[np.float64], track: float, c: float, exact: bool, start_sqrt: NDArray[np.float64] | None,
-    out: NDArray[np.float64], trig: str = "polynomial",
-) -> None:  # fmt: skip
-    """End poses of the particles of blocks ``blocks[0] … blocks[1]−1`` into their rows of ``out``
-    (n, 3), by the compiled kernel drawing each block's normals itself (``"per-block"`` draws).
+    start: NDArray[np.float64], track: float, c: float, exact: bool, offset: NDArray[np.float64] | None = None,
+    out: NDArray[np.float64] | None = None, trig: str = "polynomial",
+) -> NDArray[np.float64]:  # fmt: skip
+    """End poses of differential-drive particles by the compiled kernel, on numpy's normals or on
+    the ``"per-block"`` draws it draws itself (one loop for both).
 
     Parameters
     ----------
-    key : ndarray (4,) — :func:`block_key`; blocks : (int, int) — the first and one past the last block
-    per_run : bool — one draw per wheel and run (else per step)
-    scale_r, scale_l, eps, nominal, track, c, exact, trig — as :func:`compiled_end_poses`
-    start : ndarray, shape (3,) — start pose
-    start_sqrt : ndarray (3, 3), optional — ``A`` with ``A Aᵀ`` the start covariance (offset ``A z``)
-    out : ndarray, shape (n, 3) — the end poses of all n particles; only these blocks' rows are written
+    normals : (z_r, z_l) or BlockDraws — numpy's standard normals of a chunk of m particles, as
+        drawn for :func:`.drive_noise.sample_errors`: each wheel's, shape (m, N) per step or (m, 1)
+        per run; or the blocks whose normals the kernel draws (:class:`BlockDraws`)
+    scale_r, scale_l : ndarray, shape (N,) — per step ``√(k|Δs|)`` [m]; per run the travel ``Δs`` [m]
+    eps : (float, float) — per run the scale errors' standard deviations ``√(k/L)`` [1]; per step 1
+    nominal : (v₁, Δθ̄, cos φ̄, sin φ̄), each shape (N,) — the nominal twists and step headings
+    start : ndarray, shape (3,) — start pose; track : float [m]
+    c : float — heading offset of the method within the step; exact : bool — the exact step's
+        ``sin(Δθ'/2)/(Δθ'/2)`` factor
+    offset : ndarray, shape (m, 3), optional — start offsets of numpy's particles (with
+        :class:`BlockDraws` the kernel draws them: ``start_sqrt``)
+    out : ndarray, shape (n, 3), optional — where to write; with :class:`BlockDraws` required, the
+        end poses of all n particles of which only these blocks' rows are written; else (m, 3)
+    trig : {"polynomial", "libm"} — module docstring
+
+    Returns
+    -------
+    ndarray — ``out``, or a new (m, 3) array of the end poses
     """
     v1, dtheta, cos_phi, sin_phi = nominal
+    if isinstance(normals, BlockDraws):
+        if out is None or offset is not None:
+            raise ValueError("BlockDraws draw their own start offsets into a given out "
+                             f"(allowed: offset None, out (n, 3)), got offset {offset is not None}, out {out is not None}")  # fmt: skip
+        key = np.ascontiguousarray(normals.key, dtype=np.uint64)
+        z_r = z_l = np.zeros((0, 0))
+        first, last = int(normals.blocks[0]), int(normals.blocks[1])
+        per_run = bool(normals.per_run)
+        sq = normals.start_sqrt
+        start_in = np.zeros((0, 3)) if sq is None else np.ascontiguousarray(sq, dtype=np.float64)
+    else:
+        key = np.zeros(0, dtype=np.uint64)
+        z_r, z_l = (np.ascontiguousarray(z, dtype=np.float64) for z in normals)
+        m = z_r.shape[0]
+        first, last = 0, -(-m // DRAW_BLOCK)
+        per_run = z_r.shape[1] == 1
+        start_in = np.zeros((0, 3)) if offset is None else np.ascontiguousarray(offset, dtype=np.float64)
+        out = np.empty((m, 3)) if out is None else out
     th_end = float(start[2] + dtheta.sum())
-    sq = np.zeros((0, 3)) if start_sqrt is None else np.ascontiguousarray(start_sqrt, dtype=np.float64)
-    jit_module().end_poses_drawn(
-        np.ascontiguousarray(key, dtype=np.uint64), int(blocks[0]), int(blocks[1]), bool(per_run), scale_r,
-        scale_l, float(eps[0]), float(eps[1]), v1, dtheta, cos_phi, sin_phi, float(track), float(c), bool(exact),
-        trig == "polynomial", sq, float(start[0]), float(start[1]), th_end, out,
+    jit_module().end_poses(
+        key, z_r, z_l, start_in, first, last, per_run, scale_r, scale_l, float(eps[0]), float(eps[1]), v1,
+        dtheta, cos_phi, sin_phi, float(track), float(c), bool(exact), trig == "polynomial", float(start[0]),
+        float(start[1]), th_end, out,
     )  # fmt: skip
+    return out
