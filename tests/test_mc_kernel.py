@@ -229,6 +229,48 @@ def test_particle_filter_wheel_step_compiled_equals_numpy(turns):
     assert not np.array_equal(ref, sample_motion(P, motion, run, 3, np.random.default_rng(5), compiled=False))
 
 
+def test_particle_filter_run_moves_its_particles_by_the_compiled_loop_from_the_threshold(monkeypatch):
+    # the whole filter: from MIN_PARTICLE_STEPS particle-steps its motion update is the compiled
+    # loop on the filter's own draws (each block of particles from its generator), below it numpy's;
+    # the particles and the estimate agree up to the rounding of the polynomial cos/sin
+    from pose_uncertainty.localization import particle as PF
+    from pose_uncertainty.localization import sensors as S
+    from pose_uncertainty.localization import simulate as SIM
+    from pose_uncertainty.localization.motion import Motion
+    from pose_uncertainty.localization.result import Start
+    from pose_uncertainty.localization.world import World
+
+    world = World(np.array([[2.5, 1.5], [-1.0, 3.0], [3.0, -2.0]]), np.arange(3), bounds=(-0.5, 0.5, -0.5, 0.5))
+    sensor = S.RangeBearingSensor(range_std=0.1, bearing_std=0.05, max_range=20, period=0.1)
+    run = SIM.simulate(tr.arc(radius=1.0, angle=0.4, dt=0.1), world, np.random.default_rng(31), k_r=1e-3, k_l=1e-3,
+                       landmark_sensor=sensor)  # fmt: skip
+    cfg = PF.ParticleFilterConfig(n_particles=3000, motion=Motion(k_r=1e-3, k_l=2e-3), ess_threshold=1e-9)
+    start = Start(pose=(0.0, 0.0, 0.0), std=(0.02, 0.02, 0.02))
+    jit, calls = mc_kernel.jit_module(), []
+
+    class Spy:  # counts the compiled motion updates
+        def __getattr__(self, name: str) -> object:
+            return getattr(jit, name)
+
+        def wheel_step(self, *args: object) -> None:
+            calls.append(1)
+            jit.wheel_step(*args)
+
+    monkeypatch.setattr(mc_kernel, "jit_module", Spy)
+
+    def filtered(threshold: int) -> tuple[np.ndarray, np.ndarray]:
+        monkeypatch.setattr(mc_kernel, "MIN_PARTICLE_STEPS", threshold)
+        res = PF.run_particle(run, world, sensor, np.random.default_rng(7), cfg, start, keep=[run.n_steps])
+        return res.snapshots[run.n_steps]["particles"], res.mean
+
+    ref, ref_mean = filtered(cfg.n_particles * run.n_steps + 1)
+    assert calls == []
+    fast, fast_mean = filtered(cfg.n_particles * run.n_steps)
+    assert len(calls) >= run.n_steps
+    _assert_within_contract(ref, fast, run.n_steps)
+    _assert_within_contract(ref_mean, fast_mean, run.n_steps)
+
+
 # --- the per-block draws: numpy's streams, standard normal, the same clouds -------------------
 
 
