@@ -26,6 +26,7 @@ from pose_uncertainty.core import trajectories
 from pose_uncertainty.core.stats import mahalanobis_sq, pr_to_k, wilson_interval
 from pose_uncertainty.experiments.config import RunConfig
 from pose_uncertainty.methods import covariance, sampling, unscented
+from pose_uncertainty.methods.particles import DrawCache
 from pose_uncertainty.present import explore
 from pose_uncertainty.records.formats import open_run
 
@@ -59,7 +60,7 @@ def test_compute_equals_the_library_called_directly(view: explore.View) -> None:
     # the explorer's loops are the compiled ones: the same draws, equal to numpy's up to rounding
     compiled = sampling.sample_end_poses(traj, cfg.k_r, cfg.k_l, 400, np.random.default_rng(cfg.seed),
                                          regime=cfg.monte_carlo.regime, method=cfg.monte_carlo.method,
-                                         kernel="compiled")  # fmt: skip
+                                         kernel="compiled", draws="per-chunk")  # fmt: skip
     np.testing.assert_array_equal(view.result.end_poses, compiled)
     np.testing.assert_allclose(view.result.end_poses, cloud, rtol=0, atol=1e-12)
     np.testing.assert_allclose(view.result.unscented_covs, c.covs, rtol=1e-12, atol=1e-18)
@@ -244,7 +245,8 @@ def test_light_run_keeps_every_number_of_the_full_run(view: explore.View) -> Non
     run's to the bit (the generator is drawn from alike), every region's planar coverage among them."""
     from pose_uncertainty.experiments.run import execute
 
-    full = execute(view.config, kernel="compiled").metrics  # the explorer's loops
+    # the explorer's loops: the compiled ones on numpy's per-chunk draws, which a DrawCache keeps
+    full = execute(view.config, kernel="compiled", cache=DrawCache()).metrics
     light = view.result.metrics
     left_out = set(full) - set(light)
     assert set(light) <= set(full)
@@ -253,7 +255,7 @@ def test_light_run_keeps_every_number_of_the_full_run(view: explore.View) -> Non
     assert {k for k in full if "_coverage_xy_" in k} <= set(light)
     assert {k: light[k] for k in light} == {k: full[k] for k in light}
     # without coverage_only every entry but the density distances is kept, as before
-    no_distances = execute(view.config, distances=False, kernel="compiled").metrics
+    no_distances = execute(view.config, distances=False, kernel="compiled", cache=DrawCache()).metrics
     assert all(k.endswith(("hellinger", "kl", "model_mass_on_grid", "_floor")) for k in set(full) - set(no_distances))
     # against the numpy loops a run logs: every coverage (a count) the same, the rest up to rounding
     logged = execute(view.config).metrics
@@ -415,7 +417,7 @@ def test_a_move_of_the_probability_level_reuses_the_clouds_and_gives_the_same_nu
 
     first = RunConfig.from_dict(explore.run_config({**SMALL, "pr": pr_label(PRS[-1])}))
     other = RunConfig.from_dict(explore.run_config({**SMALL, "pr": pr_label(PRS[0])}))
-    kw = {"distances": False, "coverage_only": True, "kernel": "compiled"}
+    kw = {"distances": False, "coverage_only": True, "kernel": "compiled", "cache": DrawCache()}
     old = execute(first, **kw)
     fresh = execute(other, **kw)
     reused = execute(other, reuse=old, **kw)

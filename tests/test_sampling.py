@@ -158,7 +158,8 @@ def test_bad_initial_covariance(rng):
 def test_kept_normals_give_the_same_cloud_for_other_error_constants(kernel):
     """A DrawCache keeps each chunk's standard normals (they depend on the seed, particles and steps
     only): a second call with other k_r, k_l or cov0 takes them, and its cloud is the one drawn
-    afresh, bit for bit, for both kernels and with the start offsets drawn after them."""
+    afresh, bit for bit, for both kernels (numpy's per-chunk draws, which the cache keeps and
+    ``draws="auto"`` takes with a cache) and with the start offsets drawn after them."""
     t = tr.straight(0.5, speed=0.5, dt=0.01, track=0.2)
     cache = sp.DrawCache()
     c0 = np.diag([1e-4, 2e-4, 1e-3])
@@ -167,9 +168,22 @@ def test_kept_normals_give_the_same_cloud_for_other_error_constants(kernel):
         kept = sp.sample_end_poses(t, k_r, 5e-4, 700, np.random.default_rng(4), regime=regime, cov0=cov0,
                                    kernel=kernel, cache=cache)  # fmt: skip
         fresh = sp.sample_end_poses(t, k_r, 5e-4, 700, np.random.default_rng(4), regime=regime, cov0=cov0,
-                                    kernel=kernel)  # fmt: skip
+                                    kernel=kernel, draws="per-chunk")  # fmt: skip
         assert_array_equal(kept, fresh)
     assert cache._kept  # and it did keep them
+
+
+def test_a_draw_cache_asks_for_per_chunk_draws():
+    # the compiled kernel draws the per-block normals itself: nothing a cache could keep
+    t = tr.straight(0.5, speed=0.5, dt=0.01, track=0.2)
+    per_block = sp.sample_end_poses(t, 7e-4, 5e-4, 300, np.random.default_rng(4), kernel="compiled")
+    kept = sp.sample_end_poses(t, 7e-4, 5e-4, 300, np.random.default_rng(4), kernel="compiled", cache=sp.DrawCache())
+    per_chunk = sp.sample_end_poses(t, 7e-4, 5e-4, 300, np.random.default_rng(4), kernel="compiled", draws="per-chunk")
+    assert_array_equal(kept, per_chunk)
+    assert not np.array_equal(kept, per_block)
+    with pytest.raises(ValueError, match=r"^a DrawCache keeps numpy's per-chunk draws \(allowed with cache: draws "
+                                         r"'auto', 'per-chunk'\), got draws 'per-block'$"):  # fmt: skip
+        sp.sample_end_poses(t, 7e-4, 5e-4, 300, np.random.default_rng(4), draws="per-block", cache=sp.DrawCache())
 
 
 def test_draw_cache_returns_the_draw_and_leaves_the_stream_where_it_would_be():

@@ -140,8 +140,10 @@ def execute(
         a superseded map this way).
     kernel : {"auto", "numpy", "compiled"}
         The Monte Carlo's end poses by numpy or by the compiled kernel
-        (:func:`pose_uncertainty.methods.sampling.sample_end_poses`: the same draws, equal up to
-        rounding, within the reproducibility contract); ``"auto"`` (default) as a run logs them.
+        (:func:`pose_uncertainty.methods.sampling.sample_end_poses` with ``draws="auto"``: the
+        compiled kernel draws its own per-block normals, or, given a ``cache``, takes numpy's
+        per-chunk draws and equals the numpy kernel's end poses up to rounding, within the
+        reproducibility contract); ``"auto"`` (default) as a run logs them.
         ``"compiled"`` also runs Method C's loop over the steps compiled
         (:func:`pose_uncertainty.methods.unscented.propagate`, equal up to rounding).
     cache : DrawCache, optional

@@ -76,6 +76,7 @@ __all__ = [
     "IcrSlip",
     "PerRunSensitivity",
     "channels",
+    "errors_from_normals",
     "measurement_cov",
     "measurement_mean",
     "per_run_sensitivity",
@@ -315,6 +316,40 @@ def _gaussian_errors(
     return out
 
 
+def _with_bias(ch: Channels, errors: list[NDArray]) -> tuple[NDArray, ...]:
+    # a zero bias is left out (adding 0.0 changes nothing but the sign of a zero)
+    return tuple(e + ch.bias[j] if ch.bias[j] != 0.0 else e for j, e in enumerate(errors))
+
+
+def errors_from_normals(
+    drive: Drive, u: ArrayLike, model: DriveErrorModel, z: NDArray[np.float64], regime: str = "per_step"
+) -> SampledErrors:
+    """The errors of :func:`sample_errors` from standard normals drawn elsewhere (every channel Gaussian).
+
+    For a model without ``encoder`` and ``slip``: ``z`` (m, n, N) per step or (m, n, 1) per run,
+    one row per channel in channel order, is what :func:`sample_errors` would draw; the errors
+    are computed from it with the same arithmetic (``z`` is used up).
+
+    Parameters
+    ----------
+    drive : Drive; u : array_like, shape (N, m); model : DriveErrorModel (no encoder, no slip)
+    z : ndarray, shape (m, n, N) or (m, n, 1); regime : {"per_step", "per_run"}
+
+    Returns
+    -------
+    SampledErrors — as :func:`sample_errors`'s (``chi``, ``x_icr`` None)
+    """
+    check_choice("regime", regime, REGIMES)
+    if model.encoder is not None or model.slip is not None:
+        raise ValueError("errors_from_normals needs a model without encoder and slip (allowed: k, steer_var, steer_bias)")
+    ch = channels(drive, model)
+    a = check_finite("u", u)
+    width = a.shape[0] if regime == "per_step" else 1
+    if z.shape[0] != a.shape[1] or z.shape[2] != width:
+        raise ValueError(f"z must have shape ({a.shape[1]}, n, {width}) for this drive and regime, got {z.shape}")
+    return SampledErrors(_with_bias(ch, _gaussian_errors(ch, a, list(range(a.shape[1])), z, regime)), None, None)
+
+
 def sample_errors(
     drive: Drive,
     u: ArrayLike,
@@ -357,8 +392,7 @@ def sample_errors(
     for j in range(a.shape[1]):
         if j not in errors and model.encoder is not None:
             errors[j] = sample_speed_errors(model.encoder, a[:, j] / dt, n, rng, regime) * dt
-    # a zero bias is left out (adding 0.0 changes nothing but the sign of a zero)
-    du = tuple(errors[j] + ch.bias[j] if ch.bias[j] != 0.0 else errors[j] for j in range(a.shape[1]))
+    du = _with_bias(ch, [errors[j] for j in range(a.shape[1])])
     if model.slip is None or not isinstance(drive, SkidSteer):
         return SampledErrors(du, None, None)
     zs = rng.standard_normal((2, n, width))

@@ -4,9 +4,11 @@ Each particle's measurements are the path's plus errors drawn by
 :func:`.drive_noise.sample_errors` (``per_step`` or ``per_run``, biases
 included, the skid-steer's ICR drawn too). The particles run in the chunks of
 :func:`.particles.chunk_streams` (one random stream per chunk), so a seed gives
-bit-identical clouds for any number of threads. The differential drive of a
-trajectory's wheel travels is one drive among the others: :func:`.sampling.sample_end_poses`
-is its front door.
+bit-identical clouds for any number of threads. For the differential drive with the travel
+noise ``k`` the normals may instead come per block of particles, each block from its own
+stream (``draws="per-block"``, :mod:`.mc_kernel`: drawn inside the compiled kernel), equally
+fixed by the seed. The differential drive of a trajectory's wheel travels is one drive among
+the others: :func:`.sampling.sample_end_poses` is its front door.
 
 End poses: the nominal path plus a small heading perturbation
 --------------------------------------------------------------
@@ -42,14 +44,22 @@ from ..core.threads import default_workers
 from ..core.validation import check_choice, check_positive_int
 from . import drive_noise as dn
 from . import mc_kernel
-from .particles import REGIMES, DrawCache, chunk_streams, start_factor
+from .particles import CHUNK_ELEMENTS, REGIMES, DrawCache, chunk_streams, start_factor
 
-__all__ = ["KERNELS", "sample_poses"]
+__all__ = ["DRAWS", "KERNELS", "sample_poses"]
 
 #: The kernels of the end poses: ``"auto"`` (the compiled one from
 #: :data:`.mc_kernel.MIN_PARTICLE_STEPS` particle-steps where it applies), ``"numpy"`` (the
 #: reference), ``"compiled"`` (:mod:`.mc_kernel` wherever it applies).
 KERNELS: tuple[str, ...] = ("auto", "numpy", "compiled")
+
+#: The draw schemes of the normals: ``"auto"`` (``"per-block"`` where the compiled kernel runs,
+#: else ``"per-chunk"``), and :data:`.mc_kernel.DRAWS`: ``"per-chunk"``, ``"per-block"``.
+DRAWS: tuple[str, ...] = ("auto", *mc_kernel.DRAWS)
+
+#: particle-steps per chunk of the compiled kernel with its own draws (whole blocks of particles): a
+#: few milliseconds of work, so that the threads share the chunks evenly
+_DRAWN_CHUNK_STEPS = 1 << 20
 
 
 def _check_checkpoints(checkpoints: Sequence[int] | None, n_steps: int) -> list[int] | None:
@@ -186,14 +196,19 @@ class _Compiled(NamedTuple):
     width: int  # draws per particle and wheel: N per step, 1 per run
 
 
+def _k_only_differential(path: DrivePath, model: dn.DriveErrorModel) -> bool:
+    """A differential drive with the travel noise ``k`` only: where the compiled kernel and the
+    ``"per-block"`` draws apply."""
+    return isinstance(path.drive, Differential) and model.encoder is None and model.slip is None
+
+
 def _compiled_plan(
     path: DrivePath, model: dn.DriveErrorModel, regime: str, nom: _Nominal, n: int, kernel: str,
     checkpoints: list[int] | None,
 ) -> _Compiled | None:  # fmt: skip
     """The compiled kernel's inputs where it applies (a differential drive with the travel noise
     ``k``, end poses only) and is asked for, else None (the numpy kernel)."""
-    applies = (isinstance(path.drive, Differential) and model.encoder is None and model.slip is None
-               and checkpoints is None)  # fmt: skip
+    applies = _k_only_differential(path, model) and checkpoints is None
     big = n * path.n_steps >= mc_kernel.MIN_PARTICLE_STEPS
     if not applies or kernel == "numpy" or (kernel == "auto" and not big):
         return None
@@ -222,6 +237,7 @@ def sample_poses(
     workers: int | None = None,
     progress: Callable[[int, int], None] | None = None,
     kernel: str = "auto",
+    draws: str = "auto",
     cache: DrawCache | None = None,
 ) -> NDArray[np.float64]:
     """Noisy executions of a drive's path: the Monte Carlo ground truth of its error model.
@@ -232,7 +248,7 @@ def sample_poses(
     model : DriveErrorModel
     n : int ≥ 1 — particles
     rng : numpy.random.Generator — the only source of randomness (streams
-        spawned from its seed sequence, one per chunk of particles)
+        spawned from its seed sequence: one per chunk of particles, or per block, ``draws``)
     regime : {"per_step", "per_run"} — see :mod:`.drive_noise`
     method : {"exact", "euler", "euler_end", "midpoint"} — integration of each step
     checkpoints : sequence of int in [0, N], optional — step indices to keep
@@ -247,8 +263,18 @@ def sample_poses(
         (the same draws, equal up to rounding); ``"auto"``: compiled from
         :data:`.mc_kernel.MIN_PARTICLE_STEPS` particle-steps. Other drives and models, and
         checkpoints, always use numpy.
+    draws : {"auto", "per-chunk", "per-block"} — where the normals come from (:mod:`.mc_kernel`):
+        ``"per-chunk"``, numpy draws each chunk of particles from the chunk's stream (the kernels
+        then differ only by rounding); ``"per-block"``, each block of
+        :data:`.mc_kernel.DRAW_BLOCK` particles has its own stream, which the compiled kernel
+        draws itself and the numpy kernel takes from numpy (the same numbers). ``"auto"``:
+        per block where the compiled kernel runs and no ``cache`` is given, else per chunk.
+        ``"per-block"`` applies to the differential drive with the travel noise ``k`` only. For
+        every choice a seed gives the same numbers for any number of threads.
     cache : DrawCache, optional — keeps the standard normals of the Gaussian channels for the next
-        call with the same seed, particles and steps (the output is the same with or without it)
+        call with the same seed, particles and steps (the output is the same with or without it);
+        per-chunk draws only (the per-block draws are drawn inside the kernel): with a cache
+        ``draws="auto"`` is per chunk, and ``"per-block"`` is an error
 
     Returns
     -------
@@ -258,17 +284,30 @@ def sample_poses(
     check_choice("regime", regime, REGIMES)
     check_choice("method", method, METHODS)
     check_choice("kernel", kernel, KERNELS)
+    check_choice("draws", draws, DRAWS)
     if not isinstance(rng, np.random.Generator):
         raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
     dn.channels(path.drive, model)  # validate the model against the drive before drawing
+    if draws == "per-block" and not _k_only_differential(path, model):
+        raise ValueError(
+            f"draws 'per-block' applies to the differential drive with the travel noise k only "
+            f"(allowed here: 'auto', 'per-chunk'), got a {type(path.drive).__name__} drive"
+            + (" with encoder or slip errors" if isinstance(path.drive, Differential) else "")
+        )
+    if draws == "per-block" and cache is not None:
+        raise ValueError("a DrawCache keeps numpy's per-chunk draws (allowed with cache: draws 'auto', 'per-chunk'), "
+                         "got draws 'per-block'")  # fmt: skip
     n_workers = default_workers() if workers is None else check_positive_int("workers", workers)
     N = path.n_steps
     cps = _check_checkpoints(checkpoints, N)
     start_sqrt = start_factor(cov0)
-    chunk, starts, children = chunk_streams(rng, n, N)
-    out = np.empty((n, 1 if cps is None else len(cps), 3))
     nom = _nominal(path, method)
     plan = _compiled_plan(path, model, regime, nom, n, kernel, cps)
+    if draws == "per-block" or (draws == "auto" and plan is not None and cache is None):
+        return _sample_per_block(path, model, n, rng, regime, method, cps, start_sqrt, nom, plan, n_workers,
+                                 progress)  # fmt: skip
+    chunk, starts, children = chunk_streams(rng, n, N)
+    out = np.empty((n, 1 if cps is None else len(cps), 3))
     buffers = threading.local()  # each thread's block for the draws of a chunk
 
     def run_compiled(g: np.random.Generator, m: int, plan: _Compiled) -> NDArray[np.float64]:
@@ -282,7 +321,7 @@ def sample_poses(
             g.standard_normal(out=z)  # the draw of drive_noise.sample_errors, number for number
         offset = None if start_sqrt is None else g.standard_normal((m, 3)) @ start_sqrt.T
         return mc_kernel.compiled_end_poses(
-            z[0], z[1], plan.scale_r, plan.scale_l, plan.eps, plan.nominal, path.start,
+            (z[0], z[1]), plan.scale_r, plan.scale_l, plan.eps, plan.nominal, path.start,
             path.drive.track, HEADING_OFFSET[method], method == "exact", offset,  # type: ignore[attr-defined]
         )  # fmt: skip
 
@@ -299,6 +338,55 @@ def sample_poses(
 
     _map_chunks(run_chunk, starts, chunk, n, n_workers, progress)
     return out[:, 0, :] if cps is None else out
+
+
+def _sample_per_block(
+    path: DrivePath, model: dn.DriveErrorModel, n: int, rng: np.random.Generator, regime: str, method: str,
+    cps: list[int] | None, start_sqrt: NDArray[np.float64] | None, nom: _Nominal, plan: _Compiled | None,
+    workers: int, progress: Callable[[int, int], None] | None,
+) -> NDArray[np.float64]:  # fmt: skip
+    """:func:`sample_poses` with the ``"per-block"`` draws: by the compiled kernel (``plan``), or by
+    numpy from the same per-block numbers. The blocks are fixed; the chunks (whole blocks, each a
+    task of a thread) only share out the work."""
+    B = mc_kernel.DRAW_BLOCK
+    N = path.n_steps
+    key = mc_kernel.block_key(rng)
+    n_blocks = -(-n // B)
+    if n_blocks > 2**32:
+        raise ValueError(f"n must be at most {2**32 * B} for draws 'per-block', got {n}")
+    width = N if regime == "per_step" else 1
+    steps = _DRAWN_CHUNK_STEPS if plan is not None else CHUNK_ELEMENTS
+    per_chunk = max(1, steps // (N * B))
+    starts = list(range(0, n, per_chunk * B))
+    out = np.empty((n, 3) if cps is None else (n, len(cps), 3))
+
+    def run_chunk(j: int) -> None:
+        b0 = starts[j] // B
+        b1 = min(n_blocks, b0 + per_chunk)
+        if plan is not None:
+            mc_kernel.compiled_end_poses(
+                mc_kernel.BlockDraws(key, (b0, b1), regime == "per_run", start_sqrt), plan.scale_r, plan.scale_l,
+                plan.eps, plan.nominal, path.start, path.drive.track, HEADING_OFFSET[method], method == "exact",  # type: ignore[attr-defined]
+                out=out,
+            )  # fmt: skip
+            return
+        lo, hi = b0 * B, min(n, b1 * B)
+        z = np.empty((2, hi - lo, width))
+        z0 = None if start_sqrt is None else np.empty((hi - lo, 3))
+        for b in range(b0, b1):
+            a = b * B - lo
+            nb = min(B, n - b * B)
+            zb, z0b = mc_kernel.block_draws(key, b, nb, width, start_sqrt is not None)
+            z[:, a : a + nb] = zb
+            if z0 is not None:
+                z0[a : a + nb] = z0b
+        errors = dn.errors_from_normals(path.drive, path.u, model, z, regime)
+        offset = None if z0 is None or start_sqrt is None else z0 @ start_sqrt.T
+        poses = _chunk_poses(path, nom, errors, offset, method, cps)
+        out[lo:hi] = poses[:, 0] if cps is None else poses
+
+    _map_chunks(run_chunk, starts, per_chunk * B, n, workers, progress)
+    return out
 
 
 def _map_chunks(

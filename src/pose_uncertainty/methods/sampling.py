@@ -19,9 +19,10 @@ Two named regimes of odometry error:
 The differential drive is one drive among the others: :func:`sample_end_poses` is the
 front door that runs the trajectory's wheel travels (:func:`~pose_uncertainty.core.drives.wheel_path`)
 with the error model ``k = (k_r, k_l)`` through the Monte Carlo of every drive
-(:func:`.drive_sampling.sample_poses`: chunks of particles with one random stream each,
-so the same seed gives bit-identical output on any machine and for any number of
-threads; the end poses as the nominal path plus a small heading perturbation).
+(:func:`.drive_sampling.sample_poses`: chunks of particles with one random stream each, or
+for the compiled kernel blocks of particles with one stream each, so the same seed gives
+bit-identical output on any machine and for any number of threads; the end poses as the
+nominal path plus a small heading perturbation).
 """
 
 from __future__ import annotations
@@ -55,6 +56,7 @@ def sample_end_poses(
     workers: int | None = None,
     progress: Callable[[int, int], None] | None = None,
     kernel: str = "auto",
+    draws: str = "auto",
     cache: DrawCache | None = None,
 ) -> NDArray[np.float64]:
     """Noisy executions of a trajectory: the Monte Carlo ground truth of Method A's model.
@@ -68,7 +70,7 @@ def sample_end_poses(
     k_r, k_l : float [m] — error constants, ≥ 0 (wheel-travel variance per metre)
     n : int ≥ 1 — number of particles
     rng : numpy.random.Generator — the only source of randomness: one SFC64
-        stream per chunk of particles is spawned from its seed sequence
+        stream per chunk of particles (or per block, ``draws``) is spawned from its seed sequence
     regime : {"per_step", "per_run"} — see the module docstring
     method : {"exact", "euler", "euler_end", "midpoint"} — integration of each step
     checkpoints : sequence of int in [0, N], optional — step indices at which
@@ -81,10 +83,16 @@ def sample_end_poses(
     progress : callable, optional — ``progress(done, n)`` with the particles done so
         far, called from the calling thread after each chunk (default None: nothing)
     kernel : {"auto", "numpy", "compiled"} — the end poses by numpy (the reference) or by the
-        compiled loop of :mod:`.mc_kernel` (the same draws, equal up to rounding); ``"auto"``
+        compiled loop of :mod:`.mc_kernel` (on the same draws, equal up to rounding); ``"auto"``
         (default): compiled from :data:`.mc_kernel.MIN_PARTICLE_STEPS` particle-steps
+    draws : {"auto", "per-chunk", "per-block"} — the normals drawn by numpy per chunk of particles,
+        or per block of :data:`.mc_kernel.DRAW_BLOCK` particles from the block's own stream (inside
+        the compiled kernel; the numpy kernel takes the same numbers from numpy); ``"auto"``
+        (default): per block where the compiled kernel runs and no ``cache`` is given, else per
+        chunk (:func:`.drive_sampling.sample_poses`)
     cache : DrawCache, optional — the standard normals kept for the next call with
-        the same seed (:class:`.particles.DrawCache`; the output does not depend on it)
+        the same seed (:class:`.particles.DrawCache`; the output does not depend on it); per-chunk
+        draws only (``draws="auto"`` is then per chunk, ``"per-block"`` an error)
 
     Returns
     -------
@@ -95,5 +103,6 @@ def sample_end_poses(
     kl = float(check_nonnegative("k_l", k_l))
     return sample_poses(
         wheel_path(trajectory), DriveErrorModel(k=(kr, kl)), n, rng, regime=regime, method=method,
-        checkpoints=checkpoints, cov0=cov0, workers=workers, progress=progress, kernel=kernel, cache=cache,
+        checkpoints=checkpoints, cov0=cov0, workers=workers, progress=progress, kernel=kernel,
+        draws=draws, cache=cache,
     )  # fmt: skip
