@@ -108,6 +108,9 @@ DEFAULTS: dict[str, str] = {
     "map_alphas": "",
 }
 
+#: CSS of a control: its title wraps within the control's width (Bokeh keeps a title on one line).
+_WRAPPED_TITLE = ":host label { white-space: normal; overflow-wrap: anywhere; max-width: 290px; }"
+
 #: Grid points per axis of the banana's drawn boundary (its level is the run's logged one).
 _BANANA_GRID = 48
 #: Draws and grid points of the banana's boundary without a Monte Carlo (no logged level).
@@ -892,6 +895,9 @@ def make_document(doc: Any, initial: Mapping[str, str] | None = None, background
 
     save_btn.on_click(on_save)
     open_btn.on_click(on_open)
+
+    for f in fields.values():  # a long title wraps inside the controls' column, not over the views
+        f.stylesheets = [_WRAPPED_TITLE]
 
     def said(key: str) -> Any:
         return Div(text=f"<i>{html.escape(STATEMENTS[key])}</i>", name=f"statement-{key}", width=620)
