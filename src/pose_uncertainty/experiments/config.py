@@ -565,4 +565,6 @@ class RunConfig:
         drive_units = units_.pop("drive")
         if self.drive is not None:  # only when configured (the logged units of other runs are unchanged)
             units_["drive"] = drive_units
+        if "segments" not in self.trajectory:  # a tour's only, likewise
+            units_["trajectory"] = {k: u for k, u in units_["trajectory"].items() if k != "segments"}
         return units_
