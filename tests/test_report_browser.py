@@ -21,6 +21,7 @@ import json
 import math
 import re
 import shutil
+import urllib.parse
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -199,6 +200,10 @@ def test_report_reads_first_screen_and_opens_runs(chromium: str, tmp_path: Path,
     assert opened["templates_left"] == 0
     assert opened["tables"] == seen["closed_runs"]  # each run's parameters came in when opened
     assert after["body_scroll"] <= 0, f"with the runs open the page scrolls sideways by {after['body_scroll']} px"
+    # every link to another file (a companion page, the studies' results beside the report) leads to a file
+    files = {h.split("#")[0] for h in seen["other_pages"] if h.startswith("file:")}
+    assert any(f.endswith("/studies.json") for f in files), "the report does not link the studies' results"
+    assert [f for f in files if not Path(urllib.parse.unquote(urllib.parse.urlparse(f).path)).is_file()] == []
     # every run's figures are linked, every link leads to a page and an anchor that are there
     assert runs, "no run links to its figures"
     assert {p.resolve().as_uri() for p in (work / "reports/runs").glob("*.html")} == set(pages)
@@ -249,7 +254,7 @@ _PRINT_LAYOUT_JS = """(() => {
     images: [...document.images].filter(shown).length,
     // how many shown images carry each picture (a figure may be shown twice: the PDF keeps one image of it)
     pictures: Object.values([...document.images].filter(shown).reduce((n, i) => (n[i.src] = (n[i.src] || 0) + 1, n), {})),
-    run_details_shown: [...document.querySelectorAll('details.run, details.full, details.shared, ul.runs')].filter(shown).length,
+    run_details_shown: [...document.querySelectorAll('details.run, details.full, p.full, details.shared, ul.runs')].filter(shown).length,
     open_details: [...document.querySelectorAll('details[open]')].filter(shown).length,
   };
 })()"""
