@@ -252,7 +252,8 @@ def test_the_small_report_has_no_development_words_and_cites_its_sources(small_r
 
 def test_the_small_report_links_resolve_and_its_script_is_allowed(small_report: tuple[str, Path]) -> None:
     html, tmp = small_report
-    assert unresolved_links(html) == ["runs/S_small.html", "runs/S_small.html#run-S_small-r1",
+    assert unresolved_links(html) == ["runs/S_small.html", "runs/S_small.html#params-S_small",
+                                      "runs/S_small.html#run-S_small-r1",
                                       "runs/S_small.html#table-S_small"]  # not without a folder
     for page, text in report_pages(tmp / "r.html").items():
         assert unresolved_links(text, page.parent) == [], page
@@ -289,12 +290,15 @@ def test_a_runs_entry_links_its_figures_and_the_page_links_back(small_report: tu
     entry = entry[:entry.index("</li>")]
     assert '<a href="runs/S_small.html#run-S_small-r1"><b>r1</b>: 1 figure</a>' in entry
     assert "k_r = " in entry
-    # one run: every parameter it logged is the set's, in a table that is inert until opened
-    params = html[html.index('<details class="shared" id="params-S_small">'):]
-    params = params[:params.index("</details>")]
-    assert params.index("<template>") < params.index('<table class="kv">') < params.index("</template>")
-    assert "<tr><th>seed</th><td>5</td></tr>" in params
+    # one run: every parameter it logged is the set's, in a table on the set's page, which the report links
+    assert '<p class="small shared" id="params-S_small"><a href="runs/S_small.html#params-S_small">' in html
+    assert '<details class="shared"' not in html
+    assert '<details class="run"' not in html
     page = _companion(tmp)
+    params = page[page.index('<section id="params-S_small"'):]
+    params = params[:params.index("</section>")]
+    assert '<table class="kv">' in params
+    assert "<tr><th>seed</th><td>5</td></tr>" in params
     run = page[page.index('id="run-S_small-r1"'):]
     run = run[:run.index("</section>")]
     assert '<a href="../r.html#run-S_small-r1">' in run
