@@ -252,7 +252,7 @@ def test_the_small_report_has_no_development_words_and_cites_its_sources(small_r
 
 def test_the_small_report_links_resolve_and_its_script_is_allowed(small_report: tuple[str, Path]) -> None:
     html, tmp = small_report
-    assert unresolved_links(html) == ["runs/S_small.html", "runs/S_small.html#params-S_small",
+    assert unresolved_links(html) == ["S_small.csv", "runs/S_small.html", "runs/S_small.html#params-S_small",
                                       "runs/S_small.html#run-S_small-r1",
                                       "runs/S_small.html#table-S_small"]  # not without a folder
     for page, text in report_pages(tmp / "r.html").items():
@@ -279,7 +279,9 @@ def test_each_section_below_the_first_screen_is_laid_out_when_reached(small_repo
     assert body.count("<section") == body.count("</section>")
     css = html[html.index("<style>"):html.index("</style>")]
     assert re.search(r"section\.part \{ content-visibility: auto;", css)
-    assert re.search(r"@media print \{\n  section\.part \{ content-visibility: visible; \}", css)
+    # a skipped section's contents, measured while it stands at its placeholder size, do not spill over the next's
+    assert re.search(r"section\.part \{ content-visibility: auto; contain-intrinsic-size: auto \d+px; overflow: hidden; \}", css)
+    assert re.search(r"@media print \{\n  section\.part \{ content-visibility: visible; overflow: visible; \}", css)
 
 
 def test_a_runs_entry_links_its_figures_and_the_page_links_back(small_report: tuple[str, Path]) -> None:

@@ -217,6 +217,9 @@ def growth_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") -> Fi
 #: shows it at its own size (text at its size in points) with 2× the pixels, not shrunk from a row of 8
 CLOUD_POLAR_COLUMNS = 4
 CLOUD_POLAR_PANEL = 2.4
+#: The end poses drawn of each run's cloud at most (every k-th, in the logged order, which is the particles'
+#: index order): 500 show each cloud's shape, bent or not, as 1000 do, in 40 % fewer bytes of the figure
+CLOUD_POLAR_POINTS = 500
 
 
 def cloud_polar_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") -> Figure:
@@ -224,7 +227,9 @@ def cloud_polar_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") 
 
     One run a column, :data:`CLOUD_POLAR_COLUMNS` runs a row (at most 8 runs: the caller selects them), each run
     as two panels: above, the cloud in the plane with Method A's Pr-ellipse; below, the same cloud as bearing
-    ``atan2(y, x)`` [deg] against range ``√(x²+y²)`` [m] from the start, with the ellipse mapped alike.
+    ``atan2(y, x)`` [deg] against range ``√(x²+y²)`` [m] from the start, with the ellipse mapped alike. Of a
+    cloud of more than :data:`CLOUD_POLAR_POINTS` end poses every k-th is drawn, k the smallest that keeps at
+    most that many.
 
     Parameters
     ----------
@@ -242,6 +247,7 @@ def cloud_polar_figure(logs: Sequence[str | os.PathLike[str]], title: str = "") 
         axp = fig.add_subplot(rows, cols, top + cols)
         end, cov = run.poses[-1], run.covs[-1]
         cloud = run.end_poses if run.end_poses is not None else np.zeros((0, 3))
+        cloud = cloud[:: max(1, math.ceil(len(cloud) / CLOUD_POLAR_POINTS))]
         ax.scatter(cloud[:, 0], cloud[:, 1], s=1.0, color="0.3", alpha=0.4, linewidths=0, rasterized=True)
         pts = ellipse_polyline(cov[:2, :2], run.config.pr, end[:2], 200)
         ax.plot(pts[:, 0], pts[:, 1], color="red", lw=1.0)

@@ -691,6 +691,8 @@ def build_report(
     env.filters["img"] = lambda path, alt, eager=False: _img(path, alt, env.filters["datauri"], eager=eager)
     p = Path(out)
     p.parent.mkdir(parents=True, exist_ok=True)
+    for s in [*sets, *(loc or {}).get("sets", [])]:  # each set's table (its runs' seeds), linked from the report
+        s["table_href"] = _relative(Path(s["table"]), p.parent)
     # the companion pages first: the report never links to a page that is not there
     pages = write_run_pages(env, sets, (loc or {}).get("sets", []), p, p.parent / RUNS_DIR if runs_out is None else runs_out,
                             title=title)  # fmt: skip
