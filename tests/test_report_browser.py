@@ -185,7 +185,8 @@ def test_report_reads_first_screen_and_opens_runs(chromium: str, tmp_path: Path,
         runs = [h for h in seen["other_pages"] if "/reports/runs/" in h and "#" in h]
         landed, pages = [], {}
         for page in sorted({h.split("#")[0] for h in runs}):
-            link = next(h for h in runs if h.startswith(page + "#"))  # the page's first run, as a reader follows it
+            # the page's first run (or figure), as a reader follows it; not the set's full table or parameters
+            link = next(h for h in runs if h.startswith(page + "#") and not re.search(r"#(table|params)-", h))
             cdp.navigate(link, timeout=120)
             landed.append((link, cdp.call("Runtime.evaluate", expression=_LANDED_JS, awaitPromise=True,
                                           returnByValue=True)["result"]["value"]))  # fmt: skip
