@@ -393,7 +393,9 @@ def test_report_has_method_c_and_umbmark(quick: Path) -> None:
     html = (quick / "reports/comparison.html").read_text(encoding="utf-8")
     for sid in ("method-c", "umbmark", "fig-studies-umbmark"):
         assert f'id="{sid}"' in html, sid
-    assert re.search(r'<th colspan="\d">Method C \(sigma points\)</th>', html)  # its group in the full tables
+    # its group in the full tables (on the sets' pages, reports/runs/<set>.html)
+    full = "".join(p.read_text(encoding="utf-8") for p in (quick / "reports/runs").glob("*.html"))
+    assert re.search(r'<th colspan="\d">Method C \(sigma points\)</th>', full)
     run = sweep.expand_all(sweep.validate_config(_config("quick.yaml"), SCHEMA))["L_straight"][-1]
     row = next(r for r in read_table(quick / "reports/tables/L_straight.csv") if r["run"] == run.id)
     metrics = open_run(quick / run.path).metrics
@@ -464,7 +466,9 @@ def test_report_shows_per_rule_times_and_reproducibility(quick: Path) -> None:
     assert "<th>environment_lock_sha256</th>" in html
     assert lock in html
     assert "log(s) differ" not in html
-    assert "pose-uncertainty replay data/runs/A1_shape/" in html
+    # each run's replay command in its section of its set's page, which the report's reproducibility section names
+    assert "pose-uncertainty replay data/runs/A1_shape/" in (quick / "reports/runs/A1_shape.html").read_text(encoding="utf-8")
+    assert '<a href="tables/A1_shape.csv">A1_shape</a>' in html  # the table with each run's seed
 
 
 def test_snakemake_report_archive(quick: Path) -> None:

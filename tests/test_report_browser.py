@@ -21,6 +21,7 @@ import json
 import math
 import re
 import shutil
+import urllib.parse
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -157,7 +158,9 @@ _LANDED_JS = """(async () => {
   imgs.forEach(i => { i.loading = 'eager'; });  // as if the reader scrolled to each one
   const res = await Promise.all(imgs.map(i => i.decode().then(() => i.naturalWidth, () => -1)));
   return { top: top, n: imgs.length, failed: imgs.filter((_, k) => res[k] <= 0).map(i => i.alt),
-           in_run: target ? target.querySelectorAll('img').length : 0 };
+           in_run: target ? target.querySelectorAll('img').length : 0,
+           // the runs' parameters: the set's shared ones, each run's own (a set of one run has only the former)
+           params: document.querySelectorAll('table.kv').length };
 })()"""
 
 
@@ -182,7 +185,8 @@ def test_report_reads_first_screen_and_opens_runs(chromium: str, tmp_path: Path,
         runs = [h for h in seen["other_pages"] if "/reports/runs/" in h and "#" in h]
         landed, pages = [], {}
         for page in sorted({h.split("#")[0] for h in runs}):
-            link = next(h for h in runs if h.startswith(page + "#"))  # the page's first run, as a reader follows it
+            # the page's first run (or figure), as a reader follows it; not the set's full table or parameters
+            link = next(h for h in runs if h.startswith(page + "#") and not re.search(r"#(table|params)-", h))
             cdp.navigate(link, timeout=120)
             landed.append((link, cdp.call("Runtime.evaluate", expression=_LANDED_JS, awaitPromise=True,
                                           returnByValue=True)["result"]["value"]))  # fmt: skip
@@ -195,10 +199,15 @@ def test_report_reads_first_screen_and_opens_runs(chromium: str, tmp_path: Path,
     assert seen["body_scroll"] <= 0, f"the page scrolls sideways by {seen['body_scroll']} px"
     assert seen["unresolved"] == [], seen["unresolved"]
     assert seen["no_alt"] == 0
-    assert seen["closed_runs"] > 0
+    # a run without figures keeps its parameters in the report, in a <details> filled when opened; the others
+    # are on their set's page (below)
     assert opened["templates_left"] == 0
     assert opened["tables"] == seen["closed_runs"]  # each run's parameters came in when opened
     assert after["body_scroll"] <= 0, f"with the runs open the page scrolls sideways by {after['body_scroll']} px"
+    # every link to another file (a companion page, the studies' results beside the report) leads to a file
+    files = {h.split("#")[0] for h in seen["other_pages"] if h.startswith("file:")}
+    assert any(f.endswith("/studies.json") for f in files), "the report does not link the studies' results"
+    assert [f for f in files if not Path(urllib.parse.unquote(urllib.parse.urlparse(f).path)).is_file()] == []
     # every run's figures are linked, every link leads to a page and an anchor that are there
     assert runs, "no run links to its figures"
     assert {p.resolve().as_uri() for p in (work / "reports/runs").glob("*.html")} == set(pages)
@@ -218,6 +227,8 @@ def test_report_reads_first_screen_and_opens_runs(chromium: str, tmp_path: Path,
         assert -1 <= at["top"] < 900, f"{link}: its target starts at {at['top']} px, not at the top of the window"
         assert at["in_run"] > 0, f"{link}: no figure at the run or figure followed"
         assert at["failed"] == [], f"{link}: images that did not decode: {at['failed']}"
+        if "#run-" in link:  # an experiment set's page (a localization set's runs log no parameter table)
+            assert at["params"] > 0, f"{link}: no table of the runs' parameters on the page"
     errors = [e["params"] for e in cdp.events
               if (e["method"] == "Runtime.consoleAPICalled" and e["params"]["type"] in ("error", "assert", "warning"))
               or (e["method"] == "Log.entryAdded" and e["params"]["entry"]["level"] in ("error", "warning"))
@@ -249,7 +260,7 @@ _PRINT_LAYOUT_JS = """(() => {
     images: [...document.images].filter(shown).length,
     // how many shown images carry each picture (a figure may be shown twice: the PDF keeps one image of it)
     pictures: Object.values([...document.images].filter(shown).reduce((n, i) => (n[i.src] = (n[i.src] || 0) + 1, n), {})),
-    run_details_shown: [...document.querySelectorAll('details.run, details.full, details.shared, ul.runs')].filter(shown).length,
+    run_details_shown: [...document.querySelectorAll('details.run, details.full, p.full, details.shared, p.shared, ul.runs')].filter(shown).length,
     open_details: [...document.querySelectorAll('details[open]')].filter(shown).length,
   };
 })()"""

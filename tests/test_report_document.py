@@ -252,7 +252,9 @@ def test_the_small_report_has_no_development_words_and_cites_its_sources(small_r
 
 def test_the_small_report_links_resolve_and_its_script_is_allowed(small_report: tuple[str, Path]) -> None:
     html, tmp = small_report
-    assert unresolved_links(html) == ["runs/S_small.html", "runs/S_small.html#run-S_small-r1"]  # not without a folder
+    assert unresolved_links(html) == ["S_small.csv", "runs/S_small.html", "runs/S_small.html#params-S_small",
+                                      "runs/S_small.html#run-S_small-r1",
+                                      "runs/S_small.html#table-S_small"]  # not without a folder
     for page, text in report_pages(tmp / "r.html").items():
         assert unresolved_links(text, page.parent) == [], page
         script = re.search(r"<script>(.*?)</script>", text, re.DOTALL)
@@ -277,7 +279,9 @@ def test_each_section_below_the_first_screen_is_laid_out_when_reached(small_repo
     assert body.count("<section") == body.count("</section>")
     css = html[html.index("<style>"):html.index("</style>")]
     assert re.search(r"section\.part \{ content-visibility: auto;", css)
-    assert re.search(r"@media print \{\n  section\.part \{ content-visibility: visible; \}", css)
+    # a skipped section's contents, measured while it stands at its placeholder size, do not spill over the next's
+    assert re.search(r"section\.part \{ content-visibility: auto; contain-intrinsic-size: auto \d+px; overflow: hidden; \}", css)
+    assert re.search(r"@media print \{\n  section\.part \{ content-visibility: visible; overflow: visible; \}", css)
 
 
 def test_a_runs_entry_links_its_figures_and_the_page_links_back(small_report: tuple[str, Path]) -> None:
@@ -288,13 +292,17 @@ def test_a_runs_entry_links_its_figures_and_the_page_links_back(small_report: tu
     entry = entry[:entry.index("</li>")]
     assert '<a href="runs/S_small.html#run-S_small-r1"><b>r1</b>: 1 figure</a>' in entry
     assert "k_r = " in entry
-    # one run: every parameter it logged is the set's, in a table that is inert until opened
-    params = html[html.index('<details class="shared" id="params-S_small">'):]
-    params = params[:params.index("</details>")]
-    assert params.index("<template>") < params.index('<table class="kv">') < params.index("</template>")
-    assert "<tr><th>seed</th><td>5</td></tr>" in params
+    # one run: every parameter it logged is the set's, in a table on the set's page, which the report links
+    assert '<p class="small shared" id="params-S_small"><a href="runs/S_small.html#params-S_small">' in html
+    assert '<details class="shared"' not in html
+    assert '<details class="run"' not in html
     page = _companion(tmp)
-    run = page[page.index('id="run-S_small-r1"'):page.index("</section>")]
+    params = page[page.index('<section id="params-S_small"'):]
+    params = params[:params.index("</section>")]
+    assert '<table class="kv">' in params
+    assert "<tr><th>seed</th><td>5</td></tr>" in params
+    run = page[page.index('id="run-S_small-r1"'):]
+    run = run[:run.index("</section>")]
     assert '<a href="../r.html#run-S_small-r1">' in run
     assert 'id="fig-S_small-r1-trajectory"' in run
     assert re.search(r'<h1>Chassis: each run.s figures</h1>', page)
@@ -302,9 +310,30 @@ def test_a_runs_entry_links_its_figures_and_the_page_links_back(small_report: tu
     assert page[page.index("<style>"):page.index("</style>")] == html[html.index("<style>"):html.index("</style>")]
 
 
+def test_the_full_table_is_on_the_sets_page_one_link_away(small_report: tuple[str, Path]) -> None:
+    """A set with a companion page: the report links its full table there (every byte of the report is loaded
+    before its first paint), and the page holds it: every measure of the set, a row per run linking its section."""
+    html, tmp = small_report
+    from pose_uncertainty.core.table_io import read_table
+
+    rows = [{"m": r} for r in read_table(tmp / "S_small.csv")]
+    n_columns = len(rp._columns_with_data(rows, rp.RUN_COLUMNS))  # the run's measures with a value (no maps)
+    assert n_columns > 10
+    assert '<details class="full">' not in html
+    link = re.search(r'<p class="full small"><a href="([^"#]+)#([^"]+)">Full table: all (\d+) measures of the 1 runs</a>', html)
+    assert link, "no link to the set's full table"
+    assert (link.group(1), link.group(2), int(link.group(3))) == ("runs/S_small.html", "table-S_small", n_columns)
+    page = _companion(tmp)
+    table = page[page.index('<section id="table-S_small"'):]
+    table = table[:table.index("</section>")]
+    assert len(re.findall(r"<th>", table.split("</thead>")[0])) == n_columns  # the second header row: a measure each
+    assert '<td><a href="#run-S_small-r1">r1</a></td>' in table
+    assert 'id="run-S_small-r1"' in page
+
+
 def test_the_small_reports_tables_and_images(small_report: tuple[str, Path]) -> None:
     html, tmp = small_report
-    summary = html[html.index("<h3>Comparison per run</h3>"):html.index('<details class="full">')]
+    summary = html[html.index("<h3>Comparison per run</h3>"):html.index('class="full')]
     heads = re.findall(r"<th>", summary.split("</thead>")[0])
     assert 2 <= len(heads) <= 10
     assert '<table class="nums">' in summary  # every cell but the run's a number, right-aligned

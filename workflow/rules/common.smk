@@ -81,6 +81,7 @@ REPORT_TEMPLATE = "pose_uncertainty/present/templates/comparison.html.j2"
 SWEEP_TEMPLATE = "pose_uncertainty/present/templates/sweep_summary.html.j2"  # included by it
 SKALKA_TEMPLATE = "pose_uncertainty/present/templates/skalka.html.j2"  # included by it
 RUNS_TEMPLATE = "pose_uncertainty/present/templates/runs.html.j2"  # the companion pages of the runs' figures
+FULL_TABLE_TEMPLATE = "pose_uncertainty/present/templates/full_table.html.j2"  # included by both: a set's full table
 STYLE_SHEET = "pose_uncertainty/present/templates/report.css"  # included by the report and its companion pages
 
 

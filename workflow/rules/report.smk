@@ -4,7 +4,7 @@
 
 # the report's templates (they ship with the package, present/templates): hashed with its code, so editing one
 # rebuilds the report and its companion pages
-REPORT_TEMPLATES = (REPORT_TEMPLATE, ROBOTS_TEMPLATE, SWEEP_TEMPLATE, SKALKA_TEMPLATE, RUNS_TEMPLATE, STYLE_SHEET)
+REPORT_TEMPLATES = (REPORT_TEMPLATE, ROBOTS_TEMPLATE, SWEEP_TEMPLATE, SKALKA_TEMPLATE, RUNS_TEMPLATE, FULL_TABLE_TEMPLATE, STYLE_SHEET)
 
 
 rule evaluate_claims:

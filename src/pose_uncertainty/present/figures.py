@@ -40,6 +40,7 @@ from ..methods import covariance
 from ..methods.maps import ProbabilityMap
 
 __all__ = [
+    "CRISP_RC",
     "FORMATS",
     "HIDPI",
     "METHOD_COLOURS",
@@ -76,6 +77,13 @@ _RC: dict[str, Any] = {
     "pdf.fonttype": 42,
     "path.simplify": False,
 }
+#: How the report's own figures (set, study and localization-set figures: :func:`save_figure_of_kind`,
+#: ``pipeline_figures.render_study_figure``) are drawn: text, lines and patches without anti-aliasing. Their PNGs
+#: hold 2× the pixels they are shown at (:data:`HIDPI`): a 1× screen averages each 2 × 2 block, which smooths the
+#: edges as anti-aliasing would, and a 2× screen shows them pixel for pixel; the edges' intermediate shades are
+#: what made a palette WebP large (the report's 13 figures, ~30 % of their bytes; the report is loaded whole
+#: before its first paint)
+CRISP_RC: dict[str, Any] = {"text.antialiased": False, "lines.antialiased": False, "patch.antialiased": False}
 #: One colour per method in every figure and in the report's text (Okabe–Ito: told apart with any
 #: colour vision): Method A vermillion, Method B bluish green, Method C reddish purple, the
 #: exponential-coordinates Gaussian blue, Monte Carlo grey; sky blue for what a sample itself gives
@@ -524,14 +532,16 @@ def save_figure(fig: Figure, path: str | os.PathLike[str]) -> Path:
 def save_figure_of_kind(
     kind: str, builders: Mapping[str, Callable[[], Figure]], out: str | os.PathLike[str]
 ) -> Path:
-    """Draw the figure of ``kind`` with its builder and save it to ``out`` (its folder created).
+    """Draw the figure of ``kind`` with its builder (without anti-aliasing, :data:`CRISP_RC`) and save it to
+    ``out`` (its folder created).
 
     ``builders`` maps each allowed kind to a function drawing that figure; another ``kind``
     is a ValueError naming it and the allowed kinds.
     """
     if kind not in builders:
         raise ValueError(f"set figure kind must be one of {tuple(builders)}, got {kind!r}")
-    fig = builders[kind]()
+    with mpl.rc_context(CRISP_RC):  # type: ignore[arg-type]  # artists take their anti-aliasing from rcParams when they are made
+        fig = builders[kind]()
     Path(out).parent.mkdir(parents=True, exist_ok=True)
     return save_figure(fig, out)
 

@@ -8,7 +8,7 @@
 * ``reports/claims.json`` — the claims, the method guide and the Method C summary
   (:func:`pose_uncertainty.pipeline.claims.write_claims`);
 * ``reports/studies.json`` — the studies' logged results and the numbers their text
-  quotes (:func:`pose_uncertainty.experiments.study.collect_studies`);
+  quotes (:func:`pose_uncertainty.experiments.study.collect_studies`; the report links the file, beside it);
 * ``reports/pipeline.json`` — provenance read from every log, seeds and per-rule
   times (:func:`pose_uncertainty.pipeline.summary.summarize_pipeline`);
 * the runs with a drive section, arranged by drive and path for the section "Beyond the
@@ -21,8 +21,8 @@
   re-encoded as lossless WebP, the same pixels in about 20 % fewer bytes) and the speed
   benchmarks' result files when ``make bench`` has written them.
 
-The report holds the set, study, localization and robot figures; each run's own figures are on
-its set's companion page, ``reports/runs/<set>.html`` (:func:`write_run_pages`: self-contained too,
+The report holds the set, study, localization and robot figures; each run's own figures, and the set's
+full table of every measure, are on its set's companion page, ``reports/runs/<set>.html`` (:func:`write_run_pages`: self-contained too,
 one anchor per run, linked from the run's entry in the report and back). A browser reads a whole
 HTML file before its first paint, so the report stays near 1 MB however many runs there are.
 
@@ -370,18 +370,6 @@ def read_speed_results(directory: str | os.PathLike[str]) -> list[dict[str, Any]
     return out
 
 
-def _abridged(node: Any, limit: int = 12) -> Any:
-    """A JSON document with each list of more than ``limit`` items (a cloud of points, a polyline) replaced by
-    a note of its length: what the report prints of the studies' results (the file keeps them whole)."""
-    if isinstance(node, Mapping):
-        return {k: _abridged(v, limit) for k, v in node.items()}
-    if isinstance(node, list):
-        if len(node) > limit:
-            return f"[{len(node)} items: see reports/studies.json]"
-        return [_abridged(v, limit) for v in node]
-    return node
-
-
 def _read_json(path: str | os.PathLike[str] | None) -> Any:
     if path is None or not Path(path).is_file():
         return None
@@ -599,6 +587,7 @@ def write_run_pages(
 
     One self-contained page (images inlined, the report's stylesheet, no network) per set whose runs have
     figures: ``<set>.html`` for an experiment set, ``localization-<set>.html`` for a localization set, with
+    an experiment set's full table (``table-<set>``, template ``full_table.html.j2``: the report links it) and
     one anchor per run (``run-<set>-<run>``, ``loc-run-<set>-<run>``: the ids of the runs' entries in the
     report, which link to them) and links back to the report.
 
@@ -702,6 +691,8 @@ def build_report(
     env.filters["img"] = lambda path, alt, eager=False: _img(path, alt, env.filters["datauri"], eager=eager)
     p = Path(out)
     p.parent.mkdir(parents=True, exist_ok=True)
+    for s in [*sets, *(loc or {}).get("sets", [])]:  # each set's table (its runs' seeds), linked from the report
+        s["table_href"] = _relative(Path(s["table"]), p.parent)
     # the companion pages first: the report never links to a page that is not there
     pages = write_run_pages(env, sets, (loc or {}).get("sets", []), p, p.parent / RUNS_DIR if runs_out is None else runs_out,
                             title=title)  # fmt: skip
@@ -726,10 +717,10 @@ def build_report(
         studies=studies["studies"],
         summary=studies["summary"],
         studies_figures={k: str(v) for k, v in (studies_figures or {}).items() if Path(v).is_file()},
-        # compact, and without the long arrays (clouds, polylines: reports/studies.json has them): every
-        # byte of the file is loaded before its first paint
-        studies_json=json.dumps(_abridged(studies["studies"]), sort_keys=True, separators=(", ", ": "))
-        if studies["studies"] else "",
+        # the studies' whole results: the file beside the report, linked (every byte of the report is loaded
+        # before its first paint; the results as JSON were a tenth of it)
+        studies_href=_relative(Path(studies_path), p.parent) if studies_path is not None and Path(studies_path).is_file()
+        else "",
         localization=loc,
         pages=pages,  # the companion pages of the runs' figures (write_run_pages)
         skalka=skalka_sections(studies),  # Skalka 2011's techniques (template skalka.html.j2)

@@ -31,11 +31,12 @@ import numpy as np
 from ..core.atomic import atomic_write_bytes, atomic_write_text
 from ..core.kinematics import integrate
 from ..core.provenance import provenance
+from ..present.figures import CRISP_RC
 from .align import AlignedRecording, align
 from .bag import read_bag
 from .config import RobotConfig
 from .exports import nav2_amcl_yaml, robot_localization_yaml, ros2_control_yaml
-from .figures import DPI, growth_figure, horizon_figure, path_figure
+from .figures import DPI, growth_figure, horizon_figure, path_figure, plt
 from .fit import calibrate_aligned
 from .geometry_fit import nominal_from_odometry
 from .horizon import horizon
@@ -192,9 +193,10 @@ def calibrate_bag(
         "Uncertainty horizon": lambda dpi: horizon_figure(hz, dpi),
     }
     figures = {name: fn(DPI) for name, fn in draw.items()}
-    if figure_files:
-        for name, fn in draw.items():
-            atomic_write_bytes(out / FIGURE_FILES[name], fn(2 * DPI))
+    if figure_files:  # for the pipeline's report, at 2× and without anti-aliasing, as its own figures (CRISP_RC)
+        with plt.rc_context(CRISP_RC):  # type: ignore[arg-type]
+            for name, fn in draw.items():
+                atomic_write_bytes(out / FIGURE_FILES[name], fn(2 * DPI))
     atomic_write_text(out / "calibration.json", json.dumps(cal, indent=2, default=float) + "\n")
     atomic_write_text(out / "ros2_control.yaml", ros2_control_yaml(q, nominal, cfg.nominal_speed, cfg.update_rate,
                                                                    cfg.covariance_distance))  # fmt: skip
