@@ -109,6 +109,34 @@ def test_ray_casting_equals_the_analytic_distance_to_boxes(rng):
     assert S.cast_rays(g, [[-0.95, 0.55]], [0.3], 4.0).tolist() == [0.0]
 
 
+def test_ray_casting_from_the_grid_equals_the_general_traversal(rng):
+    # the traversal of rays that start on the grid (one look-up in the grid padded by a ring of
+    # off-grid cells) against the general one (bounds and directions checked at every cell), on the
+    # same rays: the same distances to the last bit, axis-aligned rays and ranges past the grid included;
+    # and cast_rays, which splits rays starting off the grid to the general one, agrees with it too
+    occ = rng.random((37, 23)) < 0.04
+    g = W.OccupancyGrid(occ, ~occ, 0.1, np.array([-1.0, 0.5]))
+    n = 4000
+    origins = np.column_stack([rng.uniform(-1.5, 3.2, n), rng.uniform(0.0, 3.3, n)])  # some off the grid
+    angles = rng.uniform(-4.0, 4.0, n)
+    angles[:400] = rng.choice([0.0, math.pi / 2, math.pi, -math.pi / 2, 2 * math.pi], 400)
+    for max_range in (0.25, 2.0, 50.0):
+        t_max = max_range / g.resolution
+        s = S._dda_init(g, origins[:, 0], origins[:, 1], angles)
+        inner = (s["i"] >= 0) & (s["i"] < g.shape[0]) & (s["j"] >= 0) & (s["j"] < g.shape[1])
+        assert inner.any()
+        assert (~inner).any()
+        general, fast = np.full(n, t_max), np.full(n, t_max)
+        S._traverse(g, s, t_max, general)
+        S._traverse_from_inside(g, {k: a[inner] for k, a in s.items()}, t_max, fast)
+        assert fast[inner].tobytes() == general[inner].tobytes()
+        assert np.all(fast[~inner] == t_max)  # untouched
+        got = S.cast_rays(g, origins, angles, max_range)
+        assert got.tobytes() == (np.minimum(general, t_max) * g.resolution).tobytes()
+        assert np.any(general[inner] < t_max)
+        assert np.any(general[inner] == t_max)
+
+
 def test_beam_model_is_a_probability_distribution():
     sen = S.BeamSensor(max_range=5.0, sigma_hit=0.2, lambda_short=0.8, z_hit=0.7, z_short=0.1, z_max=0.1, z_rand=0.1)
     for zs in (0.0, 0.3, 2.5, 4.9, 5.0):

@@ -81,7 +81,9 @@ def _bilinear(f: Array, grid: OccupancyGrid, ex: Array, ey: Array) -> Array:
     a, b = u - i, v - j
     x0, x1, y0, y1 = grid.extent()
     off = (ex < x0) | (ex > x1) | (ey < y0) | (ey > y1)
-    val = (1 - a) * (1 - b) * f[i, j] + a * (1 - b) * f[i + 1, j] + (1 - a) * b * f[i, j + 1] + a * b * f[i + 1, j + 1]
+    flat, k = f.ravel(), i * ny + j  # the four corners by flat indices, each weight's factors formed once
+    a1, b1 = 1 - a, 1 - b
+    val = a1 * b1 * flat[k] + a * b1 * flat[k + ny] + a1 * b * flat[k + 1] + a * b * flat[k + ny + 1]
     return np.asarray(np.where(off, f.min(), val), dtype=np.float64)
 
 
@@ -139,9 +141,12 @@ def correlative_match(field: ArrayLike, grid: OccupancyGrid, z: ArrayLike, senso
     off_th = np.arange(-round(w_th / d_th), round(w_th / d_th) + 1) * d_th
     X, Y, T = np.meshgrid(p0[0] + off_xy, p0[1] + off_xy, p0[2] + off_th, indexing="ij")
     cand = np.stack([X.ravel(), Y.ravel(), T.ravel()], axis=-1)  # (C, 3)
-    ang = cand[:, 2:3] + sensor.angles[hit]  # (C, B)
-    ex = cand[:, 0:1] + zz[hit] * np.cos(ang)
-    ey = cand[:, 1:2] + zz[hit] * np.sin(ang)
+    # the beams' offsets depend on the candidate's θ only: formed once per θ (K, B), then repeated over the
+    # candidates (θ is the fastest axis of cand), the same numbers as per candidate
+    ang = (p0[2] + off_th)[:, None] + sensor.angles[hit]  # (K, B)
+    reps = (cand.shape[0] // off_th.size, 1)
+    ex = cand[:, 0:1] + np.tile(zz[hit] * np.cos(ang), reps)
+    ey = cand[:, 1:2] + np.tile(zz[hit] * np.sin(ang), reps)
     score = _bilinear(f, grid, ex, ey).sum(axis=1)
     best = int(np.argmax(score))
     p = np.exp(score - score[best])

@@ -220,7 +220,8 @@ def line_entity(upd: Any, eid: str, t_ns: int, kind: int, pts: NDArray[np.float6
     line = e.lines.add(type=kind, thickness=width)  # type: ignore[arg-type]
     yaw(line.pose.orientation, 0.0)
     color(line.color, rgba)
-    line.points.extend([Point3(x=float(x), y=float(y)) for x, y in pts])
+    # the rows as Python floats in one call (what float() of each element gives, without a numpy scalar each)
+    line.points.extend([Point3(x=x, y=y) for x, y in np.asarray(pts, dtype=np.float64).tolist()])
     return e
 
 
