@@ -33,11 +33,12 @@ quick: $(STAMP)
 	$(LOCKED) $(BIN)/snakemake --profile workflow/profiles/default --cores $(CORES) --configfile config/quick.yaml
 
 # the whole suite on TEST_PROCESSES processes (pytest-xdist; a module's tests on one, tests/conftest.py)
+# (the 25 longest test phases listed at the end: where the time goes, in CI logs too)
 TEST_PROCESSES ?= 2
 
 test: $(STAMP)
 	$(COMPILE)
-	$(BIN)/python -m pytest -n $(TEST_PROCESSES) --dist loadscope
+	$(BIN)/python -m pytest -n $(TEST_PROCESSES) --dist loadscope --durations=25
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks workflow/scripts

@@ -35,6 +35,7 @@ from PIL import Image, PngImagePlugin
 
 from .. import __version__
 from ..core.atomic import atomic_write_bytes
+from ..core.figure_style import CRISP_RC
 from ..experiments.run import RunResult
 from ..methods import covariance
 from ..methods.maps import ProbabilityMap
@@ -77,13 +78,6 @@ _RC: dict[str, Any] = {
     "pdf.fonttype": 42,
     "path.simplify": False,
 }
-#: How the report's own figures (set, study and localization-set figures: :func:`save_figure_of_kind`,
-#: ``pipeline_figures.render_study_figure``) are drawn: text, lines and patches without anti-aliasing. Their PNGs
-#: hold 2× the pixels they are shown at (:data:`HIDPI`): a 1× screen averages each 2 × 2 block, which smooths the
-#: edges as anti-aliasing would, and a 2× screen shows them pixel for pixel; the edges' intermediate shades are
-#: what made a palette WebP large (the report's 13 figures, ~30 % of their bytes; the report is loaded whole
-#: before its first paint)
-CRISP_RC: dict[str, Any] = {"text.antialiased": False, "lines.antialiased": False, "patch.antialiased": False}
 #: One colour per method in every figure and in the report's text (Okabe–Ito: told apart with any
 #: colour vision): Method A vermillion, Method B bluish green, Method C reddish purple, the
 #: exponential-coordinates Gaussian blue, Monte Carlo grey; sky blue for what a sample itself gives

@@ -29,9 +29,9 @@ from typing import Any
 import numpy as np
 
 from ..core.atomic import atomic_write_bytes, atomic_write_text
+from ..core.figure_style import CRISP_RC
 from ..core.kinematics import integrate
 from ..core.provenance import provenance
-from ..present.figures import CRISP_RC
 from .align import AlignedRecording, align
 from .bag import read_bag
 from .config import RobotConfig
